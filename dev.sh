@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# SymFrames developer entry point.  Creates .venv with the pinned
+# requirements on first use (Python 3.11), then:
+#   ./dev.sh demo [ARGS]   build the default example, compute it, write out/*.blend and a PNG
+#   ./dev.sh test [ARGS]   run the test suite (pytest ARGS)
+#   ./dev.sh bench [ARGS]  run the benchmarks
+#   ./dev.sh python ...    run the venv's python
+set -euo pipefail
+ROOT="$(cd "$(dirname "$0")" && pwd)"
+VENV="$ROOT/.venv"
+PY="${PYTHON:-python3.11}"
+command -v "$PY" >/dev/null 2>&1 || PY=python3
+if [ ! -x "$VENV/bin/python" ] || ! cmp -s "$ROOT/requirements.txt" "$VENV/.requirements"; then
+    echo "[dev.sh] creating $VENV with $("$PY" --version)" >&2
+    "$PY" -m venv "$VENV"
+    "$VENV/bin/python" -m pip install --quiet --upgrade pip
+    "$VENV/bin/python" -m pip install --quiet -r "$ROOT/requirements.txt"
+    cp "$ROOT/requirements.txt" "$VENV/.requirements"
+fi
+cmd="${1:-help}"
+shift || true
+cd "$ROOT"
+case "$cmd" in
+    demo)   exec "$VENV/bin/python" scripts/symframes_run.py "$@" ;;
+    test)   exec "$VENV/bin/python" -m pytest -q "$@" ;;
+    bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
+    python) exec "$VENV/bin/python" "$@" ;;
+    *) sed -n '2,9p' "$0"; exit 1 ;;
+esac

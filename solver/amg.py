@@ -1,0 +1,205 @@
+"""A small smoothed-aggregation algebraic multigrid (nodal, block size b).
+
+Only what SymFrames needs: SPD matrices whose unknowns come in blocks of b
+per node (b = 3 for a rotation vector per vertex), the near-null space of
+per-component constants, a V-cycle with damped block-Jacobi smoothing that
+is symmetric (so it can precondition CG), and right-hand sides with several
+columns.  Aggregation is a vectorised Luby maximal independent set on the
+distance-2 strength graph of the nodes, so setup is numpy work rather than a
+Python loop over vertices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+
+def _node_matrix(A: sp.csr_matrix, b: int) -> sp.csr_matrix:
+    """Frobenius norms of the b x b blocks of A."""
+    if b == 1:
+        return abs(A).tocsr()
+    C = A.tocoo()
+    n = A.shape[0] // b
+    M = sp.csr_matrix((C.data**2, (C.row // b, C.col // b)), shape=(n, n))
+    M.data = np.sqrt(M.data)
+    return M
+
+
+def _strength(N: sp.csr_matrix, theta: float) -> sp.csr_matrix:
+    C = N.tocoo()
+    d = np.sqrt(np.abs(N.diagonal()))
+    off = C.row != C.col
+    r, c, v = C.row[off], C.col[off], C.data[off]
+    strong = np.abs(v) >= theta * d[r] * d[c]
+    n = N.shape[0]
+    return sp.csr_matrix((np.ones(strong.sum()), (r[strong], c[strong])), shape=(n, n))
+
+
+def _mis(S: sp.csr_matrix, rng) -> np.ndarray:
+    """Maximal independent set of the graph S (Luby, vectorised)."""
+    n = S.shape[0]
+    w = rng.random(n)
+    state = np.zeros(n, np.int8)  # 0 undecided, 1 in set, -1 out
+    rows = np.repeat(np.arange(n), np.diff(S.indptr))
+    for _ in range(200):
+        und = state == 0
+        if not np.any(und):
+            break
+        vals = np.where(und[S.indices], w[S.indices], -1.0)
+        nb_max = np.full(n, -1.0)
+        if len(rows):
+            np.maximum.at(nb_max, rows, vals)
+        pick = und & (w > nb_max)
+        state[pick] = 1
+        hit = (S @ pick.astype(float)) > 0
+        state[und & hit & ~pick] = -1
+    state[state == 0] = 1
+    return state == 1
+
+
+def _aggregate(N: sp.csr_matrix, theta: float, rng) -> np.ndarray:
+    """Roots: a maximal independent set of the distance-2 strength graph;
+    each root takes its strong neighbours; the rest join an adjacent
+    aggregate."""
+    S = _strength(N, theta)
+    n = N.shape[0]
+    S2 = (S @ S + S).tocsr()
+    S2.setdiag(0)
+    S2.eliminate_zeros()
+    S2.data[:] = 1.0
+    roots = _mis(S2, rng)
+    agg = np.full(n, -1, dtype=np.int64)
+    agg[roots] = np.arange(roots.sum())
+    W = N.tocsr()
+    for _ in range(10):
+        left = agg < 0
+        if not np.any(left):
+            break
+        sub = W[left].multiply((~left).astype(float)[None, :]).tocsr()
+        has = np.diff(sub.indptr) > 0
+        if not np.any(has):
+            break
+        j = np.asarray(sub.argmax(axis=1)).ravel()
+        idx = np.nonzero(left)[0]
+        agg[idx[has]] = agg[j[has]]
+    left = agg < 0
+    agg[left] = agg.max() + 1 + np.arange(left.sum())
+    return agg
+
+
+def _block_diag_inv(A: sp.csr_matrix, b: int) -> np.ndarray:
+    n = A.shape[0] // b
+    if b == 1:
+        return (1.0 / A.diagonal()).reshape(n, 1, 1)
+    C = A.tocoo()
+    m = (C.row // b) == (C.col // b)
+    D = np.zeros((n, b, b))
+    np.add.at(D, (C.row[m] // b, C.row[m] % b, C.col[m] % b), C.data[m])
+    # an unknown the operator does not see (e.g. a rotation component the
+    # constraints forbid) has a zero pivot: regularise so the smoother ignores it
+    tr = np.einsum("nii->n", D)
+    D += (1e-10 * max(tr.max(), 1e-300) + 1e-8 * tr[:, None, None] / b) * np.eye(b)
+    return np.linalg.inv(D)
+
+
+def _apply_block(Dinv: np.ndarray, x: np.ndarray) -> np.ndarray:
+    n, b, _ = Dinv.shape
+    if b == 1:
+        return Dinv[:, 0, 0].reshape((-1,) + (1,) * (x.ndim - 1)) * x
+    xs = x.reshape((n, b) + x.shape[1:])
+    return np.einsum("nij,nj...->ni...", Dinv, xs).reshape(x.shape)
+
+
+@dataclass
+class Level:
+    A: sp.csr_matrix
+    P: sp.csr_matrix | None = None
+    PT: sp.csr_matrix | None = None
+    Dinv: np.ndarray | None = None
+    omega: float = 0.6
+
+
+@dataclass
+class AMG:
+    """Smoothed-aggregation hierarchy for an SPD matrix with block size b."""
+
+    levels: list = field(default_factory=list)
+    coarse_solver: object = None
+    block: int = 1
+
+    @classmethod
+    def build(cls, A: sp.spmatrix, block: int = 1, theta: float = 0.08, max_coarse: int = 600,
+              seed: int = 0) -> AMG:
+        rng = np.random.default_rng(seed)
+        A = sp.csr_matrix(A)
+        b = block
+        amg = cls(block=b)
+        while A.shape[0] > max_coarse * b and len(amg.levels) < 12:
+            n = A.shape[0] // b
+            Dinv = _block_diag_inv(A, b)
+            agg = _aggregate(_node_matrix(A, b), theta, rng)
+            nagg = int(agg.max()) + 1
+            if nagg >= 0.85 * n:
+                break
+            rows = (b * np.arange(n)[:, None] + np.arange(b)).reshape(-1)
+            cols = (b * agg[:, None] + np.arange(b)).reshape(-1)
+            T = sp.csr_matrix((np.ones(n * b), (rows, cols)), shape=(n * b, nagg * b))
+            rho = _spectral_radius(A, Dinv, rng)
+            w = 4.0 / (3.0 * rho)
+            AT = (A @ T).tocsr()
+            # P = (I - w D^-1 A) T, applying the block inverse column block by column block
+            DAT = _block_rows(Dinv, AT)
+            P = (T - w * DAT).tocsr()
+            P.eliminate_zeros()
+            amg.levels.append(Level(A=A, P=P, PT=P.T.tocsr(), Dinv=Dinv, omega=1.0 / rho))
+            A = (P.T @ (A @ P)).tocsr()
+        amg.levels.append(Level(A=A))
+        Ac = A.tocsc()
+        Ac = Ac + 1e-13 * abs(Ac.diagonal()).max() * sp.eye(Ac.shape[0], format="csc")
+        amg.coarse_solver = spla.splu(Ac)
+        return amg
+
+    def vcycle(self, b: np.ndarray, level: int = 0) -> np.ndarray:
+        L = self.levels[level]
+        if level == len(self.levels) - 1:
+            return self.coarse_solver.solve(b)
+        x = L.omega * _apply_block(L.Dinv, b)
+        r = b - L.A @ x
+        x += L.P @ self.vcycle(L.PT @ r, level + 1)
+        x += L.omega * _apply_block(L.Dinv, b - L.A @ x)
+        return x
+
+    @property
+    def n_levels(self) -> int:
+        return len(self.levels)
+
+    @property
+    def sizes(self) -> list:
+        return [lv.A.shape[0] for lv in self.levels]
+
+
+def _block_rows(Dinv: np.ndarray, M: sp.csr_matrix) -> sp.csr_matrix:
+    """diag(Dinv) @ M for a block-diagonal Dinv (n, b, b)."""
+    n, b, _ = Dinv.shape
+    if b == 1:
+        return sp.diags(Dinv[:, 0, 0]) @ M
+    rows = (b * np.arange(n)[:, None, None] + np.arange(b)[None, :, None])
+    cols = (b * np.arange(n)[:, None, None] + np.arange(b)[None, None, :])
+    Db = sp.csr_matrix((Dinv.reshape(-1), (np.broadcast_to(rows, Dinv.shape).reshape(-1),
+                                           np.broadcast_to(cols, Dinv.shape).reshape(-1))),
+                       shape=(n * b, n * b))
+    return Db @ M
+
+
+def _spectral_radius(A, Dinv, rng, iters=12):
+    x = rng.standard_normal(A.shape[0])
+    lam = 1.0
+    for _ in range(iters):
+        y = _apply_block(Dinv, A @ x)
+        lam = np.linalg.norm(y) / np.linalg.norm(x)
+        x = y / np.linalg.norm(y)
+    return lam * 1.05

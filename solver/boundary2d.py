@@ -1,0 +1,450 @@
+"""The 2D boundary cross field (§3) and its extrinsic lift (§3.4).
+
+Input: the boundary surface dK (outward), its sharp-feature graph, and the
+singular triangles (curve ends, sharp corners).  Output: a 2D Darboux
+derivative omega (one angle per boundary edge), the developed field, and the
+3D data the volume problem needs: a reference frame E0_i per boundary vertex
+(third axis = normal) and omega0_ij per boundary edge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.sparse import csgraph
+
+from .errors import TopologyError
+from .integrate import accumulate_along_tree
+from .features import FeatureGraph, corner_fan_links
+from .rotations import (
+    CUBE_GROUP,
+    best_adapted_frame,
+    exp_so3,
+    frame_from_axes,
+    log_so3,
+    minimal_rotation,
+    unwrap_rotvec,
+)
+from .trisurface import TriSurface
+
+
+def wrap(x, period=2 * np.pi):
+    """Map angles to (-period/2, period/2]."""
+    return x - period * np.round(x / period)
+
+
+@dataclass
+class VertexCoordinates:
+    """Local polar coordinates at every vertex (§2.3, Knöppel et al. 2013).
+
+    phi_corner : (#F, 3) angle at F[f,k] of the edge F[f,k] -> F[f,k+1]
+    theta_tilde: (#F, 3) normalised interior angles 2 pi theta / Theta_i
+    Theta      : (#V,) angle sum at each vertex
+    ref_corner : (#V,) corner (3f + k) whose outgoing edge has angle 0
+    """
+
+    phi_corner: np.ndarray
+    theta_tilde: np.ndarray
+    Theta: np.ndarray
+    ref_corner: np.ndarray
+
+
+def vertex_coordinates(S: TriSurface) -> VertexCoordinates:
+    F = S.F
+    nV = len(S.V)
+    theta = S.corner_angles
+    Theta = np.bincount(F.reshape(-1), weights=theta.reshape(-1), minlength=nV)
+    tt = 2 * np.pi * theta / Theta[F]
+    cw = corner_fan_links(S)  # clockwise neighbour
+    ccw = np.empty_like(cw)
+    ccw[cw] = np.arange(len(cw))  # counter-clockwise neighbour
+    # reference corner: the first corner of each vertex
+    flatv = F.reshape(-1)
+    ref = np.full(nV, -1, dtype=np.int64)
+    ref[flatv[::-1]] = np.arange(len(flatv))[::-1]
+    phi = np.full(len(flatv), np.nan)
+    used = ref >= 0
+    cur = ref[used]
+    phi[cur] = 0.0
+    ttf = tt.reshape(-1)
+    for _ in range(64):
+        nxt = ccw[cur]
+        fresh = np.isnan(phi[nxt])
+        if not np.any(fresh):
+            break
+        phi[nxt[fresh]] = phi[cur[fresh]] + ttf[cur[fresh]]
+        cur = nxt[fresh]
+    if np.any(np.isnan(phi)):
+        raise TopologyError("a boundary vertex has more than 64 neighbours; refine the surface more evenly")
+    return VertexCoordinates(phi.reshape(-1, 3), tt, Theta, ref)
+
+
+@dataclass
+class BoundaryField:
+    """Result of the 2D stage.
+
+    omega2d  : (#bE,) 2D Darboux derivative per boundary edge (low -> high id)
+    phi      : (#bV,) developed field angle at each vertex (normalised coords)
+    rho      : (#bE,) parallel transport angle (Eq. 5)
+    K        : (#bF,) Gaussian curvature per triangle (Eq. 4)
+    Omega    : (#bF,) prescribed singular angle per triangle
+    E0       : (#bV, 3, 3) extrinsic reference frames (third axis: normal)
+    omega0   : (#bE, 3) Darboux derivative of E0 (exact, large rotations kept)
+    normals  : (#bV, 3) vertex normals used
+    edge_normals : (#bE, 2, 3) normal used at each end of each edge in Eq. 20
+    is_feature_vertex : (#bV,) frames fully fixed there (sharp features)
+    features : FeatureGraph on the boundary
+    generators : list of ((component, k), edge ids, signs) loops used in Eq. 14
+    """
+
+    omega2d: np.ndarray
+    phi: np.ndarray
+    rho: np.ndarray
+    K: np.ndarray
+    Omega: np.ndarray
+    E0: np.ndarray
+    omega0: np.ndarray
+    normals: np.ndarray
+    edge_normals: np.ndarray
+    is_feature_vertex: np.ndarray
+    features: FeatureGraph
+    generators: list
+    constraint_residual: float
+
+
+def edge_angles(S: TriSurface, vc: VertexCoordinates):
+    """phi_ij and phi_ji (§2.3) for every edge i<j of S."""
+    F = S.F
+    nV = len(S.V)
+    a = F.reshape(-1)
+    b = np.roll(F, -1, axis=1).reshape(-1)
+    keys = a.astype(np.int64) * nV + b
+    order = np.argsort(keys)
+    E = S.edges
+    phi = vc.phi_corner.reshape(-1)
+    fwd = order[np.searchsorted(keys[order], E[:, 0] * nV + E[:, 1])]
+    bwd = order[np.searchsorted(keys[order], E[:, 1] * nV + E[:, 0])]
+    return phi[fwd], phi[bwd]
+
+
+def tree_cotree_generators(S: TriSurface, comp_faces: np.ndarray, root: int):
+    """Homology generators of one component as primal edge loops.
+
+    Returns a list of (edge ids, signs) where signs orient each edge along
+    the loop.
+    """
+    E = S.edges
+    nV = len(S.V)
+    fmask = np.zeros(len(S.F), bool)
+    fmask[comp_faces] = True
+    emask = np.zeros(len(E), bool)
+    emask[S.face_edges[comp_faces].reshape(-1)] = True
+    eids = np.nonzero(emask)[0]
+    A = sp.coo_matrix((np.ones(len(eids)), (E[eids, 0], E[eids, 1])), shape=(nV, nV))
+    A = (A + A.T).tocsr()
+    _, pred = csgraph.breadth_first_order(A, root, directed=False, return_predecessors=True)
+    in_tree = np.zeros(len(E), bool)
+    child = np.nonzero(pred >= 0)[0]
+    n = nV
+    keys = E[:, 0] * n + E[:, 1]
+    tkeys = np.minimum(child, pred[child]) * n + np.maximum(child, pred[child])
+    in_tree[np.searchsorted(keys, tkeys)] = True
+    # dual tree on faces through edges not in the primal tree
+    ef = S.edge_faces
+    dual = emask & ~in_tree
+    nF = len(S.F)
+    D = sp.coo_matrix((np.ones(dual.sum()), (ef[dual, 0], ef[dual, 1])), shape=(nF, nF))
+    D = (D + D.T).tocsr()
+    froot = comp_faces[0]
+    _, fpred = csgraph.breadth_first_order(D, froot, directed=False, return_predecessors=True)
+    in_cotree = np.zeros(len(E), bool)
+    fchild = np.nonzero(fpred >= 0)[0]
+    # the edge shared by a face and its dual parent
+    fe = S.face_edges
+    par = fpred[fchild]
+    same = (fe[fchild][:, :, None] == fe[par][:, None, :]).any(axis=2) & dual[fe[fchild]]
+    in_cotree[fe[fchild][np.arange(len(fchild)), np.argmax(same, axis=1)]] = True
+    left = np.nonzero(emask & ~in_tree & ~in_cotree)[0]
+    loops = []
+    for e in left:
+        u, v = E[e]
+        pu = _path_to_root(pred, u)
+        pv = _path_to_root(pred, v)
+        # trim the common tail
+        while len(pu) > 1 and len(pv) > 1 and pu[-2] == pv[-2]:
+            pu.pop()
+            pv.pop()
+        # loop: u -> v (edge e), v -> ... -> lca, lca -> ... -> u
+        verts = [u] + pv + pu[::-1][1:]
+        ids, signs = [], []
+        for x, y in zip(verts[:-1], verts[1:]):
+            k = np.searchsorted(keys, min(x, y) * n + max(x, y))
+            ids.append(k)
+            signs.append(1.0 if x < y else -1.0)
+        loops.append((np.array(ids), np.array(signs)))
+    return loops
+
+
+def _path_to_root(pred, v):
+    path = [int(v)]
+    while pred[path[-1]] >= 0:
+        path.append(int(pred[path[-1]]))
+    return path
+
+
+def solve_boundary_field(
+    S: TriSurface,
+    features: FeatureGraph,
+    face_sigma: np.ndarray,
+    generator_turns: dict | None = None,
+    normal_override: dict | None = None,
+) -> BoundaryField:
+    """Solve Eq. 15 with feature alignment, develop it, and lift it to 3D.
+
+    face_sigma : (#F,) index of curve ends per boundary triangle.
+    generator_turns : optional {(component, k): quarter turns} added to the
+        holonomy target of generator k of a component (Eq. 14).
+    normal_override : optional {vertex: unit vector} replacing the vertex
+        normal the 3D frame is adapted to (the curve tangent at curve ends).
+    """
+    F = S.F
+    E = S.edges
+    nV, nE, nF = len(S.V), len(E), len(F)
+    vc = vertex_coordinates(S)
+    phi_ij, phi_ji = edge_angles(S, vc)
+    rho = wrap(phi_ji + np.pi - phi_ij)  # Eq. 5
+    K = vc.theta_tilde.sum(axis=1) - np.pi  # Eq. 4
+    # singular triangles: curve ends and sharp corners (Fig. 11)
+    Omega = 2 * np.pi * np.asarray(face_sigma, dtype=float).copy()
+    cf = features.corner_faces()
+    np.add.at(Omega, cf, 2 * np.pi * features.vertex_index[features.corners])
+
+    # cotan weights (Eq. 12), floored: the 2D energy must stay positive
+    cot = 1.0 / np.tan(S.corner_angles)
+    w = np.zeros(nE)
+    for k in range(3):
+        # corner k is opposite the edge (k+1, k+2) = face_edges[:, (k+1) % 3]
+        np.add.at(w, S.face_edges[:, (k + 1) % 3], 0.5 * cot[:, k])
+    w = np.maximum(w, 0.05 * np.abs(w).mean())
+
+    # feature alignment: fixed omega on sharp edges between regular feature vertices
+    reg = features.is_regular_feature_vertex
+    beta = np.zeros(nV)
+    if np.any(features.sharp):
+        se = np.nonzero(features.sharp)[0]
+        z = np.zeros(nV, complex)
+        np.add.at(z, E[se, 0], np.exp(4j * phi_ij[se]))
+        np.add.at(z, E[se, 1], np.exp(4j * phi_ji[se]))
+        beta = np.angle(z) / 4.0
+    fixed = features.sharp & reg[E[:, 0]] & reg[E[:, 1]]
+    omega_fixed = wrap(beta[E[:, 1]] - beta[E[:, 0]] - rho, np.pi / 2)
+
+    # constraint rows: one per triangle (Eq. 13), minus one per component
+    ncomp, flab = S.face_components
+    sgn = S.face_edge_signs
+    rows = np.repeat(np.arange(nF), 3)
+    C = sp.csr_matrix((sgn.reshape(-1), (rows, S.face_edges.reshape(-1))), shape=(nF, nE))
+    b = -K + Omega
+    keep = np.ones(nF, bool)
+    for c in range(ncomp):
+        keep[np.nonzero(flab == c)[0][0]] = False
+    # generators (Eq. 14) for components of positive genus
+    chi = S.euler_characteristics()
+    generators = []
+    for c in range(ncomp):
+        if chi[c] >= 2:
+            continue
+        comp_faces = np.nonzero(flab == c)[0]
+        root = F[comp_faces[0], 0]
+        for k, loop in enumerate(tree_cotree_generators(S, comp_faces, root)):
+            generators.append(((c, k), loop))
+    free = ~fixed
+
+    def solve(rows, rhs):
+        """Smallest-norm free omega with rows @ omega = rhs (fixed edges moved
+        to the right-hand side), by the normal equations of the constraints."""
+        Cf = rows[:, free].tocsr()
+        r = rhs - rows[:, fixed] @ omega_fixed[fixed]
+        Winv = sp.diags(1.0 / w[free])
+        Sys = (Cf @ Winv @ Cf.T).tocsc()
+        Sys = Sys + 1e-12 * Sys.diagonal().mean() * sp.eye(Sys.shape[0])
+        y = spla.splu(Sys, permc_spec="MMD_AT_PLUS_A").solve(r)
+        out = np.zeros(nE)
+        out[free] = Winv @ (Cf.T @ y)
+        out[fixed] = omega_fixed[fixed]
+        return out
+
+    Cface = C[keep].tocsr()
+    bface = b[keep]
+    gen_rows, gen_rhs = [], []
+    if generators:
+        # Eq. 14 fixes the holonomy of the cross field along each generator to
+        # a multiple of a quarter turn; take the multiple nearest to the
+        # smoothest field without generator constraints (plus any requested
+        # extra turns, e.g. the parity correction of the pipeline)
+        omega1 = solve(Cface, bface)
+        for key, (ids, signs) in generators:
+            Phi0 = np.sum(signs * rho[ids])
+            H1 = Phi0 + np.sum(signs * omega1[ids])
+            turns = int(np.round(H1 / (np.pi / 2)))
+            if generator_turns is not None:
+                turns += generator_turns.get(key, 0)
+            row = np.zeros(nE)
+            np.add.at(row, ids, signs)
+            gen_rows.append(row)
+            gen_rhs.append(-Phi0 + turns * np.pi / 2)
+        Call = sp.vstack([Cface, sp.csr_matrix(np.array(gen_rows))]).tocsr()
+        ball = np.r_[bface, gen_rhs]
+    else:
+        Call, ball = Cface, bface
+    omega = solve(Call, ball)
+    generators = [(key, ids, signs) for key, (ids, signs) in generators]
+    res = np.abs(C @ omega - b)
+    if gen_rows:
+        res = np.r_[res, np.abs(np.array(gen_rows) @ omega - np.array(gen_rhs))]
+    worst = float(res.max()) if len(res) else 0.0
+    if worst > 1e-6:
+        f = int(np.argmax(np.abs(C @ omega - b)))
+        c = S.V[F[f]].mean(axis=0)
+        raise TopologyError(
+            "the boundary cross field cannot satisfy the singularities and sharp features together "
+            f"(worst mismatch {np.degrees(worst):.3g} degrees near ({c[0]:.3g}, {c[1]:.3g}, {c[2]:.3g})); "
+            "check that every patch bounded by sharp edges holds the singular curves it needs"
+        )
+
+    # develop the 2D field (§3.4): phi_j = phi_i + rho_ij + omega_ij
+    phi = _develop_angles(S, rho + omega, beta, reg, flab)
+
+    # ---- extrinsic lift (§3.4) -------------------------------------------
+    N = S.vertex_normals.copy()
+    if normal_override:
+        idx = np.fromiter(normal_override.keys(), dtype=np.int64)
+        N[idx] = np.array([normal_override[int(i)] for i in idx])
+    is_feat = features.degree > 0
+    ref_next = np.roll(F, -1, axis=1).reshape(-1)[vc.ref_corner]
+    r = S.V[ref_next] - S.V
+    real = phi * vc.Theta / (2 * np.pi)
+    E_ref = frame_from_axes(r, N)
+    u = np.cos(real)[:, None] * E_ref[:, :, 0] + np.sin(real)[:, None] * E_ref[:, :, 1]
+    E0 = frame_from_axes(u, N)
+    # normals per edge end: at feature vertices use the normal of the sector the
+    # edge lies in (the triangle normal, as in Fig. 11)
+    edge_normals = np.stack([N[E[:, 0]], N[E[:, 1]]], axis=1)
+    fn = S.face_normals
+    ef = S.edge_faces
+    side_normal = fn[ef[:, 0]] * S.face_areas[ef[:, 0], None] + fn[ef[:, 1]] * S.face_areas[ef[:, 1], None]
+    side_normal /= np.linalg.norm(side_normal, axis=1, keepdims=True)
+    for end in range(2):
+        m = is_feat[E[:, end]] & ~features.sharp
+        edge_normals[m, end] = side_normal[m]
+    # fully adapted frames at feature vertices: normals of every sector plus
+    # the sharp edge directions
+    _adapt_feature_frames(S, features, E0)
+    omega0 = _extrinsic_omega(S, features, E0, omega, edge_normals)
+    return BoundaryField(
+        omega2d=omega,
+        phi=phi,
+        rho=rho,
+        K=K,
+        Omega=Omega,
+        E0=E0,
+        omega0=omega0,
+        normals=N,
+        edge_normals=edge_normals,
+        is_feature_vertex=is_feat,
+        features=features,
+        generators=generators,
+        constraint_residual=worst,
+    )
+
+
+def _develop_angles(S, step, beta, reg, flab):
+    """Breadth-first development of angles: phi_j = phi_i + step_ij."""
+    E = S.edges
+    nV = len(S.V)
+    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nV, nV))
+    A = (A + A.T).tocsr()
+    ncomp, vlab = csgraph.connected_components(A, directed=False)
+    phi = np.zeros(nV)
+    keys = E[:, 0].astype(np.int64) * nV + E[:, 1]
+    for c in range(ncomp):
+        verts = np.nonzero(vlab == c)[0]
+        feat = verts[reg[verts]]
+        root = int(feat[0]) if len(feat) else int(verts[0])
+        order, pred = csgraph.breadth_first_order(A, root, directed=False, return_predecessors=True)
+        phi[root] = beta[root] if len(feat) else 0.0
+        child = order[1:]
+        par = pred[child]
+        eid = np.searchsorted(keys, np.minimum(child, par) * nV + np.maximum(child, par))
+        inc = np.zeros(nV)
+        inc[child] = np.where(par < child, step[eid], -step[eid])
+        acc = accumulate_along_tree(order, pred, inc, root_value=phi[root])
+        phi[verts] = acc[verts]
+    return phi
+
+
+def _adapt_feature_frames(S: TriSurface, G: FeatureGraph, E0: np.ndarray) -> None:
+    """Replace E0 at feature vertices by the frame best adapted to all the
+    sector normals and sharp edge directions (§4.2.2 'best adapted'), choosing
+    the representative closest to the lifted 2D frame."""
+    feat = np.nonzero(G.degree > 0)[0]
+    if len(feat) == 0:
+        return
+    ns, slab = G.sectors
+    F = S.F
+    fn = S.face_normals_raw  # area weighted
+    sec_normal = np.zeros((ns, 3))
+    np.add.at(sec_normal, slab, np.repeat(fn, 3, axis=0))
+    sv = G.sector_vertex
+    E = S.edges[G.sharp]
+    dirs_by_v: dict[int, list] = {}
+    for s in range(ns):
+        v = sv[s]
+        if G.degree[v] > 0:
+            dirs_by_v.setdefault(int(v), []).append(sec_normal[s] / np.linalg.norm(sec_normal[s]))
+    for a, b in E:
+        d = S.V[b] - S.V[a]
+        d /= np.linalg.norm(d)
+        dirs_by_v[int(a)].append(d)
+        dirs_by_v[int(b)].append(-d)
+    for v in feat:
+        # initialise from the data (a sector normal and the next direction):
+        # starting from the averaged vertex normal would sit halfway between
+        # two face normals of a sharp edge, a saddle of the fit
+        Ea = best_adapted_frame(dirs_by_v[int(v)])
+        M = E0[v].T @ Ea
+        tr = np.einsum("ij,kji->k", M, CUBE_GROUP)
+        E0[v] = Ea @ CUBE_GROUP[np.argmax(tr)]
+
+
+def _extrinsic_omega(S, G: FeatureGraph, E0, omega2d, edge_normals):
+    """omega0_ij: the exact rotation between E0_i and the representative of
+    E0_j closest to the prediction log(Q_ij) + omega_ij N_i (§3.4).
+
+    Q_ij is the smallest rotation between the normals used at i and j; on
+    sharp edges and edges at sharp corners the prediction is the plain
+    smallest rotation (no 2D angle), since there the 2D coordinates are
+    distorted by the angle normalisation.
+    """
+    E = S.edges
+    Ni, Nj = edge_normals[:, 0], edge_normals[:, 1]
+    logQ = minimal_rotation(Ni, Nj)
+    pred = logQ + omega2d[:, None] * Ni
+    at_corner = np.zeros(len(S.V), bool)
+    at_corner[G.corners] = True
+    plain = at_corner[E[:, 0]] | at_corner[E[:, 1]]
+    pred[plain] = logQ[plain]
+    # along a sharp edge both frames are fully adapted: take the smallest turn
+    pred[G.sharp] = 0.0
+    Ei, Ej = E0[E[:, 0]], E0[E[:, 1]]
+    # candidates R_g = E_j g E_i^T for the 24 symmetries
+    R = np.einsum("nij,gjk,nlk->ngil", Ej, CUBE_GROUP, Ei)
+    P = exp_so3(pred)
+    # distance between R_g and the prediction: angle of R_g P^T, via traces
+    tr = np.einsum("ngij,nij->ng", R, P)
+    best = np.argmax(tr, axis=1)
+    Rb = R[np.arange(len(E)), best]
+    return unwrap_rotvec(log_so3(Rb), pred)

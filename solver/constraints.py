@@ -1,0 +1,307 @@
+"""The linear constraints of Eq. 23, as an affine parametrisation
+omega = c + P x of the so(3) value on every edge.
+
+Edge kinds, in order of priority:
+
+* boundary edges (Eq. 20): omega = omega0 + (alpha_j - alpha_i) (N_i + N_j)/2,
+  with alpha = 0 at sharp-feature vertices, whose frames are fully fixed;
+  an edge with both ends on sharp features is fixed, omega = omega0 (§4.2.2);
+* tube edges -- interior edges of the tets a curve crosses (see embed.py):
+  free torsion (Eq. 21): omega = omega0 + beta_e T_e with beta_e free;
+  fixed torsion (Eq. 22): omega = omega0 + (gamma_j - gamma_i + sigma theta_ij) T_e,
+  with theta_ij the change of the polar angle around the curve, so the
+  prescribed winding is carried and the total torsion is that of E0;
+* all other edges are free: three unknowns each.
+
+x is laid out as [3 per free edge | alpha | beta | gamma].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from .boundary2d import BoundaryField, wrap
+from .curves import CurveGeometry
+from .embed import Embedding
+from .network import PreparedNetwork, Torsion
+from .rotations import log_so3
+from .tetmesh import TetMesh
+
+FREE, BOUNDARY, FIXED, TUBE = 0, 1, 2, 3
+
+
+@dataclass
+class AffineOmega:
+    """omega (#E, 3) = c + (P @ x).reshape(#E, 3).
+
+    kind        : (#E,) FREE / BOUNDARY / FIXED / TUBE
+    free_edges  : edges with three unknowns, in the order of x
+    alpha_vertices : global vertex ids carrying alpha (Eq. 20)
+    tube_curve  : (#E,) curve id of tube edges, -1 elsewhere
+    tube_tangent: (#E, 3) T_e on tube edges
+    n_alpha, n_beta, n_gamma : sizes of the parameter blocks
+    """
+
+    c: np.ndarray
+    P: sp.csr_matrix
+    kind: np.ndarray
+    free_edges: np.ndarray
+    alpha_vertices: np.ndarray
+    tube_curve: np.ndarray
+    tube_tangent: np.ndarray
+    n_alpha: int
+    beta_edges: np.ndarray  # tube edges with free torsion, in the order of the beta block
+    n_beta: int
+    n_gamma: int
+    fixed_frame_vertices: np.ndarray  # global ids whose frame is E0 exactly
+    gauge_vertices: np.ndarray  # global ids of free boundary vertices whose alpha is fixed to 0
+
+    @property
+    def n_unknowns(self) -> int:
+        return self.P.shape[1]
+
+    def omega(self, x: np.ndarray) -> np.ndarray:
+        return self.c + (self.P @ x).reshape(-1, 3)
+
+    def x_from_omega(self, omega: np.ndarray) -> np.ndarray:
+        """Least-squares x for a given omega (exact on free edges); used to
+        start from an arbitrary field."""
+        A = self.P.T @ self.P
+        rhs = self.P.T @ (omega - self.c).reshape(-1)
+        d = A.diagonal()
+        # P has orthogonal column blocks except alpha/gamma couplings: a few
+        # Jacobi-preconditioned CG steps give the projection
+        from scipy.sparse.linalg import cg
+
+        x, _ = cg(A + 1e-12 * sp.eye(A.shape[0]), rhs, M=sp.diags(1.0 / np.maximum(d, 1e-30)), rtol=1e-12,
+                  maxiter=2000)
+        return x
+
+
+def build_constraints(
+    mesh: TetMesh,
+    net: PreparedNetwork,
+    emb: Embedding,
+    bfield: BoundaryField,
+) -> AffineOmega:
+    nE, nV = mesh.n_edges, mesh.n_vertices
+    E = mesh.edges
+    kind = np.full(nE, FREE, dtype=np.int8)
+    c = np.zeros((nE, 3))
+    rows, cols, vals = [], [], []
+
+    # ---------------------------------------------------------- boundary (Eq. 20)
+    bv = mesh.boundary_vertices
+    B = mesh.boundary
+    ge = mesh.edge_index(bv[B.edges[:, 0]], bv[B.edges[:, 1]])
+    assert np.all(ge >= 0)
+    fixed_v_local = bfield.is_feature_vertex
+    both_fixed = fixed_v_local[B.edges[:, 0]] & fixed_v_local[B.edges[:, 1]]
+    kind[ge] = np.where(both_fixed, FIXED, BOUNDARY)
+    c[ge] = bfield.omega0
+    # alpha unknowns at boundary vertices that are not on sharp features.  The
+    # three vertices of the triangle where a curve ends share one alpha: the
+    # 2D field splits the quarter turn evenly over that triangle's edges, and
+    # the volume solve may rotate that local structure but not unbalance it
+    # (an uneven split makes edges turn by ~45 degrees, where closest-rotation
+    # matching of the crosses becomes ambiguous).
+    free_local = ~fixed_v_local
+    group = _alpha_groups(B, free_local, [np.searchsorted(mesh.boundary_faces, f) for f, _ in emb.boundary_end_faces])
+    alpha_local = _alpha_after_gauge(B, free_local, group)
+    alpha_col_local = np.full(len(bv), -1)
+    # columns assigned after the free-edge block below
+    # ------------------------------------------------------------------ tubes
+    tube_curve, tube_T, tube_omega0, tube_theta = _tube_edges(mesh, net, emb, kind, bfield.normals)
+    is_tube = tube_curve >= 0
+    kind[is_tube] = TUBE
+    c[is_tube] = tube_omega0[is_tube]
+    # -------------------------------------------------------------- free edges
+    free_edges = np.nonzero(kind == FREE)[0]
+    nfree = len(free_edges)
+    col = 3 * nfree
+    for k in range(3):
+        rows.append(3 * free_edges + k)
+        cols.append(3 * np.arange(nfree) + k)
+        vals.append(np.ones(nfree))
+    # ---------------------------------------------------------- alpha columns
+    # one column per alpha group that keeps its unknown
+    reps = np.unique(group[alpha_local])
+    rep_col = np.full(len(bv), -1)
+    rep_col[reps] = col + np.arange(len(reps))
+    alpha_col_local = np.where(alpha_local, rep_col[group], -1)
+    alpha_idx = reps
+    n_alpha = len(reps)
+    col += n_alpha
+    bnd = np.nonzero(~both_fixed)[0]
+    nrm = 0.5 * (bfield.edge_normals[bnd, 0] + bfield.edge_normals[bnd, 1])
+    for end, sign in ((0, -1.0), (1, 1.0)):
+        v = B.edges[bnd, end]
+        cc = alpha_col_local[v]
+        ok = cc >= 0
+        for k in range(3):
+            rows.append(3 * ge[bnd[ok]] + k)
+            cols.append(cc[ok])
+            vals.append(sign * nrm[ok, k])
+    # ------------------------------------------------------------ tube columns
+    n_beta = n_gamma = 0
+    beta_edges = np.zeros(0, dtype=np.int64)
+    tube_edges = np.nonzero(is_tube)[0]
+    if len(tube_edges):
+        fixed_t = np.array([net.curves[tube_curve[e]].torsion == Torsion.FIXED for e in tube_edges], bool)
+        # free torsion: one beta per edge (Eq. 21)
+        fe = tube_edges[~fixed_t]
+        beta_edges = fe
+        n_beta = len(fe)
+        for k in range(3):
+            rows.append(3 * fe + k)
+            cols.append(col + np.arange(n_beta))
+            vals.append(tube_T[fe, k])
+        col += n_beta
+        # fixed torsion: gamma per (curve, vertex) (Eq. 22), winding in c
+        xe = tube_edges[fixed_t]
+        if len(xe):
+            sig = np.array([net.curves[tube_curve[e]].sigma for e in xe])
+            c[xe] += (sig * tube_theta[xe])[:, None] * tube_T[xe]
+            key = np.stack([np.repeat(tube_curve[xe], 2), E[xe].reshape(-1)], axis=1)
+            uk, inv = np.unique(key, axis=0, return_inverse=True)
+            inv = inv.reshape(-1, 2)
+            # one gauge per curve: drop the first gamma of each curve
+            first = np.r_[True, uk[1:, 0] != uk[:-1, 0]]
+            gcol = np.cumsum(~first) - 1
+            gcol[first] = -1
+            n_gamma = int((~first).sum())
+            for end, sign in ((0, -1.0), (1, 1.0)):
+                cc = gcol[inv[:, end]]
+                ok = cc >= 0
+                for k in range(3):
+                    rows.append(3 * xe[ok] + k)
+                    cols.append(col + cc[ok])
+                    vals.append(sign * tube_T[xe[ok], k])
+            col += n_gamma
+    P = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * nE, col)
+    )
+    return AffineOmega(
+        c=c,
+        P=P,
+        kind=kind,
+        free_edges=free_edges,
+        alpha_vertices=bv[alpha_idx],  # representative of each alpha group
+        tube_curve=tube_curve,
+        tube_tangent=tube_T,
+        n_alpha=n_alpha,
+        beta_edges=beta_edges,
+        n_beta=n_beta,
+        n_gamma=n_gamma,
+        fixed_frame_vertices=bv[fixed_v_local],
+        gauge_vertices=bv[free_local & (alpha_col_local < 0)],
+    )
+
+
+def _alpha_groups(B, free_local, cap_faces) -> np.ndarray:
+    """Representative vertex of each vertex's alpha: the free vertices of a
+    curve-end triangle are merged."""
+    n = len(B.V)
+    parent = np.arange(n)
+
+    def find(v):
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+
+    for f in cap_faces:
+        tri = [v for v in B.F[f] if free_local[v]]
+        for v in tri[1:]:
+            a, b = find(tri[0]), find(v)
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+    return np.array([find(v) for v in range(n)])
+
+
+def _alpha_after_gauge(B, free_local, group):
+    """Which free boundary vertices keep an alpha unknown: all, except the
+    members of one group per connected set of free vertices that touches no
+    fixed-frame vertex (there alpha is only defined up to a constant)."""
+    E = B.edges
+    n = len(B.V)
+    both = free_local[E[:, 0]] & free_local[E[:, 1]]
+    A = sp.coo_matrix((np.ones(both.sum()), (E[both, 0], E[both, 1])), shape=(n, n))
+    ncc, lab = csgraph.connected_components(A, directed=False)
+    anchored = np.zeros(ncc, bool)
+    mixed = free_local[E[:, 0]] != free_local[E[:, 1]]
+    for end in range(2):
+        v = E[mixed, end]
+        anchored[lab[v[free_local[v]]]] = True
+    keep = free_local.copy()
+    for cc in np.nonzero(~anchored)[0]:
+        members = np.nonzero((lab == cc) & free_local)[0]
+        if len(members):
+            keep[group == group[members[0]]] = False
+    return keep
+
+
+def _tube_edges(mesh: TetMesh, net: PreparedNetwork, emb: Embedding, kind, bnormals):
+    """Curve, tangent, reference derivative and winding angle per tube edge."""
+    nE = mesh.n_edges
+    E = mesh.edges
+    X = mesh.vertices
+    tube_curve = np.full(nE, -1, dtype=np.int64)
+    tube_T = np.zeros((nE, 3))
+    omega0 = np.zeros((nE, 3))
+    theta = np.zeros(nE)
+    best = np.full(nE, np.inf)
+    node_tets = emb.node_region_tets
+    node_verts = np.unique(mesh.tets[node_tets]) if len(node_tets) else np.zeros(0, int)
+    excluded_v = np.zeros(mesh.n_vertices, bool)
+    excluded_v[node_verts] = True
+    is_bnd = mesh.is_boundary_vertex
+    normals = np.zeros((mesh.n_vertices, 3))
+    normals[mesh.boundary_vertices] = bnormals
+    for ci, (curve, tr) in enumerate(zip(net.curves, emb.traces)):
+        tets = np.setdiff1d(tr.tets, node_tets)
+        if len(tets) == 0:
+            continue
+        edges = np.unique(mesh.tet_edges[tets].reshape(-1))
+        edges = edges[(kind[edges] == FREE) & ~excluded_v[E[edges, 0]] & ~excluded_v[E[edges, 1]]]
+        if len(edges) == 0:
+            continue
+        geo = CurveGeometry(tr.polyline, curve.closed)
+        mid = 0.5 * (X[E[edges, 0]] + X[E[edges, 1]])
+        s, t, d = geo.closest(mid)
+        # A boundary vertex's frame is adapted to its normal N (Eq. 20).  Where
+        # the tangent is neither along N nor across it (a curve ending on a
+        # curved surface: N and T differ by ~ tube radius / curvature radius),
+        # both adaptations cannot hold, so such edges are left free.
+        Tm = geo.tangent(s, t)
+        ok = np.ones(len(edges), bool)
+        for end in range(2):
+            v = E[edges, end]
+            b = is_bnd[v]
+            if np.any(b):
+                c = np.abs(np.einsum("ij,ij->i", Tm[b], normals[v[b]]))
+                compatible = (c > np.cos(np.radians(1.0))) | (c < np.sin(np.radians(1.0)))
+                ok[np.nonzero(b)[0][~compatible]] = False
+        edges, s, t, d = edges[ok], s[ok], t[ok], d[ok]
+        better = d < best[edges]
+        edges, s, t, d = edges[better], s[better], t[better], d[better]
+        if len(edges) == 0:
+            continue
+        best[edges] = d
+        tube_curve[edges] = ci
+        tube_T[edges] = geo.tangent(s, t)
+        si, ti, _ = geo.closest(X[E[edges, 0]])
+        sj, tj, _ = geo.closest(X[E[edges, 1]])
+        Fi, Fj = geo.frame(si, ti), geo.frame(sj, tj)
+        omega0[edges] = log_so3(np.einsum("nij,nkj->nik", Fj, Fi))
+        # polar angle of each end around the curve, in its own reference frame
+        def polar(v, seg, tt, F):
+            r = X[v] - geo.point(seg, tt)
+            return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
+
+        theta[edges] = wrap(polar(E[edges, 1], sj, tj, Fj) - polar(E[edges, 0], si, ti, Fi))
+    return tube_curve, tube_T, omega0, theta

@@ -1,0 +1,32 @@
+"""Exceptions raised for bad input.
+
+Every error is a ``ValueError`` subclass whose message names the offending
+element (curve, vertex, triangle) and says how to fix it, so the Blender
+add-on can show it verbatim.
+"""
+
+
+class SymFramesError(ValueError):
+    """Base class of all input errors."""
+
+
+class SurfaceError(SymFramesError):
+    """The boundary surface is not a closed, oriented, manifold, non-degenerate
+    triangle mesh."""
+
+
+class NetworkError(SymFramesError):
+    """The curve network is malformed or does not fit the solid."""
+
+
+class TopologyError(SymFramesError):
+    """Indices violate Poincare-Hopf, or sharp features and singularities are
+    inconsistent."""
+
+
+class MeshingError(SymFramesError):
+    """Tetrahedral meshing failed or produced a mesh that cannot be used."""
+
+
+class Cancelled(Exception):
+    """Raised inside a solve when the caller's cancel callback returns True."""

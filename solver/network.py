@@ -1,0 +1,247 @@
+"""The singularity network: curves with an index, a role and a torsion mode.
+
+Sign convention for the index sigma (used everywhere in SymFrames)
+------------------------------------------------------------------
+Orient a small loop around a curve counter-clockwise when seen from the tip of
+the curve's tangent T (right-hand rule around T).  Going once around that loop
+the cross field turns by ``2*pi*sigma`` about T in the same (right-handed)
+sense.  Reversing the curve reverses both T and the loop, so sigma does not
+depend on the curve's direction.  Where a curve meets the boundary, the 2D
+field on the boundary has a singularity of the same index sigma, counted with
+the outward normal; so sigma = +1/4 is the valence-3 edge of a hex mesh (the
+cube's own edges), sigma = -1/4 the valence-5 edge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from .errors import NetworkError
+
+
+class Role(str, Enum):
+    SINGULAR = "singular"  # interior curve with sigma != 0
+    FEATURE = "feature"  # interior curve with sigma == 0: the field is tangent, not singular
+    SHARP = "sharp"  # sharp feature curve lying on the boundary surface
+
+
+class Torsion(str, Enum):
+    FREE = "free"  # Eq. 21: free torsion per edge
+    FIXED = "fixed"  # Eq. 22: total torsion of the least-twist reference frame
+
+
+@dataclass
+class Curve:
+    """A polyline of the network.
+
+    points  : (n, 3) float array, n >= 2; a closed loop repeats its first point
+              at the end (or set ``closed``).
+    sigma   : index in turns, a multiple of 1/4 (sigma = 0 for features).
+    role    : 'singular', 'feature' or 'sharp'.
+    torsion : 'free' (Eq. 21, default) or 'fixed' (Eq. 22).
+    """
+
+    points: np.ndarray
+    sigma: float = 0.25
+    role: Role = Role.SINGULAR
+    torsion: Torsion = Torsion.FREE
+    name: str = ""
+    closed: bool = False
+
+    def __post_init__(self):
+        self.points = np.asarray(self.points, dtype=float)
+        self.role = Role(self.role)
+        self.torsion = Torsion(self.torsion)
+        self.sigma = float(self.sigma)
+
+    @property
+    def label(self) -> str:
+        return f"'{self.name}'" if self.name else "(unnamed)"
+
+
+@dataclass
+class Network:
+    """The curve network and the sharp-feature settings of a domain.
+
+    curves         : list of Curve
+    sharp_edges    : optional (k, 2) int array of surface vertex pairs marked sharp
+    sharp_angle    : optional dihedral threshold in degrees; surface edges whose
+                     normals differ by more than this are sharp
+    node_tolerance : endpoints closer than this form a node (default: 1e-3 of
+                     the surface's bounding-box diagonal)
+    boundary_tolerance : endpoints closer than this to the surface end on the
+                     boundary (default: 1e-2 of the diagonal)
+    """
+
+    curves: list[Curve] = field(default_factory=list)
+    sharp_edges: np.ndarray | None = None
+    sharp_angle: float | None = None
+    node_tolerance: float | None = None
+    boundary_tolerance: float | None = None
+
+    @property
+    def interior_curves(self) -> list[int]:
+        return [i for i, c in enumerate(self.curves) if c.role != Role.SHARP]
+
+    @property
+    def sharp_curves(self) -> list[int]:
+        return [i for i, c in enumerate(self.curves) if c.role == Role.SHARP]
+
+
+@dataclass
+class Node:
+    """An interior point where 3 or 4 curve ends meet.
+
+    ends : list of (curve index, 0 for the start / 1 for the end)
+    """
+
+    position: np.ndarray
+    ends: list
+
+
+@dataclass
+class PreparedNetwork:
+    """Interior curves after cleaning, joining and classifying their ends.
+
+    curves : list of Curve, points cleaned; closed loops end at their start
+    start_kind, end_kind : per curve 'boundary', 'node' or 'loop'
+    nodes : list of Node
+    """
+
+    curves: list[Curve]
+    source: list[int]  # index of each prepared curve in Network.curves
+    start_kind: list[str]
+    end_kind: list[str]
+    nodes: list[Node]
+
+
+def clean_polyline(points: np.ndarray, tol: float) -> np.ndarray:
+    """Drop consecutive points closer than tol."""
+    keep = [0]
+    for i in range(1, len(points)):
+        if np.linalg.norm(points[i] - points[keep[-1]]) > tol:
+            keep.append(i)
+    return points[keep]
+
+
+def check_curve_basics(net: Network, diag: float) -> None:
+    """Per-curve checks that need no geometry: shapes, indices, roles."""
+    if not isinstance(net.curves, (list, tuple)):
+        raise NetworkError("the network's curves must be a list")
+    for k, c in enumerate(net.curves):
+        where = f"curve {k} {c.label}"
+        P = c.points
+        if P.ndim != 2 or P.shape[1] != 3:
+            raise NetworkError(f"{where}: points must be an (n, 3) array, got shape {P.shape}")
+        if not np.all(np.isfinite(P)):
+            raise NetworkError(f"{where}: has a non-finite point coordinate")
+        q = 4.0 * c.sigma
+        if abs(q - round(q)) > 1e-9:
+            raise NetworkError(
+                f"{where}: index sigma = {c.sigma:g} is not a multiple of 1/4; "
+                f"use quarter turns, e.g. {round(q) / 4:g}"
+            )
+        if c.role == Role.FEATURE and round(q) != 0:
+            raise NetworkError(f"{where}: a feature curve must have sigma = 0 (got {c.sigma:g}); make it 'singular'")
+        if c.role == Role.SINGULAR and round(q) == 0:
+            raise NetworkError(
+                f"{where}: a singular curve needs a nonzero index; use sigma = 0 only with role 'feature'"
+            )
+        if c.role == Role.SHARP and round(q) != 0:
+            raise NetworkError(f"{where}: sharp boundary features carry no index; set sigma = 0")
+        if len(clean_polyline(P, 1e-9 * diag)) < 2:
+            raise NetworkError(f"{where}: needs at least two distinct points")
+
+
+def prepare_network(net: Network, diag: float) -> PreparedNetwork:
+    """Clean interior curves, find nodes, join degree-2 chains and loops.
+
+    Endpoints are classified as 'node' (3-4 ends within node_tolerance),
+    'loop' (the curve closes on itself) or, provisionally, 'boundary'; the
+    boundary claim is checked against the surface later.
+    """
+    check_curve_basics(net, diag)
+    tol = net.node_tolerance if net.node_tolerance is not None else 1e-3 * diag
+    idx = net.interior_curves
+    curves = []
+    for k in idx:
+        c = net.curves[k]
+        P = clean_polyline(c.points, 1e-9 * diag)
+        closed = c.closed or (len(P) > 2 and np.linalg.norm(P[0] - P[-1]) <= tol)
+        if closed and np.linalg.norm(P[0] - P[-1]) > 1e-12:
+            P = np.vstack([P, P[:1]])
+        elif closed:
+            P[-1] = P[0]
+        if closed and len(P) < 4:
+            raise NetworkError(f"curve {k} {c.label}: a closed loop needs at least three distinct points")
+        curves.append(Curve(P, c.sigma, c.role, c.torsion, c.name, closed))
+    # cluster the open ends
+    ends = [(i, s) for i, c in enumerate(curves) if not c.closed for s in (0, 1)]
+    nodes: list[Node] = []
+    kinds = {}
+    if ends:
+        X = np.array([curves[i].points[0 if s == 0 else -1] for i, s in ends])
+        pairs = cKDTree(X).query_pairs(tol, output_type="ndarray")
+        n = len(ends)
+        A = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else None
+        ncl, lab = connected_components(A, directed=False) if A is not None else (n, np.arange(n))
+        for cl in range(ncl):
+            members = np.nonzero(lab == cl)[0]
+            m_ends = [ends[m] for m in members]
+            if len(members) == 1:
+                kinds[m_ends[0]] = "boundary"
+                continue
+            names = ", ".join(f"{net.curves[idx[i]].label}" for i, _ in m_ends)
+            pos = X[members].mean(axis=0)
+            if len({i for i, _ in m_ends}) == 1 and len(members) == 2:
+                raise NetworkError(
+                    f"curve {idx[m_ends[0][0]]} {net.curves[idx[m_ends[0][0]]].label}: its two ends meet at "
+                    f"{_fmt(pos)} but the curve is not closed; close it or move an end"
+                )
+            if len(members) == 2:
+                raise NetworkError(
+                    f"curves {names} meet end to end at {_fmt(pos)} (a node of degree 2); join them into one "
+                    "curve"
+                )
+            if len(members) > 4:
+                raise NetworkError(
+                    f"{len(members)} curve ends meet at {_fmt(pos)} ({names}); nodes of degree 3 and 4 are "
+                    "supported, split the node into several"
+                )
+            for e in m_ends:
+                kinds[e] = "node"
+            nodes.append(Node(pos, m_ends))
+    start_kind = ["loop" if c.closed else kinds[(i, 0)] for i, c in enumerate(curves)]
+    end_kind = ["loop" if c.closed else kinds[(i, 1)] for i, c in enumerate(curves)]
+    # snap node ends exactly onto the node
+    for node in nodes:
+        for i, s in node.ends:
+            curves[i].points[0 if s == 0 else -1] = node.position
+    return PreparedNetwork(curves, idx, start_kind, end_kind, nodes)
+
+
+def _fmt(p) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in p) + ")"
+
+
+def polyline_tangents(P: np.ndarray, closed: bool) -> np.ndarray:
+    """Unit tangents at polyline vertices: the normalised sum of the adjacent
+    unit segment directions."""
+    seg = np.diff(P, axis=0)
+    seg = seg / np.linalg.norm(seg, axis=1, keepdims=True)
+    T = np.zeros_like(P)
+    T[:-1] += seg
+    T[1:] += seg
+    if closed:
+        T[0] += seg[-1]
+        T[-1] = T[0]
+    # a hairpin (opposite segments) would give zero; fall back to a segment
+    bad = np.linalg.norm(T, axis=1) < 1e-9
+    T[bad] = np.vstack([seg, seg[-1:]])[bad]
+    return T / np.linalg.norm(T, axis=1, keepdims=True)

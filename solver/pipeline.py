@@ -1,0 +1,444 @@
+"""The whole method, stage by stage (design notes §2).
+
+    validate -> tubes + tet mesh -> embed network -> 2D boundary field
+             -> constraints -> Levenberg-Marquardt on omega -> development
+
+Two levels of API, as in potpourri3d: ``solve()`` for one call, and
+``FieldProblem`` which keeps the tet mesh, the embedding and the boundary
+field so that changing only solver settings does not remesh.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .boundary2d import BoundaryField, solve_boundary_field
+from .constraints import TUBE, AffineOmega, build_constraints
+from .embed import Embedding, embed_network
+from .errors import Cancelled, MeshingError, TopologyError
+from .features import FeatureGraph, check_poincare_hopf, transfer_features
+from .integrate import develop
+from .network import Network, PreparedNetwork
+from .rotations import exp_so3
+from .tetmesh import TetMesh, tetrahedralize
+from .tubes import build_tubes
+from .validation import CheckedInput, check_input
+from .volume3d import LMReport, VolumeProblem
+
+INITS = ("zero", "constant", "random", "linear")
+
+
+@dataclass
+class Options:
+    """Settings of a solve.
+
+    edge_length    : target tet edge length (units of the surface); None picks
+                     one from the solid's volume and the network's feature size
+    penalty        : a in Eq. 23 (affects convergence, not the minimiser)
+    max_iterations : Levenberg-Marquardt iterations
+    tolerance      : relative energy decrease at which LM stops
+    init           : 'zero', 'constant', 'random' or 'linear' (§5.2)
+    seed           : random initialisation seed
+    tube_radius    : cross-section size of the curve tubes, relative to
+                     edge_length
+    node_radius    : radius of node regions, relative to edge_length
+    epsilon        : fTetWild envelope, relative to the bounding-box diagonal
+    target_tets    : tet count aimed at when edge_length is None
+    """
+
+    edge_length: float | None = None
+    penalty: float = 1000.0
+    max_iterations: int = 30
+    tolerance: float = 1e-10
+    init: str = "zero"
+    seed: int = 0
+    tube_radius: float = 0.35
+    node_radius: float = 1.5
+    epsilon: float = 1e-3
+    target_tets: int = 15000
+    check_intersections: bool = True
+
+    def __post_init__(self):
+        if self.init not in INITS:
+            raise ValueError(f"init must be one of {', '.join(INITS)}, got {self.init!r}")
+        if self.edge_length is not None and not self.edge_length > 0:
+            raise ValueError(f"edge_length must be positive, got {self.edge_length}")
+        if not self.penalty > 0:
+            raise ValueError(f"penalty must be positive, got {self.penalty}")
+        if int(self.max_iterations) < 1:
+            raise ValueError("max_iterations must be at least 1")
+
+
+@dataclass
+class Report:
+    """Sizes, timings (seconds per stage) and the solver history of a solve."""
+
+    stage_seconds: dict = field(default_factory=dict)
+    sizes: dict = field(default_factory=dict)
+    lm: LMReport | None = None
+    metrics: dict = field(default_factory=dict)
+    edge_length: float = 0.0
+
+    @property
+    def total_seconds(self) -> float:
+        return float(sum(self.stage_seconds.values()))
+
+    def summary(self) -> str:
+        lines = [f"tets {self.sizes.get('tets', 0):,}  vertices {self.sizes.get('vertices', 0):,}  "
+                 f"edges {self.sizes.get('edges', 0):,}  (edge length {self.edge_length:.4g})"]
+        for k, v in self.stage_seconds.items():
+            lines.append(f"  {k:<12s} {v:8.2f} s")
+        lines.append(f"  {'total':<12s} {self.total_seconds:8.2f} s")
+        if self.lm is not None:
+            f = self.lm.final
+            lines.append(f"LM ({self.lm.init} start): {self.lm.n_iterations} iterations, {self.lm.cg_iterations} CG "
+                         f"steps, energy {f.energy:.6g} (smoothness {f.smoothness:.6g}, penalty {f.penalty:.3g}); "
+                         f"{self.lm.reason}")
+        for k, v in self.metrics.items():
+            lines.append(f"  {k}: {v:.4g}" if isinstance(v, float) else f"  {k}: {v}")
+        return "\n".join(lines)
+
+    def as_dict(self) -> dict:
+        d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
+             "edge_length": self.edge_length}
+        if self.lm is not None:
+            d["lm"] = {"init": self.lm.init, "converged": self.lm.converged, "reason": self.lm.reason,
+                       "iterations": [asdict(it) for it in self.lm.iterations]}
+        return d
+
+
+class _Stages:
+    """Times stages, reports progress and checks for cancellation."""
+
+    WEIGHTS = {"validate": 0.03, "tetmesh": 0.3, "embed": 0.04, "boundary2d": 0.05, "constraints": 0.03,
+               "volume3d": 0.5, "integrate": 0.05}
+
+    def __init__(self, report: Report, progress, cancel):
+        self.report = report
+        self.progress = progress
+        self.cancel = cancel
+        self.done = 0.0
+
+    def run(self, name, fn, *args, **kw):
+        if self.cancel is not None and self.cancel():
+            raise Cancelled()
+        if self.progress is not None:
+            self.progress(name, self.done, f"{name}...")
+        t = time.perf_counter()
+        out = fn(*args, **kw)
+        self.report.stage_seconds[name] = self.report.stage_seconds.get(name, 0.0) + time.perf_counter() - t
+        self.done = min(1.0, self.done + self.WEIGHTS.get(name, 0.0))
+        if self.progress is not None:
+            self.progress(name, self.done, f"{name} done")
+        return out
+
+
+def default_edge_length(checked: CheckedInput, target_tets: int) -> float:
+    """An edge length giving about target_tets tets (fTetWild meshes hold
+    about 15 tets per h^3 of volume), reduced to resolve the network."""
+    vol = float(np.sum(np.abs(checked.surface.signed_volumes())))
+    h = (15.0 * vol / target_tets) ** (1.0 / 3.0)
+    if np.isfinite(checked.feature_size):
+        h = min(h, checked.feature_size / 2.5)
+    return float(max(h, 1e-3 * checked.surface.bbox_diagonal))
+
+
+class FieldProblem:
+    """A domain and network meshed and prepared for repeated solves.
+
+    V : (n, 3) float array, F : (m, 3) int array -- the closed surface
+    network : Network
+    options : Options (mesh-related fields are used here)
+    """
+
+    def __init__(self, V, F, network: Network, options: Options | None = None, progress=None, cancel=None,
+                 mesh: TetMesh | None = None):
+        self.options = options or Options()
+        self.report = Report()
+        st = _Stages(self.report, progress, cancel)
+        self.checked: CheckedInput = st.run("validate", check_input, V, F, network,
+                                            self.options.check_intersections)
+        h = self.options.edge_length or default_edge_length(self.checked, self.options.target_tets)
+        self.edge_length = h
+        self.report.edge_length = h
+        self.network: PreparedNetwork = self.checked.network
+        if mesh is None:
+            mesh = st.run("tetmesh", self._mesh, h, cancel)
+        self.mesh = mesh
+        node_r = self._node_radius(h)
+        self.embedding: Embedding = st.run("embed", embed_network, mesh, self.network, node_r)
+        self.boundary: BoundaryField = st.run("boundary2d", self._boundary)
+        self.constraints: AffineOmega = st.run("constraints", build_constraints, mesh, self.network,
+                                               self.embedding, self.boundary)
+        self.report.sizes = {"tets": mesh.n_tets, "vertices": mesh.n_vertices, "edges": mesh.n_edges,
+                             "faces": mesh.n_faces, "unknowns": self.constraints.n_unknowns,
+                             "curves": len(self.network.curves), "nodes": len(self.network.nodes)}
+        self._stages = st
+        self._volume = None
+
+    # --------------------------------------------------------------- stages
+    def _node_radius(self, h):
+        r = self.options.node_radius * h
+        nodes = [nd.position for nd in self.network.nodes]
+        if len(nodes) > 1:
+            P = np.array(nodes)
+            d = np.linalg.norm(P[:, None] - P[None], axis=2) + np.eye(len(P)) * 1e300
+            r = min(r, 0.4 * d.min())
+        return r
+
+    def _mesh(self, h, cancel=None):
+        r = self.options.tube_radius * h
+        tubes = build_tubes(self.network, self.checked.surface, r, r * np.sqrt(3.0), self._node_radius(h))
+        mesh = tetrahedralize(self.checked.surface, h, (tubes.V, tubes.F), self.options.epsilon, cancel)
+        nin = self.checked.surface.n_components
+        nout = mesh.boundary.n_components
+        if nout != nin:
+            raise MeshingError(
+                f"the tet mesh has {nout} boundary components but the surface has {nin}; a thin part was lost "
+                f"or a cavity appeared. Try a smaller edge length (now {h:.4g})"
+            )
+        return mesh
+
+    def _boundary(self) -> BoundaryField:
+        mesh = self.mesh
+        B = mesh.boundary
+        if np.any(self.checked.features.sharp):
+            sharp = transfer_features(self.checked.features, B)
+        else:
+            sharp = np.zeros(len(B.edges), bool)
+        G = FeatureGraph(B, sharp)
+        fs = np.zeros(len(B.F))
+        ends = self.embedding.boundary_end_faces
+        if ends:
+            loc = np.searchsorted(mesh.boundary_faces, [f for f, _ in ends])
+            np.add.at(fs, loc, [s for _, s in ends])
+        try:
+            check_poincare_hopf(B, G, fs, "the meshed boundary")
+            G.check_patches(fs)
+        except TopologyError as e:
+            raise MeshingError(f"the mesh did not preserve the sharp features or curve ends ({e}); try a smaller "
+                               f"edge length (now {self.edge_length:.4g})") from None
+        # at a curve's end the frame is adapted to the curve tangent: the
+        # monodromy of the boundary data around the end triangle is then a
+        # quarter turn about the same axis as in the tube just inside (with
+        # the vertex normals it would differ by ~ tube radius / curvature
+        # radius, like a kink of the singular curve at the surface)
+        override = {}
+        for c, tr in zip(self.network.curves, self.embedding.traces):
+            P = tr.polyline
+            for f, t in ((tr.start_face, P[0] - P[1]), (tr.end_face, P[-1] - P[-2])):
+                if f < 0:
+                    continue
+                t = t / np.linalg.norm(t)
+                for v in B.F[np.searchsorted(mesh.boundary_faces, f)]:
+                    override[int(v)] = t
+        bf = solve_boundary_field(B, G, fs, normal_override=override)
+        extra = self._generator_parity(bf)
+        if extra:
+            bf = solve_boundary_field(B, G, fs, generator_turns=extra, normal_override=override)
+        return bf
+
+    def _generator_parity(self, bf: BoundaryField) -> dict:
+        """Full turns the boundary field needs around generators that bound in
+        the solid (the meridians of a solid torus).
+
+        Rotations form SO(3), whose loops come in two homotopy classes; a loop
+        of frames on the rim of a disk inside the solid extends over the disk
+        without singularity only in the trivial class (+1 in SU(2)).  Along a
+        meridian the frame adapted to the boundary and parallel-transported
+        turns once about the torus core -- the nontrivial class -- so the 2D
+        field must add a full twist there.  Singular curves crossing the disk
+        contribute their quarter turns to the expected class.
+        """
+        import scipy.sparse.linalg as spla
+
+        mesh = self.mesh
+        if not bf.generators:
+            return {}
+        B = mesh.boundary
+        bv = mesh.boundary_vertices
+        d1t = mesh.d1.T.tocsr()
+        flux = np.einsum("ij,ij->i", self.embedding.face_omega, mesh.face_normals) / (2 * np.pi)
+        extra = {}
+        for key, ids, signs in bf.generators:
+            ge = mesh.edge_index(bv[B.edges[ids, 0]], bv[B.edges[ids, 1]])
+            eta = np.zeros(mesh.n_edges)
+            np.add.at(eta, ge, signs)
+            sol = spla.lsqr(d1t, eta, atol=1e-12, btol=1e-12, iter_lim=50000)
+            chain = sol[0]
+            if np.linalg.norm(d1t @ chain - eta) > 1e-6 * np.linalg.norm(eta):
+                continue  # does not bound in the solid: any class is allowed
+            quarter_turns = int(np.round(4 * float(chain @ flux)))
+            expected = np.cos(quarter_turns * np.pi / 4)
+            if abs(expected) < 0.5:
+                continue  # a half turn: both lifts are possible
+            q = _su2_holonomy(bf.omega0[ids] * signs[:, None])
+            if np.sign(q[0]) != np.sign(expected):
+                extra[key] = 4
+        return extra
+
+    # ----------------------------------------------------------------- solve
+    @property
+    def volume(self) -> VolumeProblem:
+        if self._volume is None:
+            self._volume = VolumeProblem(self.mesh, self.constraints, self.embedding.face_omega,
+                                         self.embedding.face_excluded, self.options.penalty)
+        return self._volume
+
+    def initial_guess(self, init: str, seed: int = 0) -> np.ndarray:
+        n = self.constraints.n_unknowns
+        if init == "zero":
+            return np.zeros(n)
+        if init == "constant":
+            om = np.tile([0.3, -0.2, 0.1], (self.mesh.n_edges, 1))
+            return self.constraints.x_from_omega(om)
+        if init == "random":
+            rng = np.random.default_rng(seed)
+            return rng.uniform(-0.5, 0.5, n)
+        if init == "linear":
+            x, _ = self.volume.solve(np.zeros(n), max_iterations=3, linear=True, init="linear")
+            return x
+        raise ValueError(f"unknown init {init!r}")
+
+    def solve(self, init: str | None = None, penalty: float | None = None, max_iterations: int | None = None,
+              root: int | None = None, progress=None, cancel=None) -> Result:
+        """Optimise omega (Eq. 23) and develop the frames (§4.3)."""
+        opts = self.options
+        init = init or opts.init
+        if init not in INITS:
+            raise ValueError(f"init must be one of {', '.join(INITS)}, got {init!r}")
+        if penalty is not None and penalty != self.volume.a:
+            self._volume = None
+            self.options = Options(**{**asdict(opts), "penalty": penalty})
+        report = Report(stage_seconds=dict(self.report.stage_seconds), sizes=dict(self.report.sizes),
+                        edge_length=self.edge_length)
+        st = _Stages(report, progress, cancel)
+        st.done = 0.45
+        vp = self.volume
+        x0 = self.initial_guess(init, opts.seed)
+
+        def lm_progress(it, energy):
+            if progress is not None:
+                progress("volume3d", min(0.95, 0.45 + 0.45 * it / (max_iterations or opts.max_iterations)),
+                         f"LM iteration {it}, energy {energy:.6g}")
+
+        x, lm = st.run("volume3d", vp.solve, x0, max_iterations or opts.max_iterations, opts.tolerance, init,
+                       False, lm_progress, cancel)
+        report.lm = lm
+        omega = self.constraints.omega(x)
+        root, E_root = self.default_root() if root is None else (root, None)
+        frames = st.run("integrate", self.develop, omega, root, E_root)
+        res = Result(problem=self, omega=omega, x=x, frames=frames, root=root, report=report)
+        report.metrics.update(res.quick_metrics())
+        return res
+
+    # ------------------------------------------------------------ development
+    @property
+    def avoid_edges(self) -> np.ndarray:
+        """Edges of node-region tets.  Their faces carry no structure equation,
+        so a tree path through them (or around them) would not be
+        integrable; the development reaches those vertices last."""
+        mesh = self.mesh
+        out = np.zeros(mesh.n_edges, bool)
+        nr = self.embedding.node_region_tets
+        if len(nr):
+            out[mesh.tet_edges[nr].reshape(-1)] = True
+        return out
+
+    def default_root(self):
+        """A boundary vertex whose frame is known: a sharp-feature vertex if
+        any, else the vertex whose alpha was fixed by the gauge."""
+        mesh, cons, bf = self.mesh, self.constraints, self.boundary
+        bv = mesh.boundary_vertices
+        if len(cons.fixed_frame_vertices):
+            r = int(cons.fixed_frame_vertices[0])
+        else:
+            g = cons.gauge_vertices
+            r = int(g[0]) if len(g) else int(bv[0])
+        return r, bf.E0[np.searchsorted(bv, r)]
+
+    def develop(self, omega, root, E_root=None):
+        """Frames from omega, starting at root.  E_root defaults to the frame
+        the root gets when developed from the default root."""
+        if E_root is None:
+            r0, E0 = self.default_root()
+            E_root = develop(self.mesh, omega, r0, E0, self.avoid_edges)[root]
+        return develop(self.mesh, omega, root, E_root, self.avoid_edges)
+
+
+@dataclass
+class Result:
+    """A solved field.
+
+    omega  : (#E, 3) Darboux derivative per edge of problem.mesh
+    frames : (#V, 3, 3) rotation per vertex; columns are the cross axes
+    root   : vertex the frames were developed from
+    """
+
+    problem: FieldProblem
+    omega: np.ndarray
+    x: np.ndarray
+    frames: np.ndarray
+    root: int
+    report: Report
+
+    @property
+    def mesh(self) -> TetMesh:
+        return self.problem.mesh
+
+    @property
+    def embedding(self) -> Embedding:
+        return self.problem.embedding
+
+    def quaternions(self) -> np.ndarray:
+        """(#V, 4) unit quaternions (w, x, y, z) of the frames."""
+        from scipy.spatial.transform import Rotation
+
+        q = Rotation.from_matrix(self.frames).as_quat()  # x y z w
+        return np.c_[q[:, 3], q[:, :3]]
+
+    def curve_tets(self, i: int) -> np.ndarray:
+        """Tets crossed by prepared curve i."""
+        return self.embedding.traces[i].tets
+
+    def curve_faces(self, i: int) -> np.ndarray:
+        """Faces pierced by prepared curve i."""
+        return self.embedding.traces[i].faces
+
+    def curve_vertices(self, i: int) -> np.ndarray:
+        """Vertices whose edges carry curve i's adaptation constraints."""
+        cons = self.problem.constraints
+        e = np.nonzero((cons.kind == TUBE) & (cons.tube_curve == i))[0]
+        return np.unique(self.mesh.edges[e])
+
+    def quick_metrics(self) -> dict:
+        from .analysis import quick_metrics
+
+        return quick_metrics(self)
+
+
+def solve(V, F, network: Network, options: Options | None = None, progress=None, cancel=None, **kw) -> Result:
+    """Compute the field in one call: ``solve(V, F, network, edge_length=0.1)``.
+
+    Keyword arguments override fields of ``options``.
+    """
+    opts = options or Options()
+    if kw:
+        opts = Options(**{**asdict(opts), **kw})
+    problem = FieldProblem(V, F, network, opts, progress=progress, cancel=cancel)
+    return problem.solve(progress=progress, cancel=cancel)
+
+
+def _su2_holonomy(steps: np.ndarray) -> np.ndarray:
+    """Product of the unit quaternions exp(w/2) of rotation vectors w (n, 3),
+    applied in order, tracked in SU(2) (w, x, y, z)."""
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    for w in steps:
+        th = np.linalg.norm(w)
+        a = w / th if th > 0 else np.zeros(3)
+        p = np.r_[np.cos(th / 2), np.sin(th / 2) * a]
+        q = np.r_[p[0] * q[0] - p[1:] @ q[1:], p[0] * q[1:] + q[0] * p[1:] + np.cross(p[1:], q[1:])]
+    return q

@@ -1,0 +1,455 @@
+"""Triangle-surface topology and checks: closed, manifold, oriented, simple.
+
+Used twice: on the user's input surface (validation before any heavy work)
+and on the boundary of the tetrahedral mesh (the domain of the 2D problem).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+from .errors import SurfaceError
+
+
+def unique_rows(a: np.ndarray):
+    """np.unique(axis=0) for non-negative int rows of width 2 or 3, in
+    lexicographic order, via a combined int64 key (much faster).
+
+    Returns (unique rows, inverse, counts).
+    """
+    a = np.asarray(a, dtype=np.int64)
+    n = int(a.max()) + 1 if a.size else 1
+    key = a[:, 0]
+    for k in range(1, a.shape[1]):
+        key = key * n + a[:, k]
+    _, idx, inv, cnt = np.unique(key, return_index=True, return_inverse=True, return_counts=True)
+    return a[idx], inv.reshape(-1), cnt
+
+
+def edge_keys(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    lo = np.minimum(a, b).astype(np.int64)
+    hi = np.maximum(a, b).astype(np.int64)
+    return lo * n + hi
+
+
+@dataclass
+class TriSurface:
+    """A closed oriented triangle surface.
+
+    V : (n, 3) float array of vertex positions
+    F : (m, 3) int array, counter-clockwise seen from outside the solid
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+
+    # ---------------------------------------------------------------- topology
+    @cached_property
+    def edges(self) -> np.ndarray:
+        """(#E, 2) sorted vertex pairs."""
+        return self._edge_data[0]
+
+    @cached_property
+    def face_edges(self) -> np.ndarray:
+        """(#F, 3) edge ids of face edges (F0F1, F1F2, F2F0)."""
+        return self._edge_data[1]
+
+    @cached_property
+    def face_edge_signs(self) -> np.ndarray:
+        """(#F, 3) +1 where the face traverses the edge from low to high id."""
+        F = self.F
+        nxt = np.roll(F, -1, axis=1)
+        return np.where(F < nxt, 1.0, -1.0)
+
+    @cached_property
+    def _edge_data(self):
+        F = self.F
+        a = F.reshape(-1)
+        b = np.roll(F, -1, axis=1).reshape(-1)
+        keys = edge_keys(a, b, len(self.V))
+        uk, inv, cnt = np.unique(keys, return_inverse=True, return_counts=True)
+        edges = np.stack([uk // len(self.V), uk % len(self.V)], axis=1)
+        return edges, inv.reshape(-1, 3), cnt
+
+    @cached_property
+    def edge_faces(self) -> np.ndarray:
+        """(#E, 2) the two faces of each edge (closed manifold surfaces only)."""
+        fe = self.face_edges.reshape(-1)
+        order = np.argsort(fe, kind="stable")
+        faces = np.repeat(np.arange(len(self.F)), 3)[order]
+        return faces.reshape(-1, 2)
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        return 0.5 * np.linalg.norm(self.face_normals_raw, axis=1)
+
+    @cached_property
+    def face_normals_raw(self) -> np.ndarray:
+        P = self.V[self.F]
+        return np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        n = self.face_normals_raw
+        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+    @cached_property
+    def vertex_normals(self) -> np.ndarray:
+        """Unit area-weighted vertex normals N_i (§2.1)."""
+        N = np.zeros_like(self.V)
+        for k in range(3):
+            np.add.at(N, self.F[:, k], self.face_normals_raw)
+        return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+
+    @cached_property
+    def corner_angles(self) -> np.ndarray:
+        """(#F, 3) interior angle at each corner."""
+        P = self.V[self.F]
+        out = np.empty(self.F.shape)
+        for k in range(3):
+            u = P[:, (k + 1) % 3] - P[:, k]
+            v = P[:, (k + 2) % 3] - P[:, k]
+            out[:, k] = np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v))
+        return out
+
+    @cached_property
+    def dihedral_angles(self) -> np.ndarray:
+        """(#E,) angle in radians between the normals of the two faces of each edge
+        (0 = flat)."""
+        f0, f1 = self.edge_faces.T
+        c = np.einsum("ij,ij->i", self.face_normals[f0], self.face_normals[f1])
+        return np.arccos(np.clip(c, -1.0, 1.0))
+
+    @cached_property
+    def face_components(self) -> tuple[int, np.ndarray]:
+        """Connected components of faces through shared edges."""
+        ef = self.edge_faces
+        n = len(self.F)
+        A = sp.coo_matrix((np.ones(len(ef)), (ef[:, 0], ef[:, 1])), shape=(n, n))
+        return csgraph.connected_components(A, directed=False)
+
+    @property
+    def n_components(self) -> int:
+        return self.face_components[0]
+
+    def component_of_faces(self) -> np.ndarray:
+        return self.face_components[1]
+
+    def euler_characteristics(self) -> np.ndarray:
+        """Euler characteristic V - E + F of each component."""
+        ncomp, lab = self.face_components
+        Fc = np.bincount(lab, minlength=ncomp)
+        Ec = np.bincount(lab[self.edge_faces[:, 0]], minlength=ncomp)
+        vlab = np.full(len(self.V), -1)
+        vlab[self.F.reshape(-1)] = np.repeat(lab, 3)
+        used = vlab >= 0
+        Vc = np.bincount(vlab[used], minlength=ncomp)
+        return Vc - Ec + Fc
+
+    def signed_volumes(self) -> np.ndarray:
+        """Signed volume enclosed by each component (> 0: outward oriented)."""
+        ncomp, lab = self.face_components
+        P = self.V[self.F]
+        vol = np.einsum("ij,ij->i", P[:, 0], np.cross(P[:, 1], P[:, 2])) / 6.0
+        return np.bincount(lab, weights=vol, minlength=ncomp)
+
+    @cached_property
+    def bbox_diagonal(self) -> float:
+        used = self.V[np.unique(self.F)]
+        return float(np.linalg.norm(used.max(0) - used.min(0)))
+
+    # ------------------------------------------------------------------ queries
+    def winding_number(self, X: np.ndarray, chunk: int = 2_000_000) -> np.ndarray:
+        """Generalised winding number of points X (k, 3): ~1 inside, ~0 outside.
+
+        Sum of signed solid angles of all triangles (Van Oosterom-Strackee).
+        """
+        X = np.atleast_2d(np.asarray(X, float))
+        P = self.V[self.F]
+        out = np.zeros(len(X))
+        step = max(1, chunk // max(1, len(self.F)))
+        for s in range(0, len(X), step):
+            x = X[s : s + step, None, :]
+            a = P[None, :, 0] - x
+            b = P[None, :, 1] - x
+            c = P[None, :, 2] - x
+            la = np.linalg.norm(a, axis=2)
+            lb = np.linalg.norm(b, axis=2)
+            lc = np.linalg.norm(c, axis=2)
+            det = np.einsum("kfi,kfi->kf", a, np.cross(b, c))
+            den = (
+                la * lb * lc
+                + np.einsum("kfi,kfi->kf", a, b) * lc
+                + np.einsum("kfi,kfi->kf", b, c) * la
+                + np.einsum("kfi,kfi->kf", c, a) * lb
+            )
+            out[s : s + step] = 2.0 * np.arctan2(det, den).sum(axis=1) / (4 * np.pi)
+        return out
+
+    def closest_points(self, X: np.ndarray):
+        """Closest surface point to each of X (k, 3).
+
+        Returns (distance (k,), face index (k,), closest point (k, 3)).
+        """
+        X = np.atleast_2d(np.asarray(X, float))
+        P = self.V[self.F]
+        cent = P.mean(axis=1)
+        rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
+        tree = cKDTree(cent)
+        kq = min(len(self.F), 16)
+        best_d = np.full(len(X), np.inf)
+        best_f = np.zeros(len(X), int)
+        best_p = np.zeros((len(X), 3))
+        _, idx = tree.query(X, k=kq)
+        idx = np.atleast_2d(idx).reshape(len(X), kq)
+        for j in range(kq):
+            f = idx[:, j]
+            q = closest_point_on_triangles(X, P[f])
+            d = np.linalg.norm(q - X, axis=1)
+            better = d < best_d
+            best_d[better], best_f[better], best_p[better] = d[better], f[better], q[better]
+        # exact fallback for points whose 16 nearest centroids may not contain the
+        # closest face (large triangles): check all faces within reach
+        dc = np.linalg.norm(cent[idx[:, -1]] - X, axis=1)
+        unsure = np.nonzero(best_d > dc - rad.max())[0]
+        for i in unsure:
+            cand = tree.query_ball_point(X[i], best_d[i] + rad.max())
+            if not cand:
+                continue
+            cand = np.asarray(cand)
+            q = closest_point_on_triangles(np.repeat(X[i][None], len(cand), 0), P[cand])
+            d = np.linalg.norm(q - X[i], axis=1)
+            j = np.argmin(d)
+            if d[j] < best_d[i]:
+                best_d[i], best_f[i], best_p[i] = d[j], cand[j], q[j]
+        return best_d, best_f, best_p
+
+
+def closest_point_on_triangles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Closest point on triangle T[k] (k, 3, 3) to point X[k] (k, 3) (Ericson)."""
+    a, b, c = T[:, 0], T[:, 1], T[:, 2]
+    ab, ac, ap = b - a, c - a, X - a
+    d1 = np.einsum("ij,ij->i", ab, ap)
+    d2 = np.einsum("ij,ij->i", ac, ap)
+    bp = X - b
+    d3 = np.einsum("ij,ij->i", ab, bp)
+    d4 = np.einsum("ij,ij->i", ac, bp)
+    cp = X - c
+    d5 = np.einsum("ij,ij->i", ab, cp)
+    d6 = np.einsum("ij,ij->i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    denom = va + vb + vc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = vb / denom
+        w = vc / denom
+    out = a + v[:, None] * ab + w[:, None] * ac
+    # edge regions
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        t = d1 / (d1 - d3)
+        out = np.where(m[:, None], a + t[:, None] * ab, out)
+        m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        t = d2 / (d2 - d6)
+        out = np.where(m[:, None], a + t[:, None] * ac, out)
+        m = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        out = np.where(m[:, None], b + t[:, None] * (c - b), out)
+    # vertex regions
+    out = np.where(((d1 <= 0) & (d2 <= 0))[:, None], a, out)
+    out = np.where(((d3 >= 0) & (d4 <= d3))[:, None], b, out)
+    out = np.where(((d6 >= 0) & (d5 <= d6))[:, None], c, out)
+    return out
+
+
+def _fmt(p) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in p) + ")"
+
+
+def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = True) -> TriSurface:
+    """Check that (V, F) bounds a solid; raise SurfaceError saying what to fix.
+
+    Checks, in order: array shapes and finiteness, index range, degenerate
+    triangles, every edge shared by exactly two triangles, consistent
+    orientation, manifold vertices, outward orientation (cavities inward),
+    and self-intersections.
+    """
+    V = np.asarray(V, dtype=float)
+    F = np.asarray(F)
+    if V.ndim != 2 or V.shape[1] != 3 or len(V) < 4:
+        raise SurfaceError(f"surface vertices must be an (n, 3) array with n >= 4, got shape {V.shape}")
+    if F.ndim != 2 or F.shape[1] != 3 or len(F) < 4:
+        raise SurfaceError(
+            f"surface faces must be an (m, 3) array of triangles with m >= 4, got shape {F.shape}; "
+            "triangulate quads and n-gons first"
+        )
+    if not np.all(np.isfinite(V)):
+        bad = np.nonzero(~np.all(np.isfinite(V), axis=1))[0][0]
+        raise SurfaceError(f"surface vertex {bad} has a non-finite coordinate")
+    if not np.issubdtype(F.dtype, np.integer):
+        raise SurfaceError("surface faces must hold integer vertex indices")
+    F = F.astype(np.int64)
+    if F.min() < 0 or F.max() >= len(V):
+        raise SurfaceError(f"surface face indices must lie in [0, {len(V) - 1}], found {F.min()}..{F.max()}")
+    S = TriSurface(V, F)
+    diag = S.bbox_diagonal
+    if diag <= 0:
+        raise SurfaceError("surface has zero size")
+    # degenerate triangles: repeated vertices or (near) zero area
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    P = V[F]
+    longest = np.max(np.linalg.norm(P - np.roll(P, 1, axis=1), axis=2), axis=1)
+    thin = S.face_areas <= 1e-10 * np.maximum(longest, 1e-300) ** 2
+    bad = np.nonzero(rep | thin | (longest < 1e-12 * diag))[0]
+    if len(bad):
+        f = bad[0]
+        raise SurfaceError(
+            f"{len(bad)} degenerate triangle(s) (zero area), e.g. triangle {f} at {_fmt(P[f].mean(0))}; "
+            "merge duplicate vertices and dissolve degenerate faces (Blender: Mesh > Clean Up > Merge by "
+            "Distance, Degenerate Dissolve)"
+        )
+    # each undirected edge in exactly two faces
+    _, _, cnt = S._edge_data
+    if np.any(cnt != 2):
+        e = np.nonzero(cnt != 2)[0][0]
+        i, j = S.edges[e]
+        kind = "an open boundary (hole)" if cnt[e] == 1 else f"a non-manifold edge shared by {cnt[e]} faces"
+        raise SurfaceError(
+            f"surface is not closed and manifold: edge ({i}, {j}) at {_fmt(V[[i, j]].mean(0))} is {kind}; "
+            f"{int(np.sum(cnt == 1))} open and {int(np.sum(cnt > 2))} non-manifold edges in total. "
+            "Fill holes and separate touching parts (Blender: Select > All by Trait > Non Manifold)"
+        )
+    # consistent orientation: each directed edge used once
+    a = F.reshape(-1)
+    b = np.roll(F, -1, axis=1).reshape(-1)
+    dkeys = a.astype(np.int64) * len(V) + b
+    ud, dc = np.unique(dkeys, return_counts=True)
+    if np.any(dc > 1):
+        k = ud[np.nonzero(dc > 1)[0][0]]
+        i, j = k // len(V), k % len(V)
+        raise SurfaceError(
+            f"surface orientation is inconsistent at edge ({i}, {j}) near {_fmt(V[[i, j]].mean(0))}: two "
+            "neighbouring triangles list it in the same direction. Recalculate normals "
+            "(Blender: Mesh > Normals > Recalculate Outside)"
+        )
+    # manifold vertices: corners around each vertex form a single fan
+    nF = len(F)
+    corner = np.arange(3 * nF).reshape(nF, 3)
+    # corner (f,k) at vertex F[f,k]; its outgoing edge (F[f,k] -> F[f,k+1]) is
+    # the incoming edge of the neighbouring corner around the same vertex
+    in_keys = np.roll(F, 1, axis=1).astype(np.int64) * len(V) + F  # prev -> vertex
+    # neighbour of corner (f,k) around vertex v: the corner whose incoming edge is
+    # the reverse of (v -> next)
+    rev = np.roll(F, -1, axis=1).astype(np.int64) * len(V) + F
+    order = np.argsort(in_keys.reshape(-1))
+    pos = np.searchsorted(in_keys.reshape(-1)[order], rev.reshape(-1))
+    nb = order[np.clip(pos, 0, len(order) - 1)]
+    A = sp.coo_matrix((np.ones(3 * nF), (corner.reshape(-1), nb)), shape=(3 * nF, 3 * nF))
+    ncc, lab = csgraph.connected_components(A, directed=False)
+    used = np.unique(F)
+    if ncc != len(used):
+        per_vertex = np.zeros(len(V), int)
+        first = np.full(ncc, -1)
+        verts = F.reshape(-1)
+        first[lab] = verts
+        np.add.at(per_vertex, first, 1)
+        v = np.nonzero(per_vertex > 1)[0][0]
+        raise SurfaceError(
+            f"surface vertex {v} at {_fmt(V[v])} is non-manifold (two parts of the surface touch only there); "
+            "split it or move the parts apart"
+        )
+    # orientation and nesting of components
+    vols = S.signed_volumes()
+    ncomp, lab = S.face_components
+    if ncomp > 1:
+        comp_vertex = np.array([F[np.nonzero(lab == c)[0][0], 0] for c in range(ncomp)])
+        depth = np.zeros(ncomp, int)
+        for c in range(ncomp):
+            others = [d for d in range(ncomp) if d != c]
+            for d in others:
+                sub = TriSurface(V, F[lab == d])
+                if abs(sub.winding_number(V[comp_vertex[c]][None])[0]) > 0.5:
+                    depth[c] += 1
+    else:
+        depth = np.zeros(1, int)
+    for c in range(ncomp):
+        want_positive = depth[c] % 2 == 0
+        if (vols[c] > 0) != want_positive:
+            what = "outer surface" if want_positive else "cavity"
+            fix = "outward" if want_positive else "into the cavity (towards the solid's outside)"
+            raise SurfaceError(
+                f"surface component {c} ({int(np.sum(lab == c))} triangles, a {what}) is oriented the wrong "
+                f"way; its normals must point {fix} (Blender: Mesh > Normals > Recalculate Outside)"
+            )
+    if check_intersections:
+        hit = find_self_intersection(S)
+        if hit is not None:
+            f, g = hit
+            raise SurfaceError(
+                f"surface intersects itself: triangles {f} and {g} cross near {_fmt(P[f].mean(0))}; "
+                "remove the intersection (Blender: 3D-Print Toolbox > Intersections, or a Boolean union)"
+            )
+    return S
+
+
+def find_self_intersection(S: TriSurface):
+    """Return one pair of crossing triangles (f, g), or None.
+
+    Broad phase: KD-tree on centroids; narrow phase: an edge of one triangle
+    properly crossing the other, for pairs that share no vertex, and the edge
+    opposite the shared vertex for pairs that share one.
+    """
+    V, F = S.V, S.F
+    P = V[F]
+    cent = P.mean(axis=1)
+    rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
+    tree = cKDTree(cent)
+    pairs = tree.query_pairs(2.0 * rad.max(), output_type="ndarray")
+    if len(pairs) == 0:
+        return None
+    f, g = pairs[:, 0], pairs[:, 1]
+    close = np.linalg.norm(cent[f] - cent[g], axis=1) <= rad[f] + rad[g]
+    f, g = f[close], g[close]
+    shared = (F[f][:, :, None] == F[g][:, None, :]).sum(axis=(1, 2))
+    keep = shared <= 1
+    f, g = f[keep], g[keep]
+    shared = shared[keep]
+    tol = 1e-9 * S.bbox_diagonal
+    hits = np.zeros(len(f), bool)
+    for A, B in ((f, g), (g, f)):
+        for k in range(3):
+            s0 = V[F[A, k]]
+            s1 = V[F[A, (k + 1) % 3]]
+            # skip edges touching a shared vertex
+            touches = np.isin(F[A, k][:, None], F[B]).any(1) | np.isin(F[A, (k + 1) % 3][:, None], F[B]).any(1)
+            crossing = segment_crosses_triangle(s0, s1, P[B], tol)
+            hits |= crossing & ~touches
+    if np.any(hits):
+        i = np.nonzero(hits)[0][0]
+        return int(f[i]), int(g[i])
+    return None
+
+
+def segment_crosses_triangle(s0, s1, T, tol=0.0):
+    """Does segment s0-s1 (k,3) properly cross triangle T (k,3,3)?"""
+    a, b, c = T[:, 0], T[:, 1], T[:, 2]
+
+    def vol(p, q, r, s):
+        return np.einsum("ij,ij->i", q - p, np.cross(r - p, s - p))
+
+    d0 = vol(a, b, c, s0)
+    d1 = vol(a, b, c, s1)
+    scale = np.linalg.norm(np.cross(b - a, c - a), axis=1) * tol
+    straddle = ((d0 > scale) & (d1 < -scale)) | ((d0 < -scale) & (d1 > scale))
+    u = vol(s0, s1, a, b)
+    v = vol(s0, s1, b, c)
+    w = vol(s0, s1, c, a)
+    inside = ((u > 0) & (v > 0) & (w > 0)) | ((u < 0) & (v < 0) & (w < 0))
+    return straddle & inside

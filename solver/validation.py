@@ -1,0 +1,315 @@
+"""Checks of the network against the solid, run before any heavy work.
+
+Every failure is a ``ValueError`` subclass naming the curve or point and
+saying how to fix it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .errors import NetworkError
+from .features import FeatureGraph, check_poincare_hopf, polyline_to_edges, sharp_edges_by_angle, sharp_edges_from_pairs
+from .network import Network, PreparedNetwork, Role, _fmt, prepare_network
+from .trisurface import TriSurface, segment_crosses_triangle, validate_surface
+
+MAX_END_ANGLE = 30.0  # degrees between a curve's end tangent and the surface normal
+MAX_KINK = 45.0  # degrees a singular curve may turn at one polyline vertex
+
+
+@dataclass
+class CheckedInput:
+    """Everything the pipeline needs from a validated input."""
+
+    surface: TriSurface
+    network: PreparedNetwork
+    features: FeatureGraph
+    face_sigma: np.ndarray  # (#F,) index of curve ends per input triangle
+    feature_size: float  # smallest distance the mesh must resolve
+
+
+def _label(net_curves, k):
+    c = net_curves[k]
+    return f"curve {k} '{c.name}'" if c.name else f"curve {k}"
+
+
+def sharp_feature_graph(S: TriSurface, net: Network) -> FeatureGraph:
+    """Sharp edges from the mesh marks, the angle threshold and 'sharp' curves."""
+    sharp = np.zeros(len(S.edges), bool)
+    if net.sharp_edges is not None and len(net.sharp_edges):
+        sharp |= sharp_edges_from_pairs(S, net.sharp_edges)
+    if net.sharp_angle is not None:
+        sharp |= sharp_edges_by_angle(S, net.sharp_angle)
+    tol = 1e-2 * S.bbox_diagonal
+    for k in net.sharp_curves:
+        c = net.curves[k]
+        d, _, _ = S.closest_points(c.points)
+        if np.max(d) > tol:
+            i = int(np.argmax(d))
+            raise NetworkError(
+                f"{_label(net.curves, k)} is a sharp boundary feature but its point {_fmt(c.points[i])} lies "
+                f"{d[i]:.3g} away from the surface; snap it onto the surface or make it an interior curve"
+            )
+        closed = c.closed or np.linalg.norm(c.points[0] - c.points[-1]) < 1e-9 * S.bbox_diagonal
+        sharp |= polyline_to_edges(S, c.points, closed)
+    return FeatureGraph(S, sharp)
+
+
+def check_input(V, F, net: Network, check_intersections: bool = True) -> CheckedInput:
+    """Validate the surface and the network; raise with an actionable message."""
+    S = validate_surface(V, F, check_intersections=check_intersections)
+    diag = S.bbox_diagonal
+    pn = prepare_network(net, diag)
+    btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
+    names = [net.curves[i] for i in pn.source]
+
+    def label(ci):
+        return _label(net.curves, pn.source[ci])
+
+    face_sigma = np.zeros(len(S.F))
+    end_points = []
+    # ------------------------------------------------------- ends and insides
+    for ci, c in enumerate(pn.curves):
+        P = c.points
+        for end, kind in ((0, pn.start_kind[ci]), (1, pn.end_kind[ci])):
+            if kind != "boundary":
+                continue
+            x = P[0] if end == 0 else P[-1]
+            d, f, q = S.closest_points(x[None])
+            if d[0] > btol:
+                where = "starts" if end == 0 else "ends"
+                raise NetworkError(
+                    f"{label(ci)} {where} at {_fmt(x)}, inside the solid but not at a node or on the boundary "
+                    f"(distance to the surface {d[0]:.3g}); extend it to the surface, or connect 3-4 curve ends "
+                    "at a node"
+                )
+            t = (P[1] - P[0]) if end == 0 else (P[-1] - P[-2])
+            t = t / np.linalg.norm(t)
+            n = S.face_normals[f[0]]
+            ang = np.degrees(np.arccos(min(1.0, abs(float(t @ n)))))
+            if ang > MAX_END_ANGLE:
+                raise NetworkError(
+                    f"{label(ci)} meets the boundary at {_fmt(q[0])} at {ang:.0f} degrees from the surface normal; "
+                    "a curve must reach the surface at right angles (its tangent along the normal), since the "
+                    "frame there is adapted to both"
+                )
+            face_sigma[f[0]] += c.sigma
+            end_points.append((ci, q[0]))
+        # interior points must be inside
+        inner = P[1:-1] if not c.closed else P[:-1]
+        ends_inside = [P[0]] if pn.start_kind[ci] == "node" else []
+        ends_inside += [P[-1]] if pn.end_kind[ci] == "node" else []
+        X = np.vstack([inner] + ([np.array(ends_inside)] if ends_inside else [])) if len(inner) or ends_inside \
+            else np.zeros((0, 3))
+        if len(X):
+            w = S.winding_number(X)
+            bad = np.nonzero(w < 0.5)[0]
+            if len(bad):
+                raise NetworkError(
+                    f"{label(ci)} passes outside the solid at {_fmt(X[bad[0]])}; keep interior curves inside the "
+                    "domain mesh"
+                )
+        _check_segments_inside(S, P, label(ci), pn, ci)
+        if c.sigma != 0:
+            _check_kinks(P, c.closed, label(ci))
+    # ------------------------------------------------------------- crossings
+    _check_crossings(pn, label, diag)
+    # ends on the boundary must be distinct and away from sharp features
+    G = sharp_feature_graph(S, net)
+    if len(end_points) > 1:
+        Q = np.array([q for _, q in end_points])
+        pairs = cKDTree(Q).query_pairs(1e-3 * diag)
+        for a, b in pairs:
+            raise NetworkError(
+                f"{label(end_points[a][0])} and {label(end_points[b][0])} end at the same boundary point "
+                f"{_fmt(Q[a])}; boundary ends must be distinct"
+            )
+    if np.any(G.sharp) and end_points:
+        E = S.edges[G.sharp]
+        mids = 0.5 * (S.V[E[:, 0]] + S.V[E[:, 1]])
+        seg_len = np.linalg.norm(S.V[E[:, 1]] - S.V[E[:, 0]], axis=1).max()
+        tree = cKDTree(mids)
+        for ci, q in end_points:
+            d, j = tree.query(q)
+            a, b = S.V[E[j]]
+            t = np.clip((q - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+            if np.linalg.norm(a + t * (b - a) - q) < 1e-3 * diag or d < 1e-6 * seg_len:
+                raise NetworkError(
+                    f"{label(ci)} ends on a sharp edge at {_fmt(q)}; end it inside a face, away from sharp edges"
+                )
+    # -------------------------------------------------------- Poincare-Hopf
+    check_poincare_hopf(S, G, face_sigma, "the boundary")
+    G.check_patches(face_sigma)
+    size = network_feature_size(S, pn)
+    del names
+    return CheckedInput(S, pn, G, face_sigma, size)
+
+
+def _check_segments_inside(S: TriSurface, P, label, pn, ci):
+    """No segment of an interior curve may cross the surface (except the end
+    segments touching it)."""
+    a, b = P[:-1], P[1:]
+    mid = 0.5 * (a + b)
+    half = 0.5 * np.linalg.norm(b - a, axis=1)
+    T = S.V[S.F]
+    cent = T.mean(axis=1)
+    rad = np.max(np.linalg.norm(T - cent[:, None], axis=2), axis=1)
+    tree = cKDTree(cent)
+    tol = 1e-9 * S.bbox_diagonal
+    for k in range(len(a)):
+        cand = tree.query_ball_point(mid[k], half[k] + rad.max())
+        if not cand:
+            continue
+        cand = np.asarray(cand)
+        hit = segment_crosses_triangle(np.repeat(a[k][None], len(cand), 0), np.repeat(b[k][None], len(cand), 0),
+                                       T[cand], tol)
+        if not np.any(hit):
+            continue
+        # crossings at the very ends of boundary-ending curves are their ends
+        f = cand[hit]
+        x = _segment_triangle_point(a[k], b[k], T[f])
+        da = np.linalg.norm(x - P[0], axis=1)
+        db = np.linalg.norm(x - P[-1], axis=1)
+        endtol = 1e-2 * S.bbox_diagonal
+        ok = ((pn.start_kind[ci] == "boundary") & (da < endtol)) | ((pn.end_kind[ci] == "boundary") & (db < endtol))
+        if not np.all(ok):
+            raise NetworkError(
+                f"{label} crosses the boundary surface at {_fmt(x[~ok][0])}; keep interior curves inside the "
+                "solid between their ends"
+            )
+
+
+def _segment_triangle_point(a, b, T):
+    n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+    t = np.einsum("ij,ij->i", n, T[:, 0] - a) / np.einsum("ij,j->i", n, b - a)
+    return a + t[:, None] * (b - a)
+
+
+def _check_kinks(P, closed, label):
+    seg = np.diff(P, axis=0)
+    seg = seg / np.linalg.norm(seg, axis=1, keepdims=True)
+    pairs = [(seg[:-1], seg[1:], P[1:-1])]
+    if closed:
+        pairs.append((seg[-1:], seg[:1], P[:1]))
+    for s0, s1, at in pairs:
+        if not len(s0):
+            continue
+        ang = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", s0, s1), -1, 1)))
+        bad = np.nonzero(ang > MAX_KINK)[0]
+        if len(bad):
+            k = bad[0]
+            raise NetworkError(
+                f"{label} turns by {ang[k]:.0f} degrees at {_fmt(at[k])}; a singular curve must be smooth (its "
+                "axis of rotation is its tangent), so round the corner or split the curve at a node"
+            )
+
+
+def _check_crossings(pn: PreparedNetwork, label, diag):
+    """Curves must not intersect themselves or each other (except at nodes)."""
+    segs, owner, index = [], [], []
+    for ci, c in enumerate(pn.curves):
+        P = c.points
+        segs.append(np.stack([P[:-1], P[1:]], axis=1))
+        owner.append(np.full(len(P) - 1, ci))
+        index.append(np.arange(len(P) - 1))
+    if not segs:
+        return
+    S = np.concatenate(segs)
+    own = np.concatenate(owner)
+    idx = np.concatenate(index)
+    nseg = np.array([len(c.points) - 1 for c in pn.curves])
+    mid = S.mean(axis=1)
+    half = 0.5 * np.linalg.norm(S[:, 1] - S[:, 0], axis=1)
+    pairs = cKDTree(mid).query_pairs(2 * half.max() + 1e-12, output_type="ndarray")
+    if len(pairs) == 0:
+        return
+    i, j = pairs[:, 0], pairs[:, 1]
+    same = own[i] == own[j]
+    adjacent = same & (np.abs(idx[i] - idx[j]) == 1)
+    closed = np.array([c.closed for c in pn.curves])
+    wrap = same & closed[own[i]] & (np.abs(idx[i] - idx[j]) == nseg[own[i]] - 1)
+    keep = ~adjacent & ~wrap
+    i, j = i[keep], j[keep]
+    d, pt = _segment_distance(S[i], S[j])
+    tol = 1e-4 * diag
+    # segments meeting at a shared node are allowed to touch there
+    node_pts = np.array([nd.position for nd in pn.nodes]) if pn.nodes else np.zeros((0, 3))
+    if len(node_pts):
+        dn = np.min(np.linalg.norm(pt[:, None] - node_pts[None], axis=2), axis=1)
+        at_node = dn < 10 * tol
+    else:
+        at_node = np.zeros(len(d), bool)
+    bad = np.nonzero((d < tol) & ~at_node)[0]
+    if len(bad):
+        k = bad[0]
+        a, b = own[i[k]], own[j[k]]
+        what = f"{label(a)} intersects itself" if a == b else f"{label(a)} and {label(b)} cross"
+        raise NetworkError(f"{what} near {_fmt(pt[k])}; curves may only meet at their ends, at nodes")
+
+
+def _segment_distance(A, B):
+    """Closest distance between segments A[k] and B[k] ((k, 2, 3) each), and
+    the midpoint of the closest pair."""
+    p, q = A[:, 0], B[:, 0]
+    u, v = A[:, 1] - p, B[:, 1] - q
+    w = p - q
+    a = np.einsum("ij,ij->i", u, u)
+    b = np.einsum("ij,ij->i", u, v)
+    c = np.einsum("ij,ij->i", v, v)
+    d = np.einsum("ij,ij->i", u, w)
+    e = np.einsum("ij,ij->i", v, w)
+    den = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(den > 1e-300, (b * e - c * d) / den, 0.0)
+    s = np.clip(s, 0, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.clip((b * s + e) / c, 0, 1)
+        s = np.clip((b * t - d) / a, 0, 1)
+    x = p + s[:, None] * u
+    y = q + t[:, None] * v
+    return np.linalg.norm(x - y, axis=1), 0.5 * (x + y)
+
+
+def network_feature_size(S: TriSurface, pn: PreparedNetwork) -> float:
+    """The smallest length the mesh must resolve: distances between curves
+    away from shared nodes, from curves to the boundary away from their ends,
+    and the length of curves between nodes."""
+    sizes = [np.inf]
+    dense = []
+    for ci, c in enumerate(pn.curves):
+        P = c.points
+        L = np.linalg.norm(np.diff(P, axis=0), axis=1).sum()
+        if "node" in (pn.start_kind[ci], pn.end_kind[ci]):
+            # a node region must fit on the curve with room to spare
+            sizes.append(L if pn.start_kind[ci] == pn.end_kind[ci] else 2.0 * L)
+        n = max(2, int(np.ceil(L / (0.01 * S.bbox_diagonal))))
+        s = np.linspace(0, 1, n)
+        cum = np.r_[0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))] / L
+        X = np.stack([np.interp(s, cum, P[:, k]) for k in range(3)], axis=1)
+        dense.append((ci, X, s * L, L))
+    for ci, X, s, L in dense:
+        margin = 0.1 * L
+        keep = np.ones(len(X), bool)
+        if pn.start_kind[ci] == "boundary":
+            keep &= s > margin
+        if pn.end_kind[ci] == "boundary":
+            keep &= s < L - margin
+        if np.any(keep):
+            d, _, _ = S.closest_points(X[keep])
+            sizes.append(d.min())
+    node_pts = [nd.position for nd in pn.nodes]
+    for a in range(len(dense)):
+        for b in range(a + 1, len(dense)):
+            ca, Xa, _, _ = dense[a]
+            cb, Xb, _, _ = dense[b]
+            d, ia = cKDTree(Xb).query(Xa)
+            ok = np.ones(len(Xa), bool)
+            for p in node_pts:
+                # near a shared node the curves necessarily approach each other
+                ok &= np.linalg.norm(Xa - p, axis=1) > 0.25 * np.min([dense[a][3], dense[b][3]])
+            if np.any(ok):
+                sizes.append(d[ok].min())
+    return float(min(sizes))

@@ -1,0 +1,278 @@
+"""The volume problem (§4.3, Eq. 23): Levenberg-Marquardt on omega.
+
+    minimise  sum_ij w_ij |omega_ij|^2 + a sum_f |r_f(omega)|^2
+    over      omega = c + P x       (the constraints of Eq. 20-22)
+
+Each LM step solves the damped Gauss-Newton system
+
+    (H + lambda diag H) dx = -g,   H = 2 P^T (W + a J^T J) P,  g = 2 P^T (W omega + a J^T r)
+
+by PCG (linsolve.py), matrix-free: J is rebuilt per step as a sparse matrix
+and H is never formed.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .amg import AMG
+from .constraints import FREE, AffineOmega
+from .errors import Cancelled
+from .linsolve import pcg
+from .structure import StructureEquation, _cross_mat
+from .tetmesh import TetMesh
+
+
+@dataclass
+class LMIteration:
+    iteration: int
+    energy: float
+    smoothness: float
+    penalty: float
+    gradient_norm: float
+    damping: float
+    cg_iterations: int
+    accepted: bool
+    seconds: float
+
+
+@dataclass
+class LMReport:
+    init: str
+    iterations: list = field(default_factory=list)
+    converged: bool = False
+    reason: str = ""
+    seconds: float = 0.0
+    setup_seconds: float = 0.0
+
+    @property
+    def n_iterations(self) -> int:
+        return sum(1 for it in self.iterations if it.iteration > 0)
+
+    @property
+    def cg_iterations(self) -> int:
+        return sum(it.cg_iterations for it in self.iterations)
+
+    @property
+    def final(self) -> LMIteration:
+        return self.iterations[-1]
+
+
+class VolumeProblem:
+    """Eq. 23 on a mesh, with its constraints; keeps the preconditioner setup
+    (the vertex Laplacian's AMG), which does not depend on omega."""
+
+    def __init__(self, mesh: TetMesh, cons: AffineOmega, Omega: np.ndarray, excluded: np.ndarray,
+                 penalty: float = 1000.0):
+        self.mesh = mesh
+        self.cons = cons
+        self.a = float(penalty)
+        active = np.nonzero(~excluded)[0]
+        self.faces = active
+        self.se = StructureEquation(mesh.face_edges[active], mesh.corner_weights[active], Omega[active],
+                                    mesh.n_edges)
+        self.w = mesh.dirichlet_weights
+        self.W3 = np.repeat(self.w, 3)
+        P = cons.P
+        self.P = P
+        self.PT = P.T.tocsr()
+        # smoothness part of H in x space: 2 P^T W P (constant)
+        self.HW = (self.PT @ sp.diags(2.0 * self.W3) @ P).tocsr()
+        t = time.perf_counter()
+        self._setup_gradient_space()
+        self.setup_seconds = time.perf_counter() - t
+
+    # ------------------------------------------------------------------ energy
+    def omega(self, x):
+        return self.cons.omega(x)
+
+    def energy_terms(self, x, linear=False):
+        om = self.omega(x)
+        r = self.se.residual(om, linear)
+        es = float(np.sum(self.w[:, None] * om**2))
+        ep = float(self.a * np.sum(r**2))
+        return es, ep
+
+    def energy(self, x, linear=False):
+        es, ep = self.energy_terms(x, linear)
+        return es + ep
+
+    # ------------------------------------------------------------ linearisation
+    def linearise(self, x, linear=False):
+        """Gradient, the Jacobian in x space and the diagonal blocks of H."""
+        om = self.omega(x)
+        r = self.se.residual(om, linear)
+        Jb = self.se.jacobian_blocks(om, linear)
+        Jx = (self.se.assemble(Jb) @ self.P).tocsr()
+        g = 2.0 * (self.PT @ (self.W3 * om.reshape(-1))) + 2.0 * self.a * (Jx.T @ r.reshape(-1))
+        fe = self.cons.free_edges
+        B = 2.0 * (self.a * self.se.gram_blocks(Jb)[fe] + self.w[fe, None, None] * np.eye(3))
+        nfree = len(fe)
+        d = 2.0 * self.a * np.asarray(Jx.multiply(Jx).sum(axis=0)).ravel()[3 * nfree:]
+        d += self.HW.diagonal()[3 * nfree:]
+        return g, Jx, (B, d)
+
+    def _setup_gradient_space(self):
+        """Static parts of the auxiliary-space map (see covariant_gradient)."""
+        mesh, cons = self.mesh, self.cons
+        nE, nV = mesh.n_edges, mesh.n_vertices
+        fe = cons.free_edges
+        nfree = len(fe)
+        # x rows fed by omega-space rows: free edges (identity) and tube edges
+        # with free torsion (projection on T_e, in the order of the beta block)
+        self._Sf = sp.csr_matrix((np.ones(3 * nfree), (np.arange(3 * nfree), (3 * fe[:, None] + np.arange(3)).ravel())),
+                                 shape=(3 * nfree, 3 * nE))
+        te = cons.beta_edges
+        self._St = sp.csr_matrix((cons.tube_tangent[te].ravel(), (np.repeat(np.arange(len(te)), 3),
+                                  (3 * te[:, None] + np.arange(3)).ravel())), shape=(len(te), 3 * nE))
+        # alpha_i = Phi_i . N_i
+        av = cons.alpha_vertices
+        N = mesh.boundary.vertex_normals[np.searchsorted(mesh.boundary_vertices, av)]
+        self._Sa = sp.csr_matrix((N.ravel(), (np.repeat(np.arange(len(av)), 3), (3 * av[:, None] + np.arange(3)).ravel())),
+                                 shape=(len(av), 3 * nV))
+        # vertices whose frame may rotate (sharp-feature frames are fixed)
+        keep = np.ones(nV, bool)
+        keep[cons.fixed_frame_vertices] = False
+        kv = np.nonzero(keep)[0]
+        self._aux_cols = (3 * kv[:, None] + np.arange(3)).ravel()
+        self.grad_vertices = kv
+
+    def covariant_gradient(self, omega):
+        """The map Phi (a rotation vector per vertex) -> x giving the first-order
+        change of omega when every frame is rotated by exp(Phi_i):
+
+            d omega_ij = Phi_j - Phi_i + (Phi_i + Phi_j) x omega_ij / 2.
+
+        These are the near-null modes of H (the structure equation is
+        invariant under them) that Jacobi cannot resolve; plain gradients
+        (omega = 0) miss them near singular curves and curved boundaries.
+        """
+        E = self.mesh.edges
+        nE, nV = self.mesh.n_edges, self.mesh.n_vertices
+        I = np.eye(3)
+        Wx = _cross_mat(omega)
+        r_ = np.broadcast_to(3 * np.arange(nE)[:, None, None] + np.arange(3)[None, :, None], (nE, 3, 3)).ravel()
+        Gw = None
+        for blk, end in ((-(I + 0.5 * Wx), 0), (I - 0.5 * Wx, 1)):
+            c_ = np.broadcast_to(3 * E[:, end][:, None, None] + np.arange(3)[None, None, :], (nE, 3, 3)).ravel()
+            part = sp.csr_matrix((blk.ravel(), (r_, c_)), shape=(3 * nE, 3 * nV))
+            Gw = part if Gw is None else Gw + part
+        G = sp.vstack([self._Sf @ Gw, self._Sa, self._St @ Gw,
+                       sp.csr_matrix((self.cons.n_gamma, 3 * nV))]).tocsr()
+        return G[:, self._aux_cols].tocsr()
+
+    def make_preconditioner(self, blocks, damping, Jx, omega):
+        """Block Jacobi plus the covariant auxiliary-space correction
+        G (G^T H G)^-1 G^T, whose coarse operator is inverted by one V-cycle
+        of a nodal AMG."""
+        B, d = blocks
+        nfree = len(self.cons.free_edges)
+        B = B + damping * np.einsum("nii->ni", B)[:, :, None] * np.eye(3)
+        Binv = np.linalg.inv(B)
+        dinv = 1.0 / (d * (1.0 + damping))
+        diagH = np.r_[np.einsum("nii->ni", B).reshape(-1) / (1 + damping), d]
+        G = self.covariant_gradient(omega)
+        JG = (Jx @ G).tocsr()
+        Ac = (G.T @ (self.HW @ G) + 2.0 * self.a * (JG.T @ JG) + G.T @ sp.diags(damping * diagH) @ G).tocsr()
+        amg = AMG.build(Ac, block=3)
+        GT = G.T.tocsr()
+
+        def apply(r):
+            z = np.empty_like(r)
+            z[: 3 * nfree] = np.einsum("nij,nj->ni", Binv, r[: 3 * nfree].reshape(-1, 3)).reshape(-1)
+            z[3 * nfree:] = dinv * r[3 * nfree:]
+            z += G @ amg.vcycle(GT @ r)
+            return z
+
+        return apply, diagH
+
+    # --------------------------------------------------------------------- LM
+    def solve(
+        self,
+        x0: np.ndarray,
+        max_iterations: int = 30,
+        tol: float = 1e-10,
+        init: str = "",
+        linear: bool = False,
+        progress=None,
+        cancel=None,
+        cg_rtol_floor: float = 1e-10,
+    ):
+        rep = LMReport(init=init, setup_seconds=self.setup_seconds)
+        t0 = time.perf_counter()
+        x = x0.copy()
+        es, ep = self.energy_terms(x, linear)
+        F = es + ep
+        lam = 1e-4
+        nu = 2.0
+        g, Jx, blocks = self.linearise(x, linear)
+        g0 = np.linalg.norm(g)
+        rep.iterations.append(LMIteration(0, F, es, ep, g0, lam, 0, True, 0.0))
+        xprev_step = None
+        rejected = 0
+        for it in range(1, max_iterations + 1):
+            if cancel is not None and cancel():
+                raise Cancelled()
+            ti = time.perf_counter()
+            gn = np.linalg.norm(g)
+            rtol = max(cg_rtol_floor, min(1e-2, 0.1 * gn / max(g0, 1e-300)))
+            prec, diagH = self.make_preconditioner(blocks, lam, Jx, self.omega(x))
+            HW, JxT, a = self.HW, Jx.T.tocsr(), self.a
+
+            def matvec(v):
+                return HW @ v + 2.0 * a * (JxT @ (Jx @ v)) + lam * diagH * v
+
+            res = pcg(matvec, -g, prec, x0=xprev_step, rtol=rtol, maxiter=5000)
+            dx = res.x
+            xn = x + dx
+            esn, epn = self.energy_terms(xn, linear)
+            Fn = esn + epn
+            # predicted reduction of the quadratic model
+            Hdx = HW @ dx + 2.0 * a * (JxT @ (Jx @ dx))
+            pred = -(g @ dx) - 0.5 * (dx @ Hdx)
+            rho = (F - Fn) / pred if pred > 0 else -1.0
+            accepted = Fn < F
+            if accepted:
+                x = xn
+                dF = F - Fn
+                F, es, ep = Fn, esn, epn
+                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if rho > 0 else 1.0
+                nu = 2.0
+                g, Jx, blocks = self.linearise(x, linear)
+            else:
+                lam *= nu
+                nu *= 2.0
+                dF = 0.0
+            rep.iterations.append(
+                LMIteration(it, F, es, ep, float(np.linalg.norm(g)), lam, res.iterations, accepted,
+                            time.perf_counter() - ti)
+            )
+            if progress is not None:
+                progress(it, F)
+            if accepted and (dF <= tol * F and np.linalg.norm(dx) <= 1e-7 * (np.linalg.norm(x) + 1e-12)):
+                rep.converged = True
+                rep.reason = "converged: energy and step stalled"
+                break
+            if np.linalg.norm(g) <= 1e-13 * max(g0, 1.0):
+                rep.converged = True
+                rep.reason = "converged: gradient vanished"
+                break
+            rejected = 0 if accepted else rejected + 1
+            if rejected >= 6 or lam > 1e12:
+                # no step of any size decreases the energy: a minimum to
+                # working precision
+                rep.converged = bool(np.linalg.norm(g) <= 1e-6 * max(g0, 1e-300))
+                rep.reason = "stopped: no further decrease possible" + (" (converged)" if rep.converged else "")
+                break
+            if linear and accepted and res.converged and res.relative_residual <= 1e-9:
+                rep.converged = True
+                rep.reason = "converged: linear problem solved"
+                break
+        else:
+            rep.reason = f"stopped after {max_iterations} iterations"
+        rep.seconds = time.perf_counter() - t0
+        return x, rep
