@@ -121,6 +121,7 @@ class Level:
     PT: sp.csr_matrix | None = None
     Dinv: np.ndarray | None = None
     omega: float = 0.6
+    S: sp.csr_matrix | None = None  # omega * block-diagonal inverse, as a sparse matrix
 
 
 @dataclass
@@ -129,6 +130,7 @@ class AMG:
 
     levels: list = field(default_factory=list)
     coarse_solver: object = None
+    coarse_inverse: np.ndarray | None = None
     block: int = 1
 
     @classmethod
@@ -155,22 +157,31 @@ class AMG:
             DAT = _block_rows(Dinv, AT)
             P = (T - w * DAT).tocsr()
             P.eliminate_zeros()
-            amg.levels.append(Level(A=A, P=P, PT=P.T.tocsr(), Dinv=Dinv, omega=1.0 / rho))
+            omega = 1.0 / rho
+            amg.levels.append(Level(A=A, P=P, PT=P.T.tocsr(), Dinv=Dinv, omega=omega,
+                                    S=(omega * block_diag_matrix(Dinv)).tocsr()))
             A = (P.T @ (A @ P)).tocsr()
         amg.levels.append(Level(A=A))
-        Ac = A.tocsc()
-        Ac = Ac + 1e-13 * abs(Ac.diagonal()).max() * sp.eye(Ac.shape[0], format="csc")
-        amg.coarse_solver = spla.splu(Ac)
+        reg = 1e-13 * abs(A.diagonal()).max()
+        if A.shape[0] <= 4000:
+            # small enough for a dense inverse: one BLAS matvec per V-cycle
+            amg.coarse_inverse = np.linalg.inv(A.toarray() + reg * np.eye(A.shape[0]))
+        else:
+            amg.coarse_solver = spla.splu((A + reg * sp.eye(A.shape[0])).tocsc())
         return amg
 
     def vcycle(self, b: np.ndarray, level: int = 0) -> np.ndarray:
+        """One symmetric V-cycle for A x = b (damped block-Jacobi smoothing,
+        one sweep before and after the coarse correction)."""
         L = self.levels[level]
         if level == len(self.levels) - 1:
+            if self.coarse_inverse is not None:
+                return self.coarse_inverse @ b
             return self.coarse_solver.solve(b)
-        x = L.omega * _apply_block(L.Dinv, b)
+        x = L.S @ b
         r = b - L.A @ x
         x += L.P @ self.vcycle(L.PT @ r, level + 1)
-        x += L.omega * _apply_block(L.Dinv, b - L.A @ x)
+        x += L.S @ (b - L.A @ x)
         return x
 
     @property
@@ -182,17 +193,20 @@ class AMG:
         return [lv.A.shape[0] for lv in self.levels]
 
 
-def _block_rows(Dinv: np.ndarray, M: sp.csr_matrix) -> sp.csr_matrix:
-    """diag(Dinv) @ M for a block-diagonal Dinv (n, b, b)."""
-    n, b, _ = Dinv.shape
+def block_diag_matrix(D: np.ndarray) -> sp.csr_matrix:
+    """Sparse block-diagonal matrix from (n, b, b) blocks."""
+    n, b, _ = D.shape
     if b == 1:
-        return sp.diags(Dinv[:, 0, 0]) @ M
+        return sp.diags(D[:, 0, 0]).tocsr()
     rows = (b * np.arange(n)[:, None, None] + np.arange(b)[None, :, None])
     cols = (b * np.arange(n)[:, None, None] + np.arange(b)[None, None, :])
-    Db = sp.csr_matrix((Dinv.reshape(-1), (np.broadcast_to(rows, Dinv.shape).reshape(-1),
-                                           np.broadcast_to(cols, Dinv.shape).reshape(-1))),
-                       shape=(n * b, n * b))
-    return Db @ M
+    return sp.csr_matrix((D.reshape(-1), (np.broadcast_to(rows, D.shape).reshape(-1),
+                                          np.broadcast_to(cols, D.shape).reshape(-1))), shape=(n * b, n * b))
+
+
+def _block_rows(Dinv: np.ndarray, M: sp.csr_matrix) -> sp.csr_matrix:
+    """diag(Dinv) @ M for a block-diagonal Dinv (n, b, b)."""
+    return block_diag_matrix(Dinv) @ M
 
 
 def _spectral_radius(A, Dinv, rng, iters=12):

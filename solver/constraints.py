@@ -59,6 +59,8 @@ class AffineOmega:
     n_gamma: int
     fixed_frame_vertices: np.ndarray  # global ids whose frame is E0 exactly
     gauge_vertices: np.ndarray  # global ids of free boundary vertices whose alpha is fixed to 0
+    alpha_group: np.ndarray  # (#bV,) local id of the representative of each boundary vertex's alpha
+    alpha_column: np.ndarray  # (#bV,) column of x holding each boundary vertex's alpha, -1 if none
 
     @property
     def n_unknowns(self) -> int:
@@ -199,6 +201,8 @@ def build_constraints(
         n_gamma=n_gamma,
         fixed_frame_vertices=bv[fixed_v_local],
         gauge_vertices=bv[free_local & (alpha_col_local < 0)],
+        alpha_group=group,
+        alpha_column=alpha_col_local,
     )
 
 
@@ -224,25 +228,15 @@ def _alpha_groups(B, free_local, cap_faces) -> np.ndarray:
 
 
 def _alpha_after_gauge(B, free_local, group):
-    """Which free boundary vertices keep an alpha unknown: all, except the
-    members of one group per connected set of free vertices that touches no
-    fixed-frame vertex (there alpha is only defined up to a constant)."""
-    E = B.edges
-    n = len(B.V)
-    both = free_local[E[:, 0]] & free_local[E[:, 1]]
-    A = sp.coo_matrix((np.ones(both.sum()), (E[both, 0], E[both, 1])), shape=(n, n))
-    ncc, lab = csgraph.connected_components(A, directed=False)
-    anchored = np.zeros(ncc, bool)
-    mixed = free_local[E[:, 0]] != free_local[E[:, 1]]
-    for end in range(2):
-        v = E[mixed, end]
-        anchored[lab[v[free_local[v]]]] = True
-    keep = free_local.copy()
-    for cc in np.nonzero(~anchored)[0]:
-        members = np.nonzero((lab == cc) & free_local)[0]
-        if len(members):
-            keep[group == group[members[0]]] = False
-    return keep
+    """Which free boundary vertices keep an alpha unknown: all of them.
+
+    Adding a constant to alpha on a component without sharp features does
+    not change omega (Eq. 20 uses differences), an exact null direction of
+    the LM systems.  Pinning one vertex would remove it but leave the nearly
+    null "constant except at one vertex" mode that stalls PCG; the damped
+    systems are regular and PCG ignores the null direction, so we keep it.
+    """
+    return free_local.copy()
 
 
 def _tube_edges(mesh: TetMesh, net: PreparedNetwork, emb: Embedding, kind, bnormals):

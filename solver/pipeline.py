@@ -285,7 +285,8 @@ class FieldProblem:
     def volume(self) -> VolumeProblem:
         if self._volume is None:
             self._volume = VolumeProblem(self.mesh, self.constraints, self.embedding.face_omega,
-                                         self.embedding.face_excluded, self.options.penalty)
+                                         self.embedding.face_excluded, self.options.penalty,
+                                         self.boundary.normals)
         return self._volume
 
     def initial_guess(self, init: str, seed: int = 0) -> np.ndarray:
@@ -329,7 +330,8 @@ class FieldProblem:
                        False, lm_progress, cancel)
         report.lm = lm
         omega = self.constraints.omega(x)
-        root, E_root = self.default_root() if root is None else (root, None)
+        root, E_root = self.default_root(x) if root is None else (root, None)
+        self._last_x = x
         frames = st.run("integrate", self.develop, omega, root, E_root)
         res = Result(problem=self, omega=omega, x=x, frames=frames, root=root, report=report)
         report.metrics.update(res.quick_metrics())
@@ -348,23 +350,28 @@ class FieldProblem:
             out[mesh.tet_edges[nr].reshape(-1)] = True
         return out
 
-    def default_root(self):
-        """A boundary vertex whose frame is known: a sharp-feature vertex if
-        any, else the vertex whose alpha was fixed by the gauge."""
+    def default_root(self, x: np.ndarray | None = None):
+        """A boundary vertex and its frame: a sharp-feature vertex (frame
+        fixed) if any, else a boundary vertex rotated by its solved alpha
+        about its normal (Eq. 20)."""
         mesh, cons, bf = self.mesh, self.constraints, self.boundary
         bv = mesh.boundary_vertices
         if len(cons.fixed_frame_vertices):
             r = int(cons.fixed_frame_vertices[0])
-        else:
-            g = cons.gauge_vertices
-            r = int(g[0]) if len(g) else int(bv[0])
-        return r, bf.E0[np.searchsorted(bv, r)]
+            return r, bf.E0[np.searchsorted(bv, r)]
+        loc = 0
+        r = int(bv[loc])
+        E = bf.E0[loc]
+        col = cons.alpha_column[loc]
+        if x is not None and col >= 0:
+            E = exp_so3(x[col] * bf.normals[loc]) @ E
+        return r, E
 
     def develop(self, omega, root, E_root=None):
         """Frames from omega, starting at root.  E_root defaults to the frame
         the root gets when developed from the default root."""
         if E_root is None:
-            r0, E0 = self.default_root()
+            r0, E0 = self.default_root(getattr(self, "_last_x", None))
             E_root = develop(self.mesh, omega, r0, E0, self.avoid_edges)[root]
         return develop(self.mesh, omega, root, E_root, self.avoid_edges)
 
