@@ -278,8 +278,8 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
 
     Checks, in order: array shapes and finiteness, index range, degenerate
     triangles, every edge shared by exactly two triangles, consistent
-    orientation, manifold vertices, outward orientation (cavities inward),
-    and self-intersections.
+    orientation, manifold vertices, self-intersections and outward
+    orientation (cavities inward).
     """
     V = np.asarray(V, dtype=float)
     F = np.asarray(F)
@@ -365,6 +365,15 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
             f"surface vertex {v} at {_fmt(V[v])} is non-manifold (two parts of the surface touch only there); "
             "split it or move the parts apart"
         )
+    # intersections first: nesting below is only meaningful without them
+    if check_intersections:
+        hit = find_self_intersection(S)
+        if hit is not None:
+            f, g = hit
+            raise SurfaceError(
+                f"surface intersects itself: triangles {f} and {g} cross near {_fmt(P[f].mean(0))}; "
+                "remove the intersection (Blender: 3D-Print Toolbox > Intersections, or a Boolean union)"
+            )
     # orientation and nesting of components
     vols = S.signed_volumes()
     ncomp, lab = S.face_components
@@ -387,14 +396,6 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
             raise SurfaceError(
                 f"surface component {c} ({int(np.sum(lab == c))} triangles, a {what}) is oriented the wrong "
                 f"way; its normals must point {fix} (Blender: Mesh > Normals > Recalculate Outside)"
-            )
-    if check_intersections:
-        hit = find_self_intersection(S)
-        if hit is not None:
-            f, g = hit
-            raise SurfaceError(
-                f"surface intersects itself: triangles {f} and {g} cross near {_fmt(P[f].mean(0))}; "
-                "remove the intersection (Blender: 3D-Print Toolbox > Intersections, or a Boolean union)"
             )
     return S
 
@@ -428,7 +429,7 @@ def find_self_intersection(S: TriSurface):
             s0 = V[F[A, k]]
             s1 = V[F[A, (k + 1) % 3]]
             # skip edges touching a shared vertex
-            touches = np.isin(F[A, k][:, None], F[B]).any(1) | np.isin(F[A, (k + 1) % 3][:, None], F[B]).any(1)
+            touches = (F[A, k][:, None] == F[B]).any(1) | (F[A, (k + 1) % 3][:, None] == F[B]).any(1)
             crossing = segment_crosses_triangle(s0, s1, P[B], tol)
             hits |= crossing & ~touches
     if np.any(hits):
