@@ -14,6 +14,8 @@ import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from .boundary2d import BoundaryField, solve_boundary_field
 from .constraints import TUBE, AffineOmega, build_constraints
@@ -359,12 +361,22 @@ class FieldProblem:
         if len(cons.fixed_frame_vertices):
             r = int(cons.fixed_frame_vertices[0])
             return r, bf.E0[np.searchsorted(bv, r)]
-        loc = 0
+        loc = int(np.argmax(cons.alpha_column >= 0)) if np.any(cons.alpha_column >= 0) else 0
         r = int(bv[loc])
         E = bf.E0[loc]
         col = cons.alpha_column[loc]
         if x is not None and col >= 0:
-            E = exp_so3(x[col] * bf.normals[loc]) @ E
+            # adding one constant to every alpha of a boundary component
+            # leaves omega unchanged (Eq. 20 only sees alpha differences), so
+            # measure the root's alpha from the component's mean: the frames
+            # then do not depend on where the solve started
+            B = self.mesh.boundary
+            n = len(B.V)
+            adj = sp.coo_matrix((np.ones(len(B.edges)), (B.edges[:, 0], B.edges[:, 1])), shape=(n, n))
+            _, comp = connected_components(adj, directed=False)
+            same = (comp == comp[loc]) & (cons.alpha_column >= 0)
+            alpha = x[col] - float(np.mean(x[cons.alpha_column[same]]))
+            E = exp_so3(alpha * bf.normals[loc]) @ E
         return r, E
 
     def develop(self, omega, root, E_root=None):

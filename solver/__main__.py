@@ -1,0 +1,145 @@
+"""Command line: ``python -m solver NETWORK.json [SURFACE.obj] [options]``.
+
+Reads a closed triangle surface (OBJ) and a curve network (JSON, format in
+solver/io.py), solves, prints the report and writes the result (.npz).
+
+    python -m solver part.json -o part.npz
+    python -m solver --example ball --edge-length 0.1 --profile
+    python -m solver --export-example ball out/   # write ball.obj + ball.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+from . import io
+from .errors import Cancelled, SymFramesError
+from .examples import EXAMPLES, load_example
+from .pipeline import INITS, FieldProblem
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m solver", description="Symmetric Moving Frames: a 3D cross field "
+                                "from a closed surface and a curve network.")
+    p.add_argument("network", nargs="?", help="network JSON file (may name its surface)")
+    p.add_argument("surface", nargs="?", help="surface OBJ file (default: the one the JSON names)")
+    p.add_argument("--example", choices=sorted(EXAMPLES), help="solve a built-in example instead")
+    p.add_argument("--export-example", nargs=2, metavar=("NAME", "DIR"),
+                   help="write a built-in example as NAME.obj + NAME.json into DIR and exit")
+    p.add_argument("-o", "--output", help="result .npz (default: next to the network file, or NAME.npz)")
+    p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
+    p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
+    p.add_argument("--penalty", type=float, help="penalty a of Eq. 23 (default 1000)")
+    p.add_argument("--iterations", type=int, help="maximum Levenberg-Marquardt iterations (default 30)")
+    p.add_argument("--init", choices=INITS, help="initial guess (default zero)")
+    p.add_argument("--root", type=int, help="tet-mesh vertex to develop the frames from (default: a boundary vertex)")
+    p.add_argument("--check", action="store_true", help="only validate the input, then exit")
+    p.add_argument("--profile", action="store_true", help="print the per-stage and per-iteration breakdown "
+                   "and the hottest functions")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    return p
+
+
+def _options(args, file_options: dict):
+    d = dict(file_options)
+    for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets),
+                     ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init)):
+        if val is not None:
+            d[key] = val
+    return io.options_from_dict(d)
+
+
+def _progress(quiet: bool):
+    if quiet:
+        return None
+    t0 = time.perf_counter()
+
+    def show(stage, fraction, message):
+        print(f"[{time.perf_counter() - t0:7.1f} s] {100 * fraction:3.0f}%  {message}", file=sys.stderr, flush=True)
+
+    return show
+
+
+def _print_profile(result) -> None:
+    lm = result.report.lm
+    print("\nLevenberg-Marquardt iterations:")
+    print(f"  {'it':>3} {'energy':>12} {'smooth':>12} {'penalty':>10} {'|grad|':>10} {'damping':>9} {'CG':>5} "
+          f"{'ok':>3} {'s':>7} {'step':>9}")
+    for it in lm.iterations:
+        print(f"  {it.iteration:3d} {it.energy:12.6g} {it.smoothness:12.6g} {it.penalty:10.3g} "
+              f"{it.gradient_norm:10.3g} {it.damping:9.2g} {it.cg_iterations:5d} {'y' if it.accepted else 'n':>3} "
+              f"{it.seconds:7.2f} {it.step:9.2e}")
+    print(f"  setup {lm.setup_seconds:.2f} s, total {lm.seconds:.2f} s")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.export_example:
+            name, folder = args.export_example
+            V, F, net = load_example(name)
+            os.makedirs(folder, exist_ok=True)
+            io.write_obj(os.path.join(folder, f"{name}.obj"), V, F)
+            io.write_network(os.path.join(folder, f"{name}.json"), net, surface=f"{name}.obj")
+            print(f"wrote {os.path.join(folder, name)}.obj and .json")
+            return 0
+        if args.example:
+            V, F, net = load_example(args.example)
+            file_opts, stem = {}, args.example
+        elif args.network:
+            net, file_opts, surface = io.read_network(args.network)
+            surface = args.surface or surface
+            if surface is None:
+                raise SymFramesError("no surface: give SURFACE.obj or a 'surface' key in the network file")
+            V, F = io.read_obj(surface)
+            stem = os.path.splitext(args.network)[0]
+        else:
+            _parser().print_usage(sys.stderr)
+            print("error: give a network file or --example NAME", file=sys.stderr)
+            return 2
+        opts = _options(args, file_opts)
+        if args.check:
+            from .validation import check_input
+
+            checked = check_input(V, F, net, opts.check_intersections)
+            print(f"input is valid: {len(checked.network.curves)} interior curves, {len(checked.network.nodes)} "
+                  f"nodes, {checked.surface.n_components} boundary component(s)")
+            return 0
+        progress = _progress(args.quiet)
+        profiler = None
+        if args.profile:
+            import cProfile
+
+            profiler = cProfile.Profile()
+            profiler.enable()
+        problem = FieldProblem(V, F, net, opts, progress=progress)
+        result = problem.solve(root=args.root, progress=progress)
+        if profiler is not None:
+            profiler.disable()
+        print(result.report.summary())
+        if args.profile:
+            _print_profile(result)
+            import pstats
+
+            print("\nHottest functions (cumulative time):")
+            pstats.Stats(profiler, stream=sys.stdout).sort_stats("tottime").print_stats(15)
+        out = args.output or f"{stem}.npz"
+        io.save_result(out, result)
+        print(f"wrote {out}")
+        return 0
+    except (SymFramesError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except Cancelled:
+        print("cancelled", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

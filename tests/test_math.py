@@ -1,0 +1,177 @@
+"""The discrete geometry the solver is built on, checked against known
+answers: rotations and the cube group, the structure equation (Eq. 17/18)
+on smooth fields, parallel transport and curvature on a surface (Eq. 4-6),
+the 2D field's per-triangle condition, and development (Eq. 8)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from solver.boundary2d import solve_boundary_field, wrap
+from solver.examples import icosphere
+from solver.features import FeatureGraph
+from solver.integrate import develop
+from solver.rotations import CUBE_GROUP, cross_distance, exp_so3, hat, log_so3, rotation_angle, unwrap_rotvec
+from solver.structure import StructureEquation
+from solver.tetmesh import TetMesh
+from solver.trisurface import TriSurface
+
+
+def box_tets(n: int, size: float = 1.0, jitter: float = 0.0, seed: int = 0) -> TetMesh:
+    """n^3 cubes of a box, 6 tets each (Freudenthal), optionally jittered."""
+    g = np.linspace(0.0, size, n + 1)
+    V = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+    if jitter:
+        rng = np.random.default_rng(seed)
+        inner = np.all((V > 1e-9) & (V < size - 1e-9), axis=1)
+        V[inner] += rng.uniform(-jitter, jitter, (inner.sum(), 3)) * size / n
+    vid = np.arange(len(V)).reshape(n + 1, n + 1, n + 1)
+    cells = np.indices((n, n, n)).reshape(3, -1).T
+    T = []
+    for perm in itertools.permutations(range(3)):
+        c = cells.copy()
+        tet = [vid[tuple(c.T)]]
+        for ax in perm:
+            c = c.copy()
+            c[:, ax] += 1
+            tet.append(vid[tuple(c.T)])
+        T.append(np.stack(tet, axis=1))
+    return TetMesh(V, np.vstack(T))
+
+
+def smooth_field(X: np.ndarray) -> np.ndarray:
+    """A smooth, strongly varying rotation field (one frame per point)."""
+    A = np.array([[0.9, -0.4, 0.3], [0.2, 0.7, -0.8], [-0.5, 0.6, 0.4]])
+    v = X @ A.T + 0.6 * np.sin(2.0 * X[:, [1, 2, 0]])
+    return exp_so3(v)
+
+
+def darboux(mesh: TetMesh, E: np.ndarray) -> np.ndarray:
+    """omega_ij = log(E_j E_i^T) per edge (Eq. 7 with R_ij = I)."""
+    i, j = mesh.edges.T
+    return log_so3(E[j] @ np.transpose(E[i], (0, 2, 1)))
+
+
+# ----------------------------------------------------------------- rotations
+def test_exp_log_round_trip_and_hat_bracket():
+    rng = np.random.default_rng(1)
+    v = rng.normal(size=(200, 3))
+    v *= (rng.uniform(0, 3.1, 200) / np.linalg.norm(v, axis=1))[:, None]
+    assert np.allclose(log_so3(exp_so3(v)), v, atol=1e-10)
+    a, b = rng.normal(size=(2, 50, 3))
+    assert np.allclose(hat(a) @ hat(b) - hat(b) @ hat(a), hat(np.cross(a, b)), atol=1e-12)
+    assert np.allclose(rotation_angle(exp_so3(v)), np.linalg.norm(v, axis=1), atol=1e-9)
+
+
+def test_unwrap_keeps_large_rotations():
+    # a 1.3-turn rotation about z is stored as its small log; unwrapping near
+    # the large vector recovers it exactly
+    big = np.array([[0.0, 0.0, 2.6 * np.pi]])
+    small = log_so3(exp_so3(big))
+    assert np.linalg.norm(small) < np.pi
+    assert np.allclose(unwrap_rotvec(small, big), big, atol=1e-9)
+
+
+def test_cube_group_is_the_octahedral_group():
+    G = CUBE_GROUP
+    assert G.shape == (24, 3, 3)
+    assert np.allclose(G[0], np.eye(3))
+    assert np.allclose(np.linalg.det(G), 1.0)
+    # closed under products and inverses, all distinct
+    keys = {tuple(np.round(g).astype(int).ravel()) for g in G}
+    assert len(keys) == 24
+    for a, b in itertools.product(G, G):
+        assert tuple(np.round(a @ b).astype(int).ravel()) in keys
+
+
+def test_cross_distance_ignores_representatives():
+    rng = np.random.default_rng(2)
+    E = Rotation.random(100, random_state=3).as_matrix()
+    g = CUBE_GROUP[rng.integers(0, 24, 100)]
+    assert np.allclose(cross_distance(E, E @ g), 0.0, atol=1e-7)
+    # a small rotation about any axis moves the cross by exactly its angle
+    w = rng.normal(size=(100, 3))
+    w *= (np.radians(7.0) / np.linalg.norm(w, axis=1))[:, None]
+    assert np.allclose(np.degrees(cross_distance(E, exp_so3(w) @ E @ g)), 7.0, atol=1e-6)
+    # the largest possible distance between two crosses is below 63 degrees
+    F = Rotation.random(2000, random_state=4).as_matrix()
+    assert np.degrees(cross_distance(E[:1].repeat(2000, 0), F)).max() < 63.0
+
+
+# ------------------------------------------------------ structure equation
+@pytest.mark.parametrize("jitter", [0.0, 0.25])
+def test_structure_residual_of_smooth_fields_is_third_order(jitter):
+    """Darboux derivatives of smooth frame fields satisfy Eq. 17 (Omega = 0)
+    up to O(h^3) per face (the wedge of Eq. 18 removes the second-order
+    term), while dropping the wedge leaves O(h^2)."""
+    full, lin, hs = [], [], []
+    for n in (4, 8, 16):
+        mesh = box_tets(n, 0.6, jitter)
+        om = darboux(mesh, smooth_field(mesh.vertices))
+        eq = StructureEquation(mesh.face_edges, mesh.corner_weights, np.zeros((mesh.n_faces, 3)), mesh.n_edges)
+        full.append(np.abs(eq.residual(om)).max())
+        lin.append(np.abs(eq.residual(om, linear=True)).max())
+        hs.append(mesh.mean_edge_length)
+    # slopes between the two finest meshes
+    slope_full = np.log(full[1] / full[2]) / np.log(hs[1] / hs[2])
+    slope_lin = np.log(lin[1] / lin[2]) / np.log(hs[1] / hs[2])
+    assert slope_full > 2.6, (full, slope_full)
+    assert 1.7 < slope_lin < 2.3, (lin, slope_lin)
+
+
+def test_structure_jacobian_matches_finite_differences():
+    mesh = box_tets(2, 1.0, 0.2)
+    rng = np.random.default_rng(5)
+    om = rng.normal(scale=0.5, size=(mesh.n_edges, 3))
+    eq = StructureEquation(mesh.face_edges, mesh.corner_weights, rng.normal(size=(mesh.n_faces, 3)),
+                           mesh.n_edges)
+    J = eq.jacobian(om).toarray()
+    d = rng.normal(size=om.shape)
+    eps = 1e-6
+    fd = (eq.residual(om + eps * d) - eq.residual(om - eps * d)).reshape(-1) / (2 * eps)
+    assert np.allclose(J @ d.reshape(-1), fd, atol=1e-7)
+
+
+# -------------------------------------------------------------- development
+def test_development_recovers_the_field():
+    mesh = box_tets(5, 1.0, 0.2)
+    E = smooth_field(mesh.vertices)
+    om = darboux(mesh, E)
+    for root in (0, mesh.n_vertices // 2, mesh.n_vertices - 1):
+        D = develop(mesh, om, root, E[root])
+        assert np.allclose(D, E, atol=1e-10)
+
+
+# ------------------------------------------------------ surface, Eq. 4 - 6
+def test_triangle_holonomy_equals_curvature_and_gauss_bonnet():
+    """Eq. 6: parallel transport around each triangle turns by its Gaussian
+    curvature (Eq. 4, angle defect form), and the total is 2 pi chi."""
+    V, F = icosphere(3)
+    S = TriSurface(V, F)
+    # eight +1/4 singularities (the cube's corners) satisfy Poincare-Hopf
+    corners = np.array(list(itertools.product((-1, 1), repeat=3))) / np.sqrt(3)
+    centroids = V[F].mean(axis=1)
+    sigma = np.zeros(len(F))
+    sigma[np.argmax(centroids @ corners.T, axis=0)] = 0.25
+    bf = solve_boundary_field(S, FeatureGraph(S, np.zeros(len(S.edges), bool)), sigma)
+    # orientation of each face's edges relative to (low -> high)
+    E = S.edges
+    key = {tuple(e): k for k, e in enumerate(E)}
+    hol = np.zeros(len(F))
+    d_omega = np.zeros(len(F))
+    for f, tri in enumerate(F):
+        for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])):
+            k = key[(min(a, b), max(a, b))]
+            s = 1.0 if a < b else -1.0
+            hol[f] += s * bf.rho[k]
+            d_omega[f] += s * bf.omega2d[k]
+    assert np.allclose(wrap(hol - bf.K), 0.0, atol=1e-9)
+    assert np.isclose(bf.K.sum(), 4 * np.pi, atol=1e-9)
+    # Eq. 13: around every triangle the field's change cancels the
+    # curvature up to the prescribed singular angle
+    assert np.allclose(d_omega, -bf.K + 2 * np.pi * sigma, atol=1e-8) or np.allclose(
+        d_omega, bf.K - 2 * np.pi * sigma, atol=1e-8), np.abs(d_omega + bf.K - 2 * np.pi * sigma).max()
