@@ -1,0 +1,36 @@
+"""The Blender side of SymFrames: everything that imports bpy.
+
+Modules, in the order data flows through them:
+
+* properties        -- scene settings and per-curve settings (saved in the .blend)
+* scene_io          -- domain mesh + network curves -> solver arrays
+* job               -- the solve, off the main thread, cancellable
+* display           -- glyph samples and streamlines from a field (solver.streamlines)
+* storage           -- the solved field in the .blend; the output objects
+* glyphs            -- instanced cross glyphs via Geometry Nodes
+* streamline_curves -- streamlines as a bevelled curve object
+* diagnostics       -- singular faces of a stored field as a mesh object
+* operators, panel  -- the user interface
+* examples, presentation -- example scenes; camera, lights, render settings
+"""
+
+import bpy
+
+from . import operators, panel, properties
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(
+    properties.CLASSES + operators.CLASSES + panel.CLASSES
+)
+
+
+def register():
+    _register_classes()
+    properties.register_properties()
+
+
+def unregister():
+    job = operators.running_job()
+    if job is not None:
+        job.cancel()
+    properties.unregister_properties()
+    _unregister_classes()  # in reverse order

@@ -1,0 +1,247 @@
+"""Cross glyphs: one instanced cross per sampled point, via Geometry Nodes.
+
+The glyph object is a mesh of loose points with a QUATERNION point attribute
+``frame``; its Geometry Nodes modifier instances a cross of three orthogonal
+bars (red, green, blue for the frame's first, second and third axis) on
+every point, rotated by Named Attribute(frame) -> Instance on Points.Rotation.
+Writing 100k points is two foreach_set calls.
+
+In the adaptation-error colouring the points also carry a FLOAT attribute
+``adaptation`` (radians); the node group stores error / Error Scale, clamped
+to [0, 1], on the instances as ``symframes_error``, which the error
+material reads with an Attribute node (Instancer) through a colour ramp.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from . import storage
+
+NODE_GROUP = "SymFrames Cross Glyph"
+NODE_GROUP_VERSION = 2
+MODIFIER = "SymFrames Glyphs"
+AXIS_COLOURS = ((0.85, 0.12, 0.10), (0.15, 0.65, 0.15), (0.12, 0.30, 0.90))
+AXIS_MATERIALS = tuple(f"SymFrames Axis {a}" for a in "XYZ")
+ERROR_MATERIAL = "SymFrames Adaptation Error"
+ERROR_ATTRIBUTE = "adaptation"
+ERROR_FACTOR = "symframes_error"
+BAR_THICKNESS = 0.14  # relative to the bar length
+# modifier inputs: name -> (socket type, default)
+INPUTS = {
+    "Size": ("NodeSocketFloat", 0.1),
+    "Colour by Error": ("NodeSocketBool", False),
+    "Error Scale": ("NodeSocketFloat", 0.0872665),
+}
+
+
+# --------------------------------------------------------------- materials
+def _principled(mat, colour):
+    mat.diffuse_color = (*colour, 1.0)  # solid-mode viewport colour
+    if mat.node_tree is None:  # Blender < 5.0 creates materials without nodes
+        mat.use_nodes = True
+    bsdf = mat.node_tree.nodes.get("Principled BSDF")
+    if bsdf is not None:
+        bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
+        bsdf.inputs["Roughness"].default_value = 0.45
+    return bsdf
+
+
+def axis_material(axis: int):
+    """Material of frame axis 0, 1 or 2 (shared by glyph bars and streamlines)."""
+    mat = bpy.data.materials.get(AXIS_MATERIALS[axis])
+    if mat is None:
+        mat = bpy.data.materials.new(AXIS_MATERIALS[axis])
+        _principled(mat, AXIS_COLOURS[axis])
+    return mat
+
+
+def error_material():
+    """Blue (no error) to red (Error Scale or more), from the instance attribute."""
+    mat = bpy.data.materials.get(ERROR_MATERIAL)
+    if mat is not None:
+        return mat
+    mat = bpy.data.materials.new(ERROR_MATERIAL)
+    bsdf = _principled(mat, (0.6, 0.3, 0.5))
+    if bsdf is None:
+        return mat
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    attr = nodes.new("ShaderNodeAttribute")
+    attr.attribute_type = "INSTANCER"
+    attr.attribute_name = ERROR_FACTOR
+    attr.location = (-700, 200)
+    ramp = nodes.new("ShaderNodeValToRGB")
+    ramp.location = (-450, 200)
+    els = ramp.color_ramp.elements
+    els[0].color = (0.10, 0.25, 0.90, 1.0)
+    els[1].color = (0.90, 0.08, 0.05, 1.0)
+    mid = els.new(0.5)
+    mid.color = (0.95, 0.85, 0.15, 1.0)
+    links.new(attr.outputs["Fac"], ramp.inputs["Fac"])
+    links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    return mat
+
+
+# -------------------------------------------------------------- node group
+def node_group():
+    """The glyph node group, built once per file (rebuilt if outdated)."""
+    ng = bpy.data.node_groups.get(NODE_GROUP)
+    if ng is not None and ng.get("symframes_version") == NODE_GROUP_VERSION:
+        return ng
+    if ng is not None:
+        ng.name = NODE_GROUP + " (old)"
+    ng = bpy.data.node_groups.new(NODE_GROUP, "GeometryNodeTree")
+    ng["symframes_version"] = NODE_GROUP_VERSION
+    iface = ng.interface
+    iface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    for name, (kind, default) in INPUTS.items():
+        sock = iface.new_socket(name, in_out="INPUT", socket_type=kind)
+        sock.default_value = default
+        if kind == "NodeSocketFloat":
+            sock.min_value = 0.0
+    iface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+
+    nodes, links = ng.nodes, ng.links
+    gin = nodes.new("NodeGroupInput")
+    gin.location = (-900, 0)
+    gout = nodes.new("NodeGroupOutput")
+    gout.location = (700, 0)
+    join = nodes.new("GeometryNodeJoinGeometry")
+    join.location = (-150, -300)
+    t = BAR_THICKNESS
+    err_mat = error_material()
+    for axis in range(3):
+        y = -250 - 200 * axis
+        cube = nodes.new("GeometryNodeMeshCube")
+        cube.location = (-650, y)
+        dims = [t, t, t]
+        dims[axis] = 1.0
+        cube.inputs["Size"].default_value = dims
+        switch = nodes.new("GeometryNodeSwitch")
+        switch.input_type = "MATERIAL"
+        switch.location = (-650, y - 100)
+        switch.inputs["False"].default_value = axis_material(axis)
+        switch.inputs["True"].default_value = err_mat
+        links.new(gin.outputs["Colour by Error"], switch.inputs["Switch"])
+        setmat = nodes.new("GeometryNodeSetMaterial")
+        setmat.location = (-400, y)
+        links.new(cube.outputs["Mesh"], setmat.inputs["Geometry"])
+        links.new(switch.outputs["Output"], setmat.inputs["Material"])
+        links.new(setmat.outputs["Geometry"], join.inputs["Geometry"])
+    frame = nodes.new("GeometryNodeInputNamedAttribute")
+    frame.location = (-400, 200)
+    frame.data_type = "QUATERNION"
+    frame.inputs["Name"].default_value = storage.FRAME_ATTRIBUTE
+    inst = nodes.new("GeometryNodeInstanceOnPoints")
+    inst.location = (0, 0)
+    links.new(gin.outputs["Geometry"], inst.inputs["Points"])
+    links.new(join.outputs["Geometry"], inst.inputs["Instance"])
+    links.new(frame.outputs["Attribute"], inst.inputs["Rotation"])
+    links.new(gin.outputs["Size"], inst.inputs["Scale"])
+    # error / scale in [0, 1] on the instances, for the error material
+    err = nodes.new("GeometryNodeInputNamedAttribute")
+    err.location = (0, -250)
+    err.data_type = "FLOAT"
+    err.inputs["Name"].default_value = ERROR_ATTRIBUTE
+    div = nodes.new("ShaderNodeMath")
+    div.location = (200, -250)
+    div.operation = "DIVIDE"
+    div.use_clamp = True
+    links.new(err.outputs["Attribute"], div.inputs[0])
+    links.new(gin.outputs["Error Scale"], div.inputs[1])
+    store = nodes.new("GeometryNodeStoreNamedAttribute")
+    store.location = (400, 0)
+    store.data_type = "FLOAT"
+    store.domain = "INSTANCE"
+    store.inputs["Name"].default_value = ERROR_FACTOR
+    links.new(inst.outputs["Instances"], store.inputs["Geometry"])
+    links.new(div.outputs["Value"], store.inputs["Value"])
+    links.new(store.outputs["Geometry"], gout.inputs["Geometry"])
+    return ng
+
+
+def remove_unused_helpers() -> None:
+    """Drop the node group and the materials once nothing uses them."""
+    for ng in [g for g in bpy.data.node_groups if g.name.startswith(NODE_GROUP)]:
+        if ng.users == 0:
+            bpy.data.node_groups.remove(ng)
+    for name in (*AXIS_MATERIALS, ERROR_MATERIAL):
+        mat = bpy.data.materials.get(name)
+        if mat is not None and mat.users == 0:
+            bpy.data.materials.remove(mat)
+
+
+# ------------------------------------------------------------------- write
+def new_glyph_mesh(points: np.ndarray, quaternions: np.ndarray, error: np.ndarray | None = None,
+                   name: str = "SymFrames Glyph Points"):
+    """A new mesh of loose points with the ``frame`` quaternion attribute
+    (w, x, y, z) and, if error is given, the ``adaptation`` attribute."""
+    me = bpy.data.meshes.new(name)
+    try:
+        me.vertices.add(len(points))
+        if len(points):  # an empty mesh has no position attribute
+            me.attributes["position"].data.foreach_set("vector", np.asarray(points, np.float32).ravel())
+        me.attributes.new(storage.FRAME_ATTRIBUTE, "QUATERNION", "POINT")
+        # fetch by name: a reference taken before another attributes.new() goes stale
+        me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_set(
+            "value", np.asarray(quaternions, np.float32).ravel())
+        if error is not None:
+            me.attributes.new(ERROR_ATTRIBUTE, "FLOAT", "POINT")
+            me.attributes[ERROR_ATTRIBUTE].data.foreach_set("value", np.asarray(error, np.float32).ravel())
+        me.update()
+    except Exception:
+        bpy.data.meshes.remove(me)
+        raise
+    return me
+
+
+def install_glyph_mesh(scene, me):
+    """Make me the glyph object's points (creating the object and its
+    Geometry Nodes modifier if needed); returns the glyph object."""
+    obj = storage.replace_output(scene, "glyphs", "SymFrames Glyphs", me)
+    mod = obj.modifiers.get(MODIFIER)
+    if mod is None:
+        mod = obj.modifiers.new(MODIFIER, "NODES")
+    ng = node_group()
+    if mod.node_group != ng:
+        mod.node_group = ng
+    sync_modifier(scene)
+    return obj
+
+
+def write_glyphs(scene, points: np.ndarray, quaternions: np.ndarray, error: np.ndarray | None = None):
+    """Replace the scene's glyph points; returns the glyph object."""
+    return install_glyph_mesh(scene, new_glyph_mesh(points, quaternions, error))
+
+
+def sync_modifier(scene) -> None:
+    """Copy the scene's glyph size and error scale into the modifier (live,
+    no resampling); colour by error when the points carry the error."""
+    obj = storage.output_object(scene, "glyphs")
+    if obj is None:
+        return
+    mod = obj.modifiers.get(MODIFIER)
+    if mod is None or mod.node_group is None:
+        return
+    s = scene.symframes
+    values = {
+        "Size": float(s.glyph_size),
+        "Colour by Error": obj.type == "MESH" and ERROR_ATTRIBUTE in obj.data.attributes,
+        "Error Scale": float(s.error_scale),
+    }
+    for item in mod.node_group.interface.items_tree:
+        if getattr(item, "in_out", None) == "INPUT" and item.name in values:
+            mod[item.identifier] = values[item.name]
+    obj.update_tag()
+
+
+def glyph_points(obj) -> tuple[np.ndarray, np.ndarray]:
+    """(points (k, 3), quaternions (k, 4)) held by a glyph object."""
+    me = obj.data
+    n = len(me.vertices)
+    P = np.empty(3 * n, np.float32)
+    me.attributes["position"].data.foreach_get("vector", P)
+    q = np.empty(4 * n, np.float32)
+    me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_get("value", q)
+    return P.reshape(-1, 3), q.reshape(-1, 4)

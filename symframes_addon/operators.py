@@ -1,0 +1,366 @@
+"""Operators (all in F3 search under "SymFrames").
+
+Every failure is reported with self.report({'ERROR'}, message) and leaves
+the scene as it was: inputs are read into arrays first, numerics run on
+arrays, and the scene is written only after everything succeeded.
+"""
+
+import traceback
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty
+
+from ..solver import SymFramesError, TopologyError
+from ..solver.examples import EXAMPLES
+from ..solver.validation import check_input
+from . import diagnostics, display, examples, glyphs, job, scene_io, storage, streamline_curves
+
+_RUNNING: dict = {}  # the one solve running in the background, if any
+
+
+def running_job():
+    return _RUNNING.get("job")
+
+
+def error_text(e: BaseException, inputs=None) -> str:
+    """A message for the user: input errors verbatim, others with their type."""
+    if isinstance(e, (SymFramesError, ValueError)):
+        msg = str(e)
+        if isinstance(e, TopologyError) and inputs is not None and not inputs.network.curves:
+            msg += f". The network is empty: {inputs.network_note}"
+        return msg
+    return f"SymFrames failed ({type(e).__name__}: {e}); see the system console for details"
+
+
+def write_outcome(scene, out: job.Outcome) -> None:
+    """Replace the scene's result with a solved outcome, all or nothing:
+    every new datablock is built before any old one is replaced.  Output
+    objects that were not recomputed are removed: they showed the old field."""
+    created = []
+    try:
+        field_me = storage.new_field_mesh(out.vertices, out.tets, out.quaternions, out.report, out.adaptation,
+                                          out.network_faces)
+        created.append((bpy.data.meshes, field_me))
+        glyph_me = curve = None
+        if out.glyphs is not None:
+            glyph_me = glyphs.new_glyph_mesh(*out.glyphs)
+            created.append((bpy.data.meshes, glyph_me))
+        if out.streamlines is not None:
+            curve = streamline_curves.new_streamline_curve(*out.streamlines, scene.symframes.streamline_radius)
+            created.append((bpy.data.curves, curve))
+    except Exception:
+        for coll, data in created:
+            coll.remove(data)
+        raise
+    storage.set_field(scene, field_me)
+    if glyph_me is not None:
+        glyphs.install_glyph_mesh(scene, glyph_me)
+    else:
+        storage.remove_output(scene, "glyphs")
+    if curve is not None:
+        storage.replace_output(scene, "streamlines", "SymFrames Streamlines", curve)
+    else:
+        storage.remove_output(scene, "streamlines")
+    storage.remove_output(scene, "singular_faces")
+
+
+def finish_job(scene, j: job.SolveJob) -> tuple[str, str]:
+    """Write a finished job into the scene (only if it succeeded).
+
+    Returns (report level, message): ('INFO', summary), ('WARNING', ...) when
+    cancelled, ('ERROR', ...) on failure -- the scene is then unchanged.
+    """
+    if j.cancelled:
+        return "WARNING", "SymFrames: cancelled; the scene is unchanged"
+    if j.error is not None:
+        if not isinstance(j.error, (SymFramesError, ValueError)):
+            traceback.print_exception(j.error)
+        return "ERROR", error_text(j.error, j.inputs)
+    if scene is None:
+        return "ERROR", "SymFrames: the scene was deleted during the solve; nothing was written"
+    try:
+        write_outcome(scene, j.outcome)
+    except Exception as e:
+        traceback.print_exc()
+        return "ERROR", error_text(e)
+    r = j.outcome.report
+    m = r["metrics"]
+    msg = (f"SymFrames: {r['sizes'].get('tets', 0):,} tets, {r['iterations']} iterations, {r['seconds']:.1f} s; "
+           f"monodromy {m.get('monodromy_mean_deg', 0):.3g} deg mean, "
+           f"{m.get('spurious_singular_faces', 0)} spurious singular faces")
+    if j.outcome.streamlines is not None and not j.outcome.streamlines[0]:
+        return "WARNING", msg + "; no streamline could be traced"
+    return "INFO", msg
+
+
+def _tag_redraw(context) -> None:
+    screen = context.screen
+    if screen is None:
+        return
+    for area in screen.areas:
+        if area.type == "VIEW_3D":
+            area.tag_redraw()
+
+
+class SYMFRAMES_OT_check_network(bpy.types.Operator):
+    """Validate the domain and the curve network without solving"""
+
+    bl_idname = "symframes.check_network"
+    bl_label = "Check Network"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        inp = None
+        try:
+            inp = scene_io.read_inputs(context)
+            checked = check_input(inp.V, inp.F, inp.network, inp.options.check_intersections)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e, inp))
+            return {"CANCELLED"}
+        pn = checked.network
+        msg = (f"Network OK: {len(inp.network.curves)} curve(s) ({len(pn.curves)} interior, "
+               f"{len(pn.nodes)} node(s)), {int(checked.features.sharp.sum())} sharp surface edge(s), "
+               f"{len(inp.F):,} triangles")
+        if inp.ignored:
+            msg += f"; ignored non-curve object(s): {', '.join(inp.ignored)}"
+        self.report({"INFO"}, msg)
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_compute(bpy.types.Operator):
+    """Compute the cross field of the domain and network (Esc cancels)"""
+
+    bl_idname = "symframes.compute"
+    bl_label = "Compute Field"
+    bl_options = {"REGISTER", "UNDO"}
+
+    glyphs: BoolProperty(name="Glyphs", default=True, description="Also sample cross glyphs")
+    streamlines: BoolProperty(
+        name="Streamlines", default=False,
+        description="Also trace streamlines (they are always refreshed if the scene already has them)",
+    )
+
+    @classmethod
+    def poll(cls, context):
+        if running_job() is not None:
+            cls.poll_message_set("a SymFrames solve is already running")
+            return False
+        return context.scene is not None
+
+    def _prepare(self, context, echo: bool = False):
+        try:
+            inp = scene_io.read_inputs(context)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return None
+        scene = context.scene
+        want_lines = self.streamlines or storage.output_object(scene, "streamlines") is not None
+        return job.SolveJob(inp, display.DisplaySettings.from_scene(scene), want_glyphs=self.glyphs,
+                            want_streamlines=want_lines, echo=echo)
+
+    def _finish(self, scene, j) -> set:
+        level, msg = finish_job(scene, j)
+        self.report({level}, msg)
+        return {"FINISHED"} if level != "ERROR" and not j.cancelled else {"CANCELLED"}
+
+    def execute(self, context):
+        j = self._prepare(context, echo=bpy.app.background)
+        if j is None:
+            return {"CANCELLED"}
+        j.run()
+        return self._finish(context.scene, j)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        j = self._prepare(context)
+        if j is None:
+            return {"CANCELLED"}
+        wm = context.window_manager
+        _RUNNING["job"] = j
+        self._scene_name = context.scene.name
+        j.start()
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        wm.progress_begin(0, 100)
+        self._show_status(context, j)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        j = running_job()
+        if j is None:
+            return {"CANCELLED"}
+        if event.type == "ESC" and event.value == "PRESS":
+            j.cancel()
+            j.message = "cancelling..."
+            return {"RUNNING_MODAL"}
+        if event.type == "TIMER":
+            self._show_status(context, j)
+            if j.done:
+                self._cleanup(context)
+                return self._finish(bpy.data.scenes.get(self._scene_name), j)
+        return {"PASS_THROUGH"}
+
+    def cancel(self, context):
+        # Blender ends the modal (e.g. a file is loaded): stop the thread, write nothing
+        j = running_job()
+        if j is not None:
+            j.cancel()
+            j.join(5.0)
+        self._cleanup(context)
+
+    def _show_status(self, context, j) -> None:
+        context.window_manager.progress_update(int(100 * j.fraction))
+        if context.workspace is not None:
+            context.workspace.status_text_set(f"SymFrames: {j.message} ({100 * j.fraction:.0f}%)   Esc: cancel")
+        _tag_redraw(context)
+
+    def _cleanup(self, context) -> None:
+        wm = context.window_manager
+        if getattr(self, "_timer", None) is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        _RUNNING.clear()
+        _tag_redraw(context)
+
+
+def _stored_field(op, context):
+    f = storage.frame_field(context.scene)
+    if f is None:
+        op.report({"ERROR"}, "no field computed yet: press Compute Field first")
+    return f
+
+
+class _FieldOperator:
+    """Operators that only read the stored field: available once there is one."""
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None or storage.stored_field(context.scene) is None:
+            cls.poll_message_set("no field computed yet: press Compute Field first")
+            return False
+        return True
+
+
+class SYMFRAMES_OT_show_glyphs(_FieldOperator, bpy.types.Operator):
+    """Sample cross glyphs from the stored field again (no re-solve)"""
+
+    bl_idname = "symframes.show_glyphs"
+    bl_label = "Show Cross Glyphs"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        scene = context.scene
+        try:
+            f = _stored_field(self, context)
+            if f is None:
+                return {"CANCELLED"}
+            P, Q, err = display.glyph_samples(f, display.DisplaySettings.from_scene(scene),
+                                              storage.read_adaptation(scene.symframes.field))
+            if len(P) == 0:
+                self.report({"ERROR"}, "no glyph to show: raise Glyphs, or move the slice plane into the solid")
+                return {"CANCELLED"}
+            glyphs.write_glyphs(scene, P, Q, err)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"SymFrames: {len(P):,} glyphs")
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_trace_streamlines(_FieldOperator, bpy.types.Operator):
+    """Trace streamlines of the stored field (no re-solve)"""
+
+    bl_idname = "symframes.trace_streamlines"
+    bl_label = "Trace Streamlines"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        scene = context.scene
+        wm = context.window_manager
+        try:
+            f = _stored_field(self, context)
+            if f is None:
+                return {"CANCELLED"}
+            wm.progress_begin(0, 1)
+            try:
+                lines, fams = display.streamlines(f, display.DisplaySettings.from_scene(scene))
+            finally:
+                wm.progress_end()
+            if not lines:
+                self.report({"ERROR"}, "no streamline could be traced; use more seeds or move the slice plane")
+                return {"CANCELLED"}
+            streamline_curves.write_streamlines(scene, lines, fams, scene.symframes.streamline_radius)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"SymFrames: {len(lines):,} streamlines")
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_show_singular_faces(_FieldOperator, bpy.types.Operator):
+    """Show the faces where the field is singular; spurious ones (off the network) in red"""
+
+    bl_idname = "symframes.show_singular_faces"
+    bl_label = "Show Singular Faces"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        try:
+            counts = diagnostics.write_singular_faces(context.scene)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"SymFrames: {counts['singular']:,} singular faces, {counts['spurious']:,} spurious")
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_clear(bpy.types.Operator):
+    """Remove the stored field and every SymFrames output object (glyphs, streamlines, singular faces)"""
+
+    bl_idname = "symframes.clear"
+    bl_label = "Clear Results"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        if not storage.clear_results(context.scene):
+            self.report({"INFO"}, "SymFrames: nothing to clear")
+            return {"CANCELLED"}
+        self.report({"INFO"}, "SymFrames: results cleared")
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_add_example(bpy.types.Operator):
+    """Add a built-in example: domain mesh, network curves, and the panel settings to solve it"""
+
+    bl_idname = "symframes.add_example"
+    bl_label = "Add SymFrames Example"
+    bl_options = {"REGISTER", "UNDO"}
+
+    example: EnumProperty(
+        name="Example",
+        items=[(k, k.capitalize(), examples.DESCRIPTIONS.get(k, "")) for k in EXAMPLES],
+        default="cylinder",
+    )
+
+    def execute(self, context):
+        try:
+            examples.build_example(context.scene, self.example)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+CLASSES = (
+    SYMFRAMES_OT_check_network,
+    SYMFRAMES_OT_compute,
+    SYMFRAMES_OT_show_glyphs,
+    SYMFRAMES_OT_trace_streamlines,
+    SYMFRAMES_OT_show_singular_faces,
+    SYMFRAMES_OT_clear,
+    SYMFRAMES_OT_add_example,
+)

@@ -1,0 +1,158 @@
+"""The SymFrames tab of the 3D viewport sidebar (N panel)."""
+
+import bpy
+
+from . import diagnostics, operators, storage
+
+
+class SymFramesPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "SymFrames"
+
+
+def _split(layout):
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    return layout
+
+
+class SYMFRAMES_PT_main(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Symmetric Moving Frames"
+
+    def draw(self, context):
+        s = context.scene.symframes
+        layout = _split(self.layout)
+        col = layout.column()
+        col.prop(s, "domain")
+        col.prop(s, "network")
+        col.prop(s, "node_tolerance")
+        col = layout.column(heading="Sharp Edges")
+        col.prop(s, "use_sharp_marks", text="Marked")
+        row = col.row(align=True)
+        row.prop(s, "use_sharp_angle", text="Angle")
+        sub = row.row()
+        sub.active = s.use_sharp_angle
+        sub.prop(s, "sharp_angle", text="")
+        col = layout.column(heading="Resolution")
+        row = col.row(align=True)
+        row.prop(s, "auto_resolution", text="Auto")
+        sub = row.row()
+        sub.active = not s.auto_resolution
+        sub.prop(s, "edge_length", text="")
+        col = layout.column()
+        col.prop(s, "penalty")
+        col.prop(s, "max_iterations")
+        col.prop(s, "init")
+        layout.operator("symframes.check_network", icon="CHECKMARK")
+        j = operators.running_job()
+        if j is not None:
+            layout.progress(factor=j.fraction, text=f"{j.message} (Esc to cancel)")
+        else:
+            layout.operator("symframes.compute", icon="PLAY")
+        layout.operator_menu_enum("symframes.add_example", "example", text="Add Example", icon="ADD")
+
+
+class SYMFRAMES_PT_curve(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Network Curve"
+    bl_parent_id = "SYMFRAMES_PT_main"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type == "CURVE"
+
+    def draw(self, context):
+        obj = context.active_object
+        cs = obj.symframes
+        layout = _split(self.layout)
+        net = context.scene.symframes.network
+        if net is None or obj.name not in net.all_objects:
+            layout.label(text=f"'{obj.name}' is not in the network collection", icon="INFO")
+        layout.prop(cs, "role")
+        row = layout.row()
+        row.active = cs.role == "singular"
+        row.prop(cs, "index", text="Index (quarter turns)")
+        layout.prop(cs, "torsion")
+
+
+class SYMFRAMES_PT_display(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Display"
+    bl_parent_id = "SYMFRAMES_PT_main"
+
+    def draw(self, context):
+        s = context.scene.symframes
+        layout = _split(self.layout)
+        col = layout.column()
+        col.prop(s, "glyph_count")
+        col.prop(s, "glyph_size")
+        col.prop(s, "glyph_region")
+        col = layout.column(heading="Slice Plane")
+        col.prop(s, "slice_axis")
+        col.prop(s, "slice_offset")
+        col.prop(s, "flip_clip")
+        layout.operator("symframes.show_glyphs", icon="EMPTY_AXIS")
+        col = layout.column()
+        col.prop(s, "streamline_family")
+        col.prop(s, "streamline_seeds")
+        col.prop(s, "streamline_on_plane")
+        col.prop(s, "streamline_radius")
+        col.prop(s, "seed")
+        layout.operator("symframes.trace_streamlines", icon="FORCE_MAGNETIC")
+        layout.operator("symframes.clear", icon="TRASH")
+
+
+class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Result"
+    bl_parent_id = "SYMFRAMES_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        r = storage.stored_report(context.scene)
+        if r is None:
+            layout.label(text="No field computed yet")
+            return
+        sizes, m = r.get("sizes", {}), r.get("metrics", {})
+        col = layout.column(align=True)
+        col.label(text=f"Tets {sizes.get('tets', 0):,}   vertices {sizes.get('vertices', 0):,}")
+        col.label(text=f"Edge length {r.get('edge_length', 0):.3g}" + ("" if r.get("remeshed", True)
+                                                                       else "  (mesh reused)"))
+        col.label(text=f"Iterations {r.get('iterations', 0)}   time {r.get('seconds', 0):.1f} s")
+        col = layout.column(align=True)
+        col.label(text="Integrability (monodromy)")
+        col.label(text=f"   mean {m.get('monodromy_mean_deg', 0):.3g}°   max {m.get('monodromy_max_deg', 0):.3g}°")
+        col.label(text="Adaptation (mean)")
+        col.label(text=f"   normals {m.get('normal_adaptation_mean_deg', 0):.3g}°"
+                       + (f"   tangents {m['tangent_adaptation_mean_deg']:.3g}°"
+                          if "tangent_adaptation_mean_deg" in m else ""))
+        col = layout.column(align=True)
+        spurious, missing = m.get("spurious_singular_faces", 0), m.get("missing_singular_faces", 0)
+        col.label(text=f"Singular faces {m.get('singular_faces', 0)}",
+                  icon="CHECKMARK" if spurious == 0 and missing == 0 else "ERROR")
+        col.label(text=f"   spurious {spurious}   missing {missing}")
+
+
+class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Diagnostics"
+    bl_parent_id = "SYMFRAMES_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        scene = context.scene
+        s = scene.symframes
+        layout = _split(self.layout)
+        layout.operator("symframes.show_singular_faces", icon="MOD_TRIANGULATE")
+        obj = storage.output_object(scene, "singular_faces")
+        if obj is not None and diagnostics.COUNTS_KEY in obj:
+            c = obj[diagnostics.COUNTS_KEY]
+            layout.label(text=f"{c['singular']:,} singular faces, {c['spurious']:,} spurious (red)",
+                         icon="CHECKMARK" if c["spurious"] == 0 else "ERROR")
+        col = layout.column()
+        col.prop(s, "glyph_colour")
+        sub = col.column()
+        sub.active = s.glyph_colour == "ADAPTATION"
+        sub.prop(s, "error_scale")
+        layout.operator("symframes.show_glyphs", text="Show Glyphs", icon="EMPTY_AXIS")
+
+
+CLASSES = (SYMFRAMES_PT_main, SYMFRAMES_PT_curve, SYMFRAMES_PT_display, SYMFRAMES_PT_result, SYMFRAMES_PT_diagnostics)

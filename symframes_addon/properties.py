@@ -1,0 +1,171 @@
+"""Settings stored in the .blend: one group per scene, one per curve object.
+
+The scene group holds the inputs (domain object, network collection), the
+solver settings, the display settings and a pointer to the stored result
+(see storage.py).  The object group holds a network curve's index, role and
+torsion; it is edited in the panel and read by scene_io.read_network.
+"""
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+
+ROLES = (
+    ("singular", "Singular", "Interior curve around which the field turns by the index"),
+    ("feature", "Feature", "Interior curve the field is tangent to (index 0)"),
+    ("sharp", "Sharp boundary", "Sharp feature curve lying on the domain surface (index 0)"),
+)
+TORSIONS = (
+    ("free", "Free", "Free torsion per edge (Eq. 21)"),
+    ("fixed", "Fixed", "Total torsion of the least-twist reference frame (Eq. 22)"),
+)
+FAMILIES = (
+    ("0", "X", "Streamlines along the first frame axis (red glyph bars)"),
+    ("1", "Y", "Streamlines along the second frame axis (green glyph bars)"),
+    ("2", "Z", "Streamlines along the third frame axis (blue glyph bars)"),
+    ("ALL", "All", "Streamlines along all three axes from every seed"),
+)
+AXES = (("X", "X", "Plane normal to X"), ("Y", "Y", "Plane normal to Y"), ("Z", "Z", "Plane normal to Z"))
+GLYPH_REGIONS = (
+    ("VOLUME", "Volume", "Glyphs throughout the solid"),
+    ("CUTAWAY", "Cutaway", "Glyphs on one side of the slice plane only, to see inside"),
+    ("SLICE", "Slice", "Glyphs on the slice plane only"),
+)
+GLYPH_COLOURS = (
+    ("AXES", "Axes", "Bars coloured by frame axis (red, green, blue)"),
+    ("ADAPTATION", "Adaptation Error",
+     "Glyphs at the boundary vertices, coloured by the angle between the surface normal and the nearest frame "
+     "axis (blue: 0 degrees, red: the Error Scale and above)"),
+)
+INITS = (
+    ("zero", "Zero", "Start Levenberg-Marquardt from omega = 0"),
+    ("linear", "Linear", "Start from the solution of the linearised problem"),
+    ("constant", "Constant", "Start from a constant omega"),
+    ("random", "Random", "Start from a random omega"),
+)
+
+
+def _is_mesh(_self, obj):
+    return obj.type == "MESH"
+
+
+def _update_glyph_inputs(self, context):
+    # the glyph size and error scale are live inputs of the Geometry Nodes modifier
+    from . import glyphs
+
+    glyphs.sync_modifier(context.scene)
+
+
+def _update_streamline_radius(self, context):
+    from . import storage
+
+    obj = storage.output_object(context.scene, "streamlines")
+    if obj is not None and obj.type == "CURVE":
+        obj.data.bevel_depth = self.streamline_radius
+
+
+class SymFramesCurveSettings(bpy.types.PropertyGroup):
+    """Per curve object: how it enters the network."""
+
+    index: IntProperty(
+        name="Index",
+        description="Index in quarter turns: the field turns by index/4 full turns around the curve "
+        "(+1: valence-3 hex edge, -1: valence-5). Use 0 for feature and sharp curves",
+        default=1,
+        min=-8,
+        max=8,
+    )
+    role: EnumProperty(name="Role", items=ROLES, default="singular")
+    torsion: EnumProperty(name="Torsion", items=TORSIONS, default="free")
+
+
+class SymFramesSettings(bpy.types.PropertyGroup):
+    """Per scene: inputs, solver and display settings, and the stored result."""
+
+    # ---------------------------------------------------------------- inputs
+    domain: PointerProperty(
+        name="Domain", type=bpy.types.Object, poll=_is_mesh,
+        description="Closed mesh object bounding the solid (read in world space with modifiers applied)",
+    )
+    network: PointerProperty(
+        name="Network", type=bpy.types.Collection,
+        description="Collection whose curve objects form the singularity and feature network",
+    )
+    node_tolerance: FloatProperty(
+        name="Node Tolerance", default=0.0, min=0.0, soft_max=1.0, subtype="DISTANCE", precision=4,
+        description="Curve endpoints closer than this meet at a node (0: a thousandth of the domain's size)",
+    )
+    use_sharp_marks: BoolProperty(
+        name="Marked Sharp Edges", default=True,
+        description="Use the domain mesh's edges marked sharp as sharp boundary features",
+    )
+    use_sharp_angle: BoolProperty(
+        name="Sharp Angle", default=True,
+        description="Treat surface edges whose faces meet at more than this angle as sharp features",
+    )
+    sharp_angle: FloatProperty(
+        name="Angle", default=0.5235987755982988, min=0.0, max=3.141592653589793, subtype="ANGLE",
+        description="Dihedral angle above which an edge is sharp",
+    )
+    # ---------------------------------------------------------------- solver
+    auto_resolution: BoolProperty(
+        name="Auto", default=True,
+        description="Pick the tet edge length from the volume and the network's smallest features",
+    )
+    edge_length: FloatProperty(
+        name="Edge Length", default=0.2, min=1e-4, soft_max=10.0, subtype="DISTANCE", precision=3,
+        description="Target tetrahedron edge length (smaller: finer mesh, slower)",
+    )
+    penalty: FloatProperty(
+        name="Penalty", default=1000.0, min=1e-3, soft_max=1e5,
+        description="Weight a of the structure-equation penalty (Eq. 23)",
+    )
+    max_iterations: IntProperty(name="Iterations", default=30, min=1, soft_max=200,
+                                description="Largest number of Levenberg-Marquardt iterations")
+    init: EnumProperty(name="Start", items=INITS, default="zero")
+    # --------------------------------------------------------------- display
+    glyph_count: IntProperty(name="Glyphs", default=2000, min=0, soft_max=50000,
+                             description="Number of cross glyphs (their density): about this many are sampled")
+    glyph_size: FloatProperty(name="Glyph Size", default=0.08, min=0.0, soft_max=1.0, subtype="DISTANCE",
+                              description="Length of a glyph's bars", update=_update_glyph_inputs)
+    glyph_region: EnumProperty(name="Region", items=GLYPH_REGIONS, default="VOLUME",
+                               description="Where glyphs are sampled")
+    glyph_colour: EnumProperty(name="Colour", items=GLYPH_COLOURS, default="AXES")
+    error_scale: FloatProperty(
+        name="Error Scale", default=0.08726646259971647, min=1e-4, max=1.5707963267948966, subtype="ANGLE",
+        description="Adaptation error shown in full red", update=_update_glyph_inputs,
+    )
+    slice_axis: EnumProperty(name="Slice Axis", items=AXES, default="Y")
+    slice_offset: FloatProperty(
+        name="Slice Position", default=0.5, min=0.0, max=1.0, subtype="FACTOR",
+        description="Position of the slice plane across the solid's bounding box",
+    )
+    flip_clip: BoolProperty(name="Flip", default=False, description="Keep the other side of the slice plane "
+                                                                     "(cutaway)")
+    streamline_family: EnumProperty(name="Family", items=FAMILIES, default="ALL")
+    streamline_seeds: IntProperty(name="Seeds", default=150, min=1, soft_max=5000,
+                                  description="Number of seed points (each gives one line per family)")
+    streamline_on_plane: BoolProperty(name="Seed on Slice Plane", default=False,
+                                      description="Seed on the slice plane instead of throughout the solid")
+    streamline_radius: FloatProperty(name="Radius", default=0.008, min=0.0, soft_max=0.1, subtype="DISTANCE",
+                                     description="Tube radius of the streamlines",
+                                     update=_update_streamline_radius)
+    seed: IntProperty(name="Random Seed", default=0, min=0)
+    # ---------------------------------------------------------------- result
+    field: PointerProperty(
+        name="Field", type=bpy.types.Mesh,
+        description="Stored result: tet mesh vertices with a 'frame' quaternion attribute, tets as faces "
+        "(see storage.py)",
+    )
+
+
+CLASSES = (SymFramesCurveSettings, SymFramesSettings)
+
+
+def register_properties():
+    bpy.types.Scene.symframes = PointerProperty(type=SymFramesSettings)
+    bpy.types.Object.symframes = PointerProperty(type=SymFramesCurveSettings)
+
+
+def unregister_properties():
+    del bpy.types.Object.symframes
+    del bpy.types.Scene.symframes

@@ -1,0 +1,251 @@
+"""The solved field kept in the .blend, and the add-on's output objects.
+
+The field is a mesh datablock that no object uses, held by the scene
+setting ``symframes.field`` (a pointer counts as a user, so it is saved):
+
+* vertices       = tet-mesh vertices
+* faces          = one 4-corner face per tetrahedron (corner vertices = the tet)
+* ``frame``      = QUATERNION point attribute, the frame of each vertex (w, x, y, z)
+* ``adaptation`` = FLOAT point attribute, the normal adaptation error
+                   (radians) of boundary vertices, -1 elsewhere and at sharp
+                   feature vertices (whose frames are fixed)
+* ``["symframes_network_faces"]`` = int array, the vertex triples of the
+                   tet-mesh faces the network passes through (flattened)
+* ``["symframes_report"]`` = JSON with the report's sizes, metrics and summary
+
+Positions and quaternions are float32 in Blender; the frames are rebuilt by
+normalising the quaternions, so they are exact rotations.
+
+Output objects (glyphs, streamlines) are found by the custom property
+``symframes_role`` on objects of the scene, so that renaming them is harmless.
+"""
+
+from __future__ import annotations
+
+import json
+
+import bpy
+import numpy as np
+
+FIELD_NAME = "SymFrames Field"
+FRAME_ATTRIBUTE = "frame"
+ADAPTATION_ATTRIBUTE = "adaptation"
+NETWORK_FACES_KEY = "symframes_network_faces"
+REPORT_KEY = "symframes_report"
+ROLE_KEY = "symframes_role"
+RESULTS_COLLECTION = "SymFrames Results"
+OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces")
+
+
+# ------------------------------------------------------------------- field
+def new_field_mesh(vertices: np.ndarray, tets: np.ndarray, quaternions: np.ndarray, report: dict,
+                   adaptation: np.ndarray | None = None, network_faces: np.ndarray | None = None):
+    """A new (unlinked) mesh datablock holding a solved field.
+
+    vertices (n, 3), tets (m, 4), quaternions (n, 4) w x y z; adaptation
+    (n,) radians or -1; network_faces (k, 3) vertex triples.
+    """
+    n, m = len(vertices), len(tets)
+    me = bpy.data.meshes.new(FIELD_NAME)
+    try:
+        me.vertices.add(n)
+        me.attributes["position"].data.foreach_set("vector", np.asarray(vertices, np.float32).ravel())
+        me.loops.add(4 * m)
+        me.polygons.add(m)
+        me.polygons.foreach_set("loop_start", np.arange(0, 4 * m, 4, dtype=np.int32))
+        me.loops.foreach_set("vertex_index", np.asarray(tets, np.int32).ravel())
+        me.update(calc_edges=True)
+        me.attributes.new(FRAME_ATTRIBUTE, "QUATERNION", "POINT")
+        # fetch by name: a reference taken before another attributes.new() goes stale
+        me.attributes[FRAME_ATTRIBUTE].data.foreach_set("value", np.asarray(quaternions, np.float32).ravel())
+        if adaptation is not None:
+            me.attributes.new(ADAPTATION_ATTRIBUTE, "FLOAT", "POINT")
+            me.attributes[ADAPTATION_ATTRIBUTE].data.foreach_set("value", np.asarray(adaptation, np.float32))
+        if network_faces is not None:
+            me[NETWORK_FACES_KEY] = np.asarray(network_faces, np.int32).ravel().tolist()
+        me[REPORT_KEY] = json.dumps(report)
+    except Exception:
+        bpy.data.meshes.remove(me)
+        raise
+    return me
+
+
+def read_field(me) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices (n, 3), tets (m, 4), quaternions (n, 4) w x y z, unit) of a stored field."""
+    n, m = len(me.vertices), len(me.polygons)
+    co = np.empty(3 * n, np.float32)
+    me.attributes["position"].data.foreach_get("vector", co)
+    T = np.empty(4 * m, np.int32)
+    me.loops.foreach_get("vertex_index", T)
+    q = np.empty(4 * n, np.float32)
+    me.attributes[FRAME_ATTRIBUTE].data.foreach_get("value", q)
+    q = q.reshape(-1, 4).astype(float)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return co.reshape(-1, 3).astype(float), T.reshape(-1, 4).astype(np.int64), q
+
+
+def read_adaptation(me) -> np.ndarray | None:
+    """(n,) stored normal adaptation errors in radians (-1: not measured), or None."""
+    attr = me.attributes.get(ADAPTATION_ATTRIBUTE)
+    if attr is None:
+        return None
+    a = np.empty(len(me.vertices), np.float32)
+    attr.data.foreach_get("value", a)
+    return a.astype(float)
+
+
+def read_network_faces(me) -> np.ndarray | None:
+    """(k, 3) vertex triples of the stored network faces, or None."""
+    if NETWORK_FACES_KEY not in me:
+        return None
+    return np.asarray(me[NETWORK_FACES_KEY], dtype=np.int64).reshape(-1, 3)
+
+
+def quaternions_to_frames(q: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotation matrices (columns = cross axes) of unit quaternions (n, 4) w x y z."""
+    w, x, y, z = q.T
+    R = np.empty((len(q), 3, 3))
+    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    R[:, 0, 1] = 2 * (x * y - w * z)
+    R[:, 0, 2] = 2 * (x * z + w * y)
+    R[:, 1, 0] = 2 * (x * y + w * z)
+    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    R[:, 1, 2] = 2 * (y * z - w * x)
+    R[:, 2, 0] = 2 * (x * z - w * y)
+    R[:, 2, 1] = 2 * (y * z + w * x)
+    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def stored_field(scene):
+    """The scene's field mesh, or None."""
+    me = scene.symframes.field
+    if me is None or FRAME_ATTRIBUTE not in me.attributes:
+        return None
+    return me
+
+
+def stored_report(scene) -> dict | None:
+    me = stored_field(scene)
+    if me is None or REPORT_KEY not in me:
+        return None
+    try:
+        return json.loads(me[REPORT_KEY])
+    except (TypeError, ValueError):
+        return None
+
+
+_FIELD_CACHE: dict = {}
+
+
+def frame_field(scene):
+    """solver.streamlines.FrameField of the stored field (cached per field
+    datablock and content), or None if there is no result."""
+    from ..solver.streamlines import FrameField
+
+    me = stored_field(scene)
+    if me is None:
+        return None
+    key = (me.session_uid, me.get(REPORT_KEY, ""), len(me.vertices), len(me.polygons))
+    f = _FIELD_CACHE.get("field")
+    if f is None or _FIELD_CACHE.get("key") != key:
+        V, T, q = read_field(me)
+        f = FrameField(V, T, quaternions_to_frames(q))
+        _FIELD_CACHE.clear()
+        _FIELD_CACHE.update(field=f, key=key)
+    return f
+
+
+def set_field(scene, me) -> None:
+    """Make me the scene's field, removing the previous one."""
+    old = scene.symframes.field
+    scene.symframes.field = me
+    if old is not None and old != me and old.users == 0:
+        bpy.data.meshes.remove(old)
+        me.name = FIELD_NAME  # the name is free again: no '.001'
+    _FIELD_CACHE.clear()
+
+
+# ----------------------------------------------------------------- outputs
+def results_collection(scene):
+    """The collection holding the output objects, created and linked on demand."""
+    for c in scene.collection.children_recursive:
+        if c.get(ROLE_KEY) == "results":
+            return c
+    c = bpy.data.collections.new(RESULTS_COLLECTION)
+    c[ROLE_KEY] = "results"
+    scene.collection.children.link(c)
+    return c
+
+
+def output_object(scene, role: str):
+    """The scene's output object with the given role (see OUTPUT_ROLES), or None."""
+    for obj in scene.objects:
+        if obj.get(ROLE_KEY) == role:
+            return obj
+    return None
+
+
+def replace_output(scene, role: str, name: str, data):
+    """Put data into the output object of this role (creating it in the
+    results collection), removing the data it held before."""
+    obj = output_object(scene, role)
+    if obj is None:
+        obj = bpy.data.objects.new(name, data)
+        obj[ROLE_KEY] = role
+        results_collection(scene).objects.link(obj)
+        return obj
+    old, old_name = obj.data, obj.data.name
+    obj.data = data
+    if _remove_data(old):
+        data.name = old_name  # the name is free again: no '.001'
+    return obj
+
+
+def remove_output(scene, role: str) -> bool:
+    obj = output_object(scene, role)
+    if obj is None:
+        return False
+    data = obj.data
+    bpy.data.objects.remove(obj)
+    _remove_data(data)
+    return True
+
+
+def _remove_data(data) -> bool:
+    """Remove an output's old datablock unless something else uses it."""
+    if data is None or data.users > 0:
+        return False
+    if isinstance(data, bpy.types.Mesh):
+        bpy.data.meshes.remove(data)
+    elif isinstance(data, bpy.types.Curve):
+        bpy.data.curves.remove(data)
+    else:
+        return False
+    return True
+
+
+def clear_results(scene) -> bool:
+    """Remove the stored field and the output objects of the scene.
+
+    Returns whether anything was removed.  Shared helpers (the glyph node
+    group, the materials) are removed when nothing else uses them.
+    """
+    from . import diagnostics, glyphs
+
+    removed = False
+    for role in OUTPUT_ROLES:
+        removed |= remove_output(scene, role)
+    me = scene.symframes.field
+    if me is not None:
+        scene.symframes.field = None
+        if me.users == 0:
+            bpy.data.meshes.remove(me)
+        removed = True
+    _FIELD_CACHE.clear()
+    for c in list(scene.collection.children):
+        if c.get(ROLE_KEY) == "results" and not c.all_objects:
+            bpy.data.collections.remove(c)
+    glyphs.remove_unused_helpers()
+    diagnostics.remove_unused_materials()
+    return removed

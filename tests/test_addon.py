@@ -1,0 +1,655 @@
+"""The Blender add-on, driven through its operators with the bpy module.
+
+The repository root is the extension's package, so the add-on is imported
+from root __init__.py as the package ``symframes`` (its modules use
+relative imports, as an installed extension does) and registered once per
+module.  Every test starts from an empty factory scene.  Two solves are
+shared (module fixtures, saved as .blend files and reopened per test): the
+cube (sharp features only) and the plate (sharp features and four singular
+curves, one of them a Bezier spline).  Coarse meshes keep them to seconds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import subprocess
+import sys
+from types import SimpleNamespace
+
+import bpy
+import numpy as np
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PACKAGE = "symframes"
+
+GLYPHS = 600
+SEEDS = 25
+CUBE_EDGE = 0.4
+PLATE_EDGE = 0.2
+
+
+def load_addon():
+    """The repository's add-on package, imported as ``symframes``."""
+    if PACKAGE not in sys.modules:
+        spec = importlib.util.spec_from_file_location(PACKAGE, os.path.join(ROOT, "__init__.py"),
+                                                      submodule_search_locations=[ROOT])
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[PACKAGE] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules[PACKAGE]
+
+
+addon = load_addon()
+from symframes.solver import FieldProblem  # noqa: E402
+from symframes.solver.analysis import matched_singular_faces, normal_adaptation  # noqa: E402
+from symframes.solver.streamlines import FrameField  # noqa: E402
+from symframes.symframes_addon import (  # noqa: E402
+    diagnostics,
+    display,
+    glyphs,
+    job,
+    operators,
+    scene_io,
+    storage,
+    streamline_curves,
+)
+
+
+# ------------------------------------------------------------------ helpers
+@pytest.fixture(scope="module", autouse=True)
+def registered():
+    addon.register()
+    yield
+    addon.unregister()
+
+
+@pytest.fixture(autouse=True)
+def empty_scene(registered):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    yield
+
+
+def scene():
+    return bpy.context.scene
+
+
+def add_example(name: str, edge_length: float | None = None):
+    bpy.ops.symframes.add_example(example=name)
+    s = scene().symframes
+    if edge_length is not None:
+        s.edge_length = edge_length
+    s.glyph_count = GLYPHS
+    s.streamline_seeds = SEEDS
+    s.streamline_family = "ALL"
+    return s
+
+
+def scene_state() -> dict:
+    """Names of everything a result could add, change or leave behind."""
+    s = scene().symframes
+    return {
+        "objects": sorted((o.name, o.type, o.data.name if o.data else "") for o in bpy.data.objects),
+        "meshes": sorted(m.name for m in bpy.data.meshes),
+        "curves": sorted(c.name for c in bpy.data.curves),
+        "collections": sorted(c.name for c in bpy.data.collections),
+        "node_groups": sorted(g.name for g in bpy.data.node_groups),
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "field": s.field.name if s.field else None,
+    }
+
+
+def input_fingerprint() -> str:
+    """Hash of the domain's and the network curves' geometry, transforms and settings."""
+    bpy.context.view_layer.update()  # matrix_world of moved objects
+    s = scene().symframes
+    h = hashlib.sha1()
+    objs = [s.domain] + (sorted(s.network.all_objects, key=lambda o: o.name) if s.network else [])
+    for obj in objs:
+        h.update(obj.name.encode())
+        h.update(np.array(obj.matrix_world).tobytes())
+        if obj.type == "MESH":
+            co = np.empty(3 * len(obj.data.vertices))
+            obj.data.vertices.foreach_get("co", co)
+            h.update(co.tobytes())
+            h.update(str(len(obj.data.polygons)).encode())
+        else:
+            for sp in obj.data.splines:
+                pts = sp.points if sp.type == "POLY" else sp.bezier_points
+                co = np.empty((4 if sp.type == "POLY" else 3) * len(pts))
+                pts.foreach_get("co", co)
+                h.update(co.tobytes())
+            h.update(repr((obj.symframes.index, obj.symframes.role, obj.symframes.torsion)).encode())
+    return h.hexdigest()
+
+
+def singular_mask(mesh, frames) -> np.ndarray:
+    """solver.analysis.matched_singular_faces' mask (it may also return the failures)."""
+    found = matched_singular_faces(mesh, frames)
+    return np.asarray(found[0] if isinstance(found, tuple) else found, bool)
+
+
+def output(role):
+    return storage.output_object(scene(), role)
+
+
+def polylines(obj):
+    return streamline_curves.streamline_polylines(obj)
+
+
+def open_blend(path):
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+
+
+def solve_example(name, edge_length, tmp_path_factory, prepare=None):
+    """Solve an example with glyphs and streamlines, save it; returns what
+    the tests compare against."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    s = add_example(name, edge_length)
+    if prepare is not None:
+        prepare(s)
+    before = input_fingerprint()
+    assert bpy.ops.symframes.compute(streamlines=True) == {"FINISHED"}
+    inputs = scene_io.read_inputs(bpy.context)
+    mesh = job.cached_mesh(inputs.mesh_key())
+    assert mesh is not None, "the tet mesh of the last solve is kept for re-solves"
+    P, Q = glyphs.glyph_points(output("glyphs"))
+    ns = SimpleNamespace(
+        inputs_before=before, inputs_after=input_fingerprint(), inputs=inputs, mesh=mesh,
+        glyph_points=P.copy(), glyph_quats=Q.copy(), lines=[p.copy() for p in polylines(output("streamlines"))],
+        report=storage.stored_report(scene()),
+    )
+    ns.path = tmp_path_factory.mktemp(name) / f"{name}.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(ns.path))
+    return ns
+
+
+@pytest.fixture(scope="module")
+def cube(registered, tmp_path_factory):
+    return solve_example("cube", CUBE_EDGE, tmp_path_factory)
+
+
+def _bezier_hole_curve(s):
+    """Replace the plate's curve 'hole 0' by a Bezier spline along the same
+    segment (vector handles: straight), to solve through the Bezier path."""
+    obj = bpy.data.objects["hole 0"]
+    P = scene_io.spline_points(obj.data.splines[0], obj.matrix_world)
+    cu = obj.data
+    cu.splines.clear()
+    sp = cu.splines.new("BEZIER")
+    sp.bezier_points.add(1)
+    for bp, x in zip(sp.bezier_points, (P[0], P[-1])):
+        bp.co = x
+        bp.handle_left_type = bp.handle_right_type = "VECTOR"
+    cu.splines[0].resolution_u = 4
+
+
+@pytest.fixture(scope="module")
+def plate(registered, tmp_path_factory):
+    return solve_example("plate", PLATE_EDGE, tmp_path_factory, prepare=_bezier_hole_curve)
+
+
+# ------------------------------------------------------------- registration
+def test_register_unregister_repeatedly():
+    names = [c.__name__ for c in operators.CLASSES]
+    for _ in range(3):
+        addon.unregister()
+        assert not hasattr(bpy.types.Scene, "symframes")
+        assert not hasattr(bpy.types.Object, "symframes")
+        assert not any(hasattr(bpy.types, n) for n in names)
+        addon.register()
+        assert hasattr(bpy.types.Scene, "symframes") and hasattr(bpy.types.Object, "symframes")
+        assert all(hasattr(bpy.types, n) for n in names)
+    # still fully usable
+    add_example("cube")
+    assert bpy.ops.symframes.check_network() == {"FINISHED"}
+
+
+def test_operators_are_searchable_and_undoable():
+    for cls in operators.CLASSES:
+        op = getattr(bpy.ops.symframes, cls.bl_idname.split(".")[1])
+        rna = op.get_rna_type()
+        assert rna.name and rna.description, cls.__name__  # shown in F3 search and tooltips
+        if cls is not operators.SYMFRAMES_OT_check_network:  # the one that changes no data
+            assert "UNDO" in cls.bl_options, cls.__name__
+
+
+def test_panel_lives_in_sidebar_tab():
+    from symframes.symframes_addon import panel
+
+    for cls in panel.CLASSES:
+        assert (cls.bl_space_type, cls.bl_region_type, cls.bl_category) == ("VIEW_3D", "UI", "SymFrames")
+
+
+# --------------------------------------------------------------------- inputs
+def test_read_network_curves_settings_and_nodes():
+    s = add_example("ball")
+    inp = scene_io.read_inputs(bpy.context)
+    assert len(inp.network.curves) == 20
+    assert all(c.sigma == 0.25 and c.role.value == "singular" for c in inp.network.curves)
+    assert "20 curve(s)" in inp.network_note
+    from symframes.solver.validation import check_input
+
+    assert len(check_input(inp.V, inp.F, inp.network).network.nodes) == 8
+    # per-curve settings: role feature -> sigma 0 whatever the index; torsion passed on
+    obj = bpy.data.objects["radial 0"]
+    obj.symframes.role = "feature"
+    obj.symframes.torsion = "fixed"
+    c = next(c for c in scene_io.read_inputs(bpy.context).network.curves if c.name == "radial 0")
+    assert (c.sigma, c.role.value, c.torsion.value) == (0.0, "feature", "fixed")
+    s.node_tolerance = 0.05
+    assert scene_io.read_inputs(bpy.context).network.node_tolerance == pytest.approx(0.05)
+
+
+def test_bezier_spline_is_resampled_along_the_curve():
+    cu = bpy.data.curves.new("bez", "CURVE")
+    cu.dimensions = "3D"
+    sp = cu.splines.new("BEZIER")
+    sp.resolution_u = 12
+    sp.bezier_points.add(1)
+    a, b = sp.bezier_points
+    a.co, a.handle_right = (0, 0, 0), (1, 0, 0)
+    b.co, b.handle_left = (1, 1, 0), (1, 0.5, 0)
+    obj = bpy.data.objects.new("bez", cu)
+    obj.location = (0, 0, 2)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+    P = scene_io.spline_points(sp, obj.matrix_world)
+    assert len(P) == 13
+    t = np.linspace(0, 1, 13)[:, None]
+    c0, c1, c2, c3 = (np.array(x, float) for x in ((0, 0, 0), (1, 0, 0), (1, 0.5, 0), (1, 1, 0)))
+    exact = (1 - t) ** 3 * c0 + 3 * (1 - t) ** 2 * t * c1 + 3 * (1 - t) * t**2 * c2 + t**3 * c3
+    np.testing.assert_allclose(P, exact + [0, 0, 2], atol=1e-6)
+    R = scene_io.resample(P, 0.01)
+    assert np.linalg.norm(np.diff(R, axis=0), axis=1).max() <= 0.01 + 1e-12
+
+
+def test_marked_sharp_edges_are_read():
+    s = add_example("cube")
+    s.use_sharp_angle = False
+    me = s.domain.data
+    me.attributes.new("sharp_edge", "BOOLEAN", "EDGE")
+    V = np.array([v.co for v in me.vertices])
+    E = np.array([e.vertices[:] for e in me.edges])
+    # the cube's 12 edges: both ends on a box edge (two coordinates at +-1)
+    on_edge = (np.abs(np.abs(V) - 1) < 1e-9).sum(axis=1) >= 2
+    mark = on_edge[E].all(axis=1) & (np.abs(V[E[:, 0]] - V[E[:, 1]]) > 1e-9).sum(axis=1) == 1
+    me.attributes["sharp_edge"].data.foreach_set("value", mark)
+    inp = scene_io.read_inputs(bpy.context)
+    assert inp.network.sharp_angle is None
+    assert len(inp.network.sharp_edges) == mark.sum() == 24
+    assert bpy.ops.symframes.check_network() == {"FINISHED"}
+
+
+# ---------------------------------------------------------------- bad input
+def _fails(match, op=None):
+    """op (default: compute) raises with a message matching match; nothing changes."""
+    before, inputs = scene_state(), input_fingerprint() if scene().symframes.domain else None
+    with pytest.raises(RuntimeError, match=match):
+        (op or bpy.ops.symframes.compute)()
+    assert scene_state() == before
+    if inputs is not None:
+        assert input_fingerprint() == inputs
+
+
+def test_error_no_domain():
+    s = add_example("cube")
+    s.domain = None
+    _fails("no domain: pick a closed mesh object as Domain")
+    _fails("no domain", bpy.ops.symframes.check_network)
+
+
+def test_error_domain_not_closed():
+    import bmesh  # only importable once bpy is
+
+    s = add_example("cube")
+    bm = bmesh.new()
+    bm.from_mesh(s.domain.data)
+    bm.faces.ensure_lookup_table()
+    bm.faces.remove(bm.faces[0])
+    bm.to_mesh(s.domain.data)
+    bm.free()
+    _fails("not closed and manifold.*open boundary")
+
+
+def test_error_curve_outside_domain():
+    add_example("cylinder")
+    bpy.data.objects["axial 0"].location.x += 3.0
+    _fails("'axial 0'")
+
+
+def test_error_curve_leaves_domain():
+    add_example("cylinder")
+    obj = bpy.data.objects["axial 0"]
+    sp = obj.data.splines[0]
+    co = np.empty(4 * len(sp.points))
+    sp.points.foreach_get("co", co)
+    co = co.reshape(-1, 4)
+    co[len(co) // 2, 0] = 2.0  # a bulge through the cylinder wall
+    sp.points.foreach_set("co", co.ravel())
+    _fails("'axial 0' passes outside the solid")
+
+
+def test_error_poincare_hopf():
+    add_example("cylinder")
+    bpy.data.objects["axial 0"].symframes.index = 2
+    _fails("Poincare-Hopf is violated")
+
+
+def test_error_empty_network():
+    s = add_example("ball")
+    for obj in list(s.network.objects):
+        s.network.objects.unlink(obj)
+    _fails("Poincare-Hopf.*The network is empty: the network collection 'Ball Network' holds no curve objects")
+    s.network = None
+    _fails("The network is empty: no network collection is chosen")
+
+
+def test_error_display_without_field():
+    add_example("cube")
+    for op in (bpy.ops.symframes.show_glyphs, bpy.ops.symframes.trace_streamlines,
+               bpy.ops.symframes.show_singular_faces):
+        _fails("no field computed yet", op)
+
+
+def test_cancelled_solve_writes_nothing():
+    s = add_example("cube", CUBE_EDGE)
+    before = scene_state()
+    j = job.SolveJob(scene_io.read_inputs(bpy.context), display.DisplaySettings.from_scene(scene()),
+                     reuse_mesh=False)
+    j.start()
+    j.cancel()
+    j.join(60)
+    assert j.done and j.cancelled and j.outcome is None
+    assert operators.finish_job(scene(), j)[0] == "WARNING"
+    assert scene_state() == before and s.field is None
+
+
+def test_threaded_solve_then_finish():
+    """The compute operator's modal path: the solve (meshing included) in a
+    worker thread, the scene written on the main thread afterwards."""
+    add_example("cube", CUBE_EDGE)
+    j = job.SolveJob(scene_io.read_inputs(bpy.context), display.DisplaySettings.from_scene(scene()),
+                     reuse_mesh=False)
+    seen = []
+    progress = j._progress
+    j._progress = lambda *a: (seen.append(a[0]), progress(*a))
+    j.start()
+    j.join(120)
+    assert j.done and j.error is None and not j.cancelled
+    assert {"tetmesh", "volume3d", "integrate", "display"} <= set(seen)
+    level, msg = operators.finish_job(scene(), j)
+    assert level == "INFO" and "tets" in msg
+    assert len(output("glyphs").data.vertices) == GLYPHS
+    assert storage.stored_report(scene())["remeshed"] is True
+
+
+# ------------------------------------------------------------------ results
+def test_compute_writes_field_glyphs_and_streamlines(cube):
+    open_blend(cube.path)
+    s = scene().symframes
+    assert cube.inputs_after == cube.inputs_before, "compute must not modify its inputs"
+    assert s.field is not None and s.field.users >= 1
+    g, st = output("glyphs"), output("streamlines")
+    assert g is not None and st is not None
+    assert len(g.data.vertices) == GLYPHS
+    # all three families from every seed; a line is dropped only if it cannot leave its seed
+    n = len(st.data.splines)
+    assert 0.9 * 3 * SEEDS <= n <= 3 * SEEDS
+    assert sorted({sp.material_index for sp in st.data.splines}) == [0, 1, 2]
+    assert st.data.bevel_depth == pytest.approx(s.streamline_radius)
+    assert g.users_collection[0] == st.users_collection[0]
+    assert g.users_collection[0].get(storage.ROLE_KEY) == "results"
+    r = cube.report
+    assert r["sizes"]["tets"] > 100 and r["iterations"] >= 1 and r["seconds"] > 0
+    assert r["metrics"]["spurious_singular_faces"] == 0
+    assert r["metrics"]["monodromy_mean_deg"] < 1e-3
+
+
+def test_field_attribute_equals_solver_frames(cube):
+    """The stored 'frame' attribute is the solver's result on the same tet
+    mesh, and every glyph's quaternion is the solver's interpolated frame."""
+    open_blend(cube.path)
+    inp = cube.inputs
+    result = FieldProblem(inp.V, inp.F, inp.network, inp.options, mesh=cube.mesh).solve()
+    V, T, q = storage.read_field(scene().symframes.field)
+    np.testing.assert_allclose(V, cube.mesh.vertices, atol=1e-6)
+    assert np.array_equal(T, cube.mesh.tets)
+    np.testing.assert_allclose(storage.quaternions_to_frames(q), result.frames, atol=2e-6)
+    P, Q = glyphs.glyph_points(output("glyphs"))
+    expect = FrameField.from_result(result).quaternions_at(P.astype(float))
+    assert np.all(np.isfinite(expect[:, 0]))
+    assert np.abs(np.einsum("ij,ij->i", Q, expect)).min() > 1 - 1e-5  # q and -q are one rotation
+
+
+def test_glyph_instances_follow_the_quaternion_attribute(cube):
+    open_blend(cube.path)
+    s = scene().symframes
+    s.glyph_size = 0.05  # live: no resampling
+    g = output("glyphs")
+    P, Q = glyphs.glyph_points(g)
+    geo = g.evaluated_get(bpy.context.evaluated_depsgraph_get()).evaluated_geometry()
+    inst = geo.instances_pointcloud()
+    assert len(inst.points) == GLYPHS
+    M = np.array([np.array(d.value) for d in inst.attributes["instance_transform"].data])
+    np.testing.assert_allclose(M[:, :3, 3], P, atol=1e-6)
+    np.testing.assert_allclose(M[:, :3, :3], 0.05 * storage.quaternions_to_frames(Q.astype(float)), atol=1e-6)
+    # one cross: three bars, each long along its own axis
+    refs = geo.instance_references()  # keep the geometry sets alive while reading their mesh
+    assert len(refs) == 1
+    mesh = refs[0].mesh
+    X = np.array([v.co for v in mesh.vertices])
+    assert np.allclose(X.max(axis=0) - X.min(axis=0), 1.0)
+    assert len(mesh.polygons) == 18
+    for p in mesh.polygons:  # each bar has the colour of the axis it lies along
+        extent = np.ptp(X[list(p.vertices)], axis=0)
+        if extent.max() > 0.5:  # a long side of a bar
+            assert mesh.materials[p.material_index].name == glyphs.AXIS_MATERIALS[int(np.argmax(extent))]
+
+
+def test_save_and_reload_keep_the_result(cube):
+    open_blend(cube.path)
+    assert storage.stored_report(scene()) == cube.report
+    P, Q = glyphs.glyph_points(output("glyphs"))
+    np.testing.assert_array_equal(P, cube.glyph_points)
+    np.testing.assert_array_equal(Q, cube.glyph_quats)
+    lines = polylines(output("streamlines"))
+    assert len(lines) == len(cube.lines) and all(np.array_equal(a, b) for a, b in zip(lines, cube.lines))
+    # the stored field alone drives the display operators: no solve needed
+    assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
+    assert len(output("glyphs").data.vertices) == GLYPHS
+
+
+def test_recompute_replaces_the_result_cleanly(cube):
+    open_blend(cube.path)
+    s = scene().symframes
+    before = scene_state()
+    old_field = s.field.session_uid
+    s.penalty = 500.0  # a solver setting only: the tet mesh is reused
+    assert bpy.ops.symframes.compute() == {"FINISHED"}
+    after = scene_state()
+    assert after == before  # same datablocks by name: nothing left over, nothing duplicated
+    assert s.field.session_uid != old_field
+    assert len(bpy.data.meshes) == len(before["meshes"])
+    assert storage.stored_report(scene())["remeshed"] is False
+    for role in ("glyphs", "streamlines"):
+        assert sum(o.get(storage.ROLE_KEY) == role for o in bpy.data.objects) == 1
+    # the streamlines were there, so they were traced again for the new field
+    assert len(output("streamlines").data.splines) >= 0.9 * 3 * SEEDS
+
+
+def test_undo_after_compute_restores_the_scene(cube):
+    # Undo works in the bpy module (it has a window).  Operators called from
+    # Python push an undo step only when asked (undo=True), and then only if
+    # they have the UNDO option, as a click in the UI does.
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    add_example("cube", CUBE_EDGE)
+    bpy.ops.ed.undo_push(message="example added")
+    before = scene_state()
+    assert bpy.ops.symframes.compute("EXEC_DEFAULT", True) == {"FINISHED"}
+    assert scene_state() != before
+    bpy.ops.ed.undo()
+    assert scene_state() == before
+    assert scene().symframes.field is None and output("glyphs") is None
+    bpy.ops.ed.redo()
+    assert scene().symframes.field is not None and output("glyphs") is not None
+
+
+def test_clear_removes_everything_it_added(cube):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    add_example("cube")
+    clean = scene_state()
+    open_blend(cube.path)
+    assert bpy.ops.symframes.show_singular_faces() == {"FINISHED"}
+    assert bpy.ops.symframes.clear() == {"FINISHED"}
+    after = scene_state()
+    assert after == clean
+    assert bpy.ops.symframes.clear() == {"CANCELLED"}  # nothing left to clear
+
+
+# ------------------------------------------------------------------ display
+def test_glyph_regions(cube):
+    open_blend(cube.path)
+    s = scene().symframes
+    f = storage.frame_field(scene())
+    s.slice_axis, s.slice_offset = "Z", 0.3
+    origin, normal = display.DisplaySettings.from_scene(scene()).plane(*f.bounds)
+    s.glyph_region = "CUTAWAY"
+    assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
+    P, _ = glyphs.glyph_points(output("glyphs"))
+    assert len(P) == GLYPHS and np.all((P - origin) @ normal <= 1e-6)
+    s.glyph_region = "SLICE"
+    assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
+    P, Q = glyphs.glyph_points(output("glyphs"))
+    assert 0.9 * GLYPHS <= len(P) <= GLYPHS
+    np.testing.assert_allclose((P - origin) @ normal, 0.0, atol=1e-6)
+    expect = f.quaternions_at(P.astype(float))
+    assert np.abs(np.einsum("ij,ij->i", Q, expect)).min() > 1 - 1e-5
+
+
+def test_trace_streamlines_on_slice_plane(cube):
+    open_blend(cube.path)
+    s = scene().symframes
+    s.streamline_family, s.streamline_seeds, s.streamline_on_plane = "1", 30, True
+    s.slice_axis, s.slice_offset = "X", 0.5
+    s.streamline_radius = 0.004
+    assert bpy.ops.symframes.trace_streamlines() == {"FINISHED"}
+    st = output("streamlines")
+    ds = display.DisplaySettings.from_scene(scene())
+    f = storage.frame_field(scene())
+    expect, _ = display.streamlines(f, ds)
+    assert len(st.data.splines) == len(expect) >= 27
+    assert all(sp.material_index == 1 for sp in st.data.splines)
+    assert st.data.bevel_depth == pytest.approx(0.004)
+    origin, normal = ds.plane(*f.bounds)
+    for P, E in zip(polylines(st), expect):
+        np.testing.assert_allclose(P, E, atol=1e-6)
+        assert np.abs((P - origin) @ normal).min() < 1e-6  # each line passes through its seed
+
+
+# -------------------------------------------------------- network + diagnostics
+def test_plate_with_curves_solves_without_spurious_singularities(plate):
+    open_blend(plate.path)
+    assert plate.inputs_after == plate.inputs_before
+    assert bpy.data.objects["hole 0"].data.splines[0].type == "BEZIER"
+    assert len(plate.inputs.network.curves) == 4
+    m = plate.report["metrics"]
+    assert m["spurious_singular_faces"] == 0 and m["missing_singular_faces"] == 0
+    assert m["singular_faces"] > 0 and m["tangent_adaptation_mean_deg"] < 1.0
+
+
+def test_singular_faces_match_the_solver(plate):
+    open_blend(plate.path)
+    assert bpy.ops.symframes.show_singular_faces() == {"FINISHED"}
+    obj = output("singular_faces")
+    me = obj.data
+    counts = obj[diagnostics.COUNTS_KEY].to_dict()
+    assert counts == {"singular": len(me.polygons), "spurious": 0}
+    assert counts["singular"] == plate.report["metrics"]["singular_faces"]
+    sp = np.empty(len(me.polygons), bool)
+    me.attributes["spurious"].data.foreach_get("value", sp)
+    mat = np.empty(len(me.polygons), np.int32)
+    me.polygons.foreach_get("material_index", mat)
+    assert not sp.any() and not mat.any()
+
+
+def test_spurious_singular_faces_are_highlighted(cube):
+    """Overwrite the stored frames with a field that turns by a quarter turn
+    around the z axis (the frame at angle theta is rotated by theta/4 about
+    z): the faces the axis pierces are singular, and since the cube's
+    network is empty they are all spurious."""
+    open_blend(cube.path)
+    me = scene().symframes.field
+    V, T, q = storage.read_field(me)
+    phi = np.arctan2(V[:, 1], V[:, 0]) / 4
+    q = np.c_[np.cos(phi / 2), np.zeros((len(V), 2)), np.sin(phi / 2)]
+    me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_set("value", q.astype(np.float32).ravel())
+    me.update()
+    storage._FIELD_CACHE.clear()  # the field was edited behind the add-on's back
+    assert bpy.ops.symframes.show_singular_faces() == {"FINISHED"}
+    obj = output("singular_faces")
+    counts = obj[diagnostics.COUNTS_KEY].to_dict()
+    f = storage.frame_field(scene())
+    sing = singular_mask(f.mesh, f.frames)
+    assert counts == {"singular": int(sing.sum()), "spurious": int(sing.sum())}
+    assert counts["singular"] >= 5 and len(obj.data.polygons) == counts["singular"]
+    # they lie along the z axis, from the bottom to the top of the cube
+    X = np.array([v.co for v in obj.data.vertices])
+    assert np.linalg.norm(X[:, :2], axis=1).min() < 0.5 * CUBE_EDGE
+    C = f.mesh.vertices[f.mesh.faces[sing]].mean(axis=1)
+    assert np.linalg.norm(C[:, :2], axis=1).max() < 1.5 * CUBE_EDGE
+    assert C[:, 2].max() - C[:, 2].min() > 1.0
+    mat = np.empty(len(obj.data.polygons), np.int32)
+    obj.data.polygons.foreach_get("material_index", mat)
+    assert mat.all()  # all red
+
+
+def test_glyphs_coloured_by_adaptation_error(plate):
+    open_blend(plate.path)
+    s = scene().symframes
+    s.glyph_colour = "ADAPTATION"
+    s.glyph_count = 100_000  # all measured boundary vertices
+    assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
+    g = output("glyphs")
+    P, Q = glyphs.glyph_points(g)
+    err = np.empty(len(P), np.float32)
+    g.data.attributes[glyphs.ERROR_ATTRIBUTE].data.foreach_get("value", err)
+    f = storage.frame_field(scene())
+    # the glyphs sit on boundary vertices; their error is the solver's normal adaptation there
+    from scipy.spatial import cKDTree
+
+    d, vid = cKDTree(f.mesh.vertices).query(P.astype(float))
+    assert d.max() < 1e-6
+    bv = f.mesh.boundary_vertices
+    assert np.isin(vid, bv).all()
+    expect = normal_adaptation(f.mesh, f.frames)[np.searchsorted(bv, vid)]
+    np.testing.assert_allclose(err, expect, atol=1e-4)
+    # the same vertices as the solver's metric: all boundary vertices but the
+    # sharp feature ones, whose frames are fixed
+    assert 0 < len(P) < len(bv)
+    mean = float(np.degrees(err.astype(float)).mean())
+    assert mean == pytest.approx(plate.report["metrics"]["normal_adaptation_mean_deg"], rel=1e-3)
+    mod = g.modifiers[glyphs.MODIFIER]
+    by_error = next(i for i in mod.node_group.interface.items_tree if getattr(i, "name", "") == "Colour by Error")
+    assert bool(mod[by_error.identifier]) is True
+    geo = g.evaluated_get(bpy.context.evaluated_depsgraph_get()).evaluated_geometry()
+    inst = geo.instances_pointcloud()  # valid while geo lives
+    fac = np.array([d.value for d in inst.attributes[glyphs.ERROR_FACTOR].data])
+    np.testing.assert_allclose(fac, np.clip(err / s.error_scale, 0, 1), atol=1e-5)
+
+
+# ------------------------------------------------------------------ headless
+def test_headless_script_builds_solves_saves_and_renders(tmp_path):
+    cmd = [sys.executable, os.path.join(ROOT, "scripts", "symframes_run.py"), "--example", "cube",
+           "--edge-length", str(CUBE_EDGE), "--glyphs", "200", "--streamlines", "10", "--out-dir", str(tmp_path),
+           "--resolution", "80x60", "--samples", "1"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert (tmp_path / "cube.png").stat().st_size > 0
+    open_blend(tmp_path / "cube.blend")
+    assert scene().symframes.field is not None
+    assert len(output("glyphs").data.vertices) == 200
+    assert len(output("streamlines").data.splines) > 0
+    assert scene().camera is not None and scene().render.engine == "CYCLES"
