@@ -5,7 +5,6 @@ measurements are checked before they judge the solver (solver/report.py)."""
 
 from __future__ import annotations
 
-import itertools
 
 import numpy as np
 import pytest
@@ -36,28 +35,10 @@ from solver.analysis import (
 )
 from solver.rotations import CUBE_GROUP, cross_distance, exp_so3, rotation_angle
 from solver.tetmesh import TetMesh
+from tests.meshes import box_mesh
 
 
 # ------------------------------------------------------------------ helpers
-def box_mesh(n, lo=(0.0, 0.0, 0.0), hi=(1.0, 1.0, 1.0)) -> TetMesh:
-    """Structured tet mesh of a box: n^3 cubes, 6 Freudenthal tets each."""
-    n = np.broadcast_to(np.asarray(n), (3,))
-    g = [np.linspace(lo[i], hi[i], n[i] + 1) for i in range(3)]
-    V = np.stack(np.meshgrid(*g, indexing="ij"), axis=-1).reshape(-1, 3)
-    vid = np.arange(len(V)).reshape(tuple(n + 1))
-    cells = np.indices(tuple(n)).reshape(3, -1).T
-    T = []
-    for perm in itertools.permutations(range(3)):
-        c = cells.copy()
-        tet = [vid[tuple(c.T)]]
-        for ax in perm:
-            c = c.copy()
-            c[:, ax] += 1
-            tet.append(vid[tuple(c.T)])
-        T.append(np.stack(tet, axis=1))
-    return TetMesh(V, np.vstack(T))
-
-
 def rz(angles):
     v = np.zeros((len(angles), 3))
     v[:, 2] = angles

@@ -19,28 +19,7 @@ from solver.rotations import CUBE_GROUP, cross_distance, exp_so3, hat, log_so3, 
 from solver.structure import StructureEquation
 from solver.tetmesh import TetMesh
 from solver.trisurface import TriSurface
-
-
-def box_tets(n: int, size: float = 1.0, jitter: float = 0.0, seed: int = 0) -> TetMesh:
-    """n^3 cubes of a box, 6 tets each (Freudenthal), optionally jittered."""
-    g = np.linspace(0.0, size, n + 1)
-    V = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
-    if jitter:
-        rng = np.random.default_rng(seed)
-        inner = np.all((V > 1e-9) & (V < size - 1e-9), axis=1)
-        V[inner] += rng.uniform(-jitter, jitter, (inner.sum(), 3)) * size / n
-    vid = np.arange(len(V)).reshape(n + 1, n + 1, n + 1)
-    cells = np.indices((n, n, n)).reshape(3, -1).T
-    T = []
-    for perm in itertools.permutations(range(3)):
-        c = cells.copy()
-        tet = [vid[tuple(c.T)]]
-        for ax in perm:
-            c = c.copy()
-            c[:, ax] += 1
-            tet.append(vid[tuple(c.T)])
-        T.append(np.stack(tet, axis=1))
-    return TetMesh(V, np.vstack(T))
+from tests.meshes import box_mesh
 
 
 def smooth_field(X: np.ndarray) -> np.ndarray:
@@ -110,7 +89,7 @@ def test_structure_residual_of_smooth_fields_is_third_order(jitter):
     term), while dropping the wedge leaves O(h^2)."""
     full, lin, hs = [], [], []
     for n in (4, 8, 16):
-        mesh = box_tets(n, 0.6, jitter)
+        mesh = box_mesh(n, hi=(0.6, 0.6, 0.6), jitter=jitter)
         om = darboux(mesh, smooth_field(mesh.vertices))
         eq = StructureEquation(mesh.face_edges, mesh.corner_weights, np.zeros((mesh.n_faces, 3)), mesh.n_edges)
         full.append(np.abs(eq.residual(om)).max())
@@ -124,7 +103,7 @@ def test_structure_residual_of_smooth_fields_is_third_order(jitter):
 
 
 def test_structure_jacobian_matches_finite_differences():
-    mesh = box_tets(2, 1.0, 0.2)
+    mesh = box_mesh(2, jitter=0.2)
     rng = np.random.default_rng(5)
     om = rng.normal(scale=0.5, size=(mesh.n_edges, 3))
     eq = StructureEquation(mesh.face_edges, mesh.corner_weights, rng.normal(size=(mesh.n_faces, 3)),
@@ -138,7 +117,7 @@ def test_structure_jacobian_matches_finite_differences():
 
 # -------------------------------------------------------------- development
 def test_development_recovers_the_field():
-    mesh = box_tets(5, 1.0, 0.2)
+    mesh = box_mesh(5, jitter=0.2)
     E = smooth_field(mesh.vertices)
     om = darboux(mesh, E)
     for root in (0, mesh.n_vertices // 2, mesh.n_vertices - 1):

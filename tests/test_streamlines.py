@@ -4,7 +4,6 @@ solved cylinder."""
 
 from __future__ import annotations
 
-import itertools
 
 import numpy as np
 import pytest
@@ -18,29 +17,10 @@ from solver.streamlines import (
     seed_points,
     trace_streamlines,
 )
+from tests.meshes import box_grid
 
 
 # ------------------------------------------------------------------ helpers
-def box_tets(n, lo=(0.0, 0.0, 0.0), hi=(1.0, 1.0, 1.0)):
-    """Structured tet mesh of a box: n[0] x n[1] x n[2] cubes, each split
-    into the 6 tets around its main diagonal (Freudenthal), conforming."""
-    n = np.broadcast_to(np.asarray(n), (3,))
-    g = [np.linspace(lo[i], hi[i], n[i] + 1) for i in range(3)]
-    V = np.stack(np.meshgrid(*g, indexing="ij"), axis=-1).reshape(-1, 3)
-    vid = np.arange(len(V)).reshape(tuple(n + 1))
-    cells = np.indices(tuple(n)).reshape(3, -1).T
-    T = []
-    for perm in itertools.permutations(range(3)):
-        c = cells.copy()
-        tet = [vid[tuple(c.T)]]
-        for ax in perm:
-            c = c.copy()
-            c[:, ax] += 1
-            tet.append(vid[tuple(c.T)])
-        T.append(np.stack(tet, axis=1))
-    return V, np.vstack(T)
-
-
 def rot(axis, angles):
     """(k, 3, 3) rotations by angles (k,) about a coordinate axis 0, 1 or 2."""
     v = np.zeros((len(angles), 3))
@@ -64,7 +44,7 @@ LO, HI = np.array([-0.5, 0.0, 0.0]), np.array([1.0, 0.8, 0.6])
 def identity_field():
     """Constant cross field on a non-cube box, every vertex a random
     representative of the identity cross."""
-    V, T = box_tets((6, 4, 3), LO, HI)
+    V, T = box_grid((6, 4, 3), LO, HI)
     rng = np.random.default_rng(7)
     E = random_representatives(np.repeat(np.eye(3)[None], len(V), axis=0), rng)
     return FrameField(V, T, E)
@@ -112,7 +92,7 @@ def test_karcher_mean_is_stationary():
 
 
 def test_frames_at_vertices_are_the_vertex_frames():
-    V, T = box_tets(3)
+    V, T = box_grid(3)
     E = Rotation.random(len(V), random_state=5).as_matrix()  # not smooth at all
     f = FrameField(V, T, E)
     assert np.abs(f.frames_at(V) - E).max() < 1e-9
@@ -127,7 +107,7 @@ def test_interpolation_of_one_cross_given_by_random_representatives(identity_fie
 def test_rotation_about_a_fixed_axis_is_interpolated_exactly():
     """Frames Rz(k x) commute: their Karcher mean is the rotation by the
     weighted mean angle, and barycentric weights reproduce the linear k x."""
-    V, T = box_tets(4)
+    V, T = box_grid(4)
     k = 1.2
     f = FrameField(V, T, rot(2, k * V[:, 0]))
     P = seed_points(f, 400, seed=3)
@@ -143,7 +123,7 @@ def test_smooth_field_is_reproduced_to_second_order():
 
     errors = []
     for n in (3, 6):
-        V, T = box_tets(n)
+        V, T = box_grid(n)
         f = FrameField(V, T, exact(V))
         P = seed_points(f, 2000, seed=4)
         errors.append(rotation_angle(np.einsum("kji,kjl->kil", exact(P), f.frames_at(P))).max())
@@ -211,7 +191,7 @@ def test_helical_field_lines():
     """E(p) = Rz(a p_z): the first two axes are horizontal and constant on
     each horizontal plane, so their lines are straight and stay at the seed's
     height; the third axis is z everywhere, so its lines are vertical."""
-    V, T = box_tets((5, 5, 5), (-1, -1, 0), (1, 1, 1.5))
+    V, T = box_grid((5, 5, 5), (-1, -1, 0), (1, 1, 1.5))
     a = 1.5
     f = FrameField(V, T, rot(2, a * V[:, 2]))
     seeds = seed_points(f, 15, seed=9)
@@ -237,7 +217,7 @@ def test_helical_field_lines():
 def test_curved_line_matches_the_exact_integral_curve(method, tol):
     """E(p) = Rz(a p_x) is interpolated exactly; its first axis
     (cos a x, sin a x, 0) has integral curves y = y0 + (ln cos a x0 - ln cos a x) / a."""
-    V, T = box_tets(5)
+    V, T = box_grid(5)
     a = 1.0
     f = FrameField(V, T, rot(2, a * V[:, 0]))
     s = np.array([0.3, 0.1, 0.45])
@@ -270,7 +250,7 @@ def test_seeds_outside_give_no_lines_and_bad_arguments_raise(identity_field):
         trace_streamlines(identity_field, [[0.1, 0.1, 0.1]], family=3)
     with pytest.raises(ValueError, match="seeds"):
         trace_streamlines(identity_field, np.zeros((4, 2)))
-    V, T = box_tets(2)
+    V, T = box_grid(2)
     with pytest.raises(ValueError, match="rotation"):
         FrameField(V, T, 2.0 * np.repeat(np.eye(3)[None], len(V), axis=0))
     with pytest.raises(ValueError, match="frames"):
@@ -315,7 +295,7 @@ def test_glyph_counts_spacing_and_clipping(identity_field):
 
 
 def test_glyph_quaternions_are_the_interpolated_frames():
-    V, T = box_tets(4)
+    V, T = box_grid(4)
     f = FrameField(V, T, rot(2, 0.9 * V[:, 0]) @ rot(1, 0.5 * V[:, 2]))
     P, q = sample_glyphs(f, count=500, seed=15)
     assert np.all(f.locate(P) >= 0)
