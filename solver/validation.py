@@ -291,15 +291,20 @@ def network_feature_size(S: TriSurface, pn: PreparedNetwork) -> float:
         X = np.stack([np.interp(s, cum, P[:, k]) for k in range(3)], axis=1)
         dense.append((ci, X, s * L, L))
     for ci, X, s, L in dense:
-        margin = 0.1 * L
-        keep = np.ones(len(X), bool)
+        # arc length to the nearest end on the boundary: a curve meeting the
+        # surface along its normal is that far from it, which needs no
+        # resolution; only coming closer than half of it does
+        to_end = np.full(len(X), np.inf)
         if pn.start_kind[ci] == "boundary":
-            keep &= s > margin
+            to_end = np.minimum(to_end, s)
         if pn.end_kind[ci] == "boundary":
-            keep &= s < L - margin
+            to_end = np.minimum(to_end, L - s)
+        keep = to_end > 0.1 * L
         if np.any(keep):
             d, _, _ = S.closest_points(X[keep])
-            sizes.append(d.min())
+            close = d < 0.5 * to_end[keep]
+            if np.any(close):
+                sizes.append(d[close].min())
     node_pts = [nd.position for nd in pn.nodes]
     for a in range(len(dense)):
         for b in range(a + 1, len(dense)):
@@ -308,8 +313,10 @@ def network_feature_size(S: TriSurface, pn: PreparedNetwork) -> float:
             d, ia = cKDTree(Xb).query(Xa)
             ok = np.ones(len(Xa), bool)
             for p in node_pts:
-                # near a shared node the curves necessarily approach each other
-                ok &= np.linalg.norm(Xa - p, axis=1) > 0.25 * np.min([dense[a][3], dense[b][3]])
+                # curves leaving a node approach each other in proportion to
+                # the distance to it, which needs no resolution; only coming
+                # closer than half of it does
+                ok &= d < 0.5 * np.linalg.norm(Xa - p, axis=1)
             if np.any(ok):
                 sizes.append(d[ok].min())
     return float(min(sizes))

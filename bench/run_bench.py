@@ -1,0 +1,106 @@
+"""Solver benchmark: time per stage, LM iterations and peak memory on an
+example at several sizes, each size in a fresh process.
+
+    ./dev.sh bench                          # ball at ~25k, 50k, 100k tets
+    ./dev.sh bench --tets 25000 50000 --example cylinder
+    ./dev.sh bench --write                  # also (re)write bench/RESULTS.md's solver table
+
+Sizes are targets: fTetWild's tet count lands within ~30% of them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+STAGES = ("validate", "tetmesh", "embed", "boundary2d", "constraints", "volume3d", "integrate")
+
+
+def run_one(example: str, tets: int) -> dict:
+    """Solve once in this process and return the figures."""
+    from solver import FieldProblem, Options
+    from solver.examples import load_example
+
+    V, F, net = load_example(example)
+    t0 = time.perf_counter()
+    problem = FieldProblem(V, F, net, Options(target_tets=tets))
+    result = problem.solve()
+    wall = time.perf_counter() - t0
+    rep = result.report
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    child = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
+    return {"example": example, "target": tets, "tets": rep.sizes["tets"], "edges": rep.sizes["edges"],
+            "edge_length": rep.edge_length, "stages": rep.stage_seconds, "wall": wall,
+            "lm_iterations": rep.lm.n_iterations, "cg_iterations": rep.lm.cg_iterations,
+            "lm_reason": rep.lm.reason, "energy": rep.lm.final.energy, "peak_mb": own, "mesher_peak_mb": child,
+            "metrics": rep.metrics}
+
+
+def table(rows: list[dict]) -> str:
+    head = ("| tets | edges | " + " | ".join(STAGES) + " | total s | LM its | CG its | peak MB (solver / mesher) |")
+    sep = "|" + "---:|" * (len(STAGES) + 6)
+    lines = [head, sep]
+    for r in rows:
+        st = " | ".join(f"{r['stages'].get(s, 0.0):.1f}" for s in STAGES)
+        lines.append(f"| {r['tets']:,} | {r['edges']:,} | {st} | {r['wall']:.1f} | {r['lm_iterations']} | "
+                     f"{r['cg_iterations']} | {r['peak_mb']:.0f} / {r['mesher_peak_mb']:.0f} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--example", default="ball")
+    p.add_argument("--tets", type=int, nargs="+", default=[25000, 50000, 100000])
+    p.add_argument("--write", action="store_true", help="write the table into bench/RESULTS.md")
+    p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: run one size, print JSON
+    args = p.parse_args(argv)
+    if args.one:
+        print("RESULT " + json.dumps(run_one(args.example, args.one), default=float))
+        return 0
+    rows = []
+    for n in args.tets:
+        print(f"[bench] {args.example} ~{n:,} tets ...", file=sys.stderr, flush=True)
+        out = subprocess.run([sys.executable, os.path.abspath(__file__), "--example", args.example, "--one", str(n)],
+                             capture_output=True, text=True)
+        line = [x for x in out.stdout.splitlines() if x.startswith("RESULT ")]
+        if out.returncode != 0 or not line:
+            print(out.stderr[-2000:], file=sys.stderr)
+            return 1
+        r = json.loads(line[0][7:])
+        rows.append(r)
+        print(f"[bench]   {r['tets']:,} tets in {r['wall']:.1f} s, {r['lm_iterations']} LM its ({r['lm_reason']})",
+              file=sys.stderr, flush=True)
+    import numpy as np
+
+    text = table(rows)
+    if len(rows) >= 2:
+        k = np.polyfit(np.log([r["tets"] for r in rows]), np.log([r["wall"] for r in rows]), 1)[0]
+        text += f"\n\nFitted growth: time ~ n^{k:.2f} over {rows[0]['tets']:,}-{rows[-1]['tets']:,} tets."
+    cpu = platform.processor() or platform.machine()
+    text += f"\n\nMachine: {os.cpu_count()} cores ({cpu}), Python {platform.python_version()}."
+    print(text)
+    if args.write:
+        path = os.path.join(ROOT, "bench", "RESULTS.md")
+        old = open(path).read() if os.path.exists(path) else ""
+        start, end = "<!-- solver-bench -->", "<!-- /solver-bench -->"
+        block = f"{start}\n{args.example}, {time.strftime('%Y-%m-%d')}:\n\n{text}\n{end}"
+        if start in old:
+            new = old[:old.index(start)] + block + old[old.index(end) + len(end):]
+        else:
+            new = (old.rstrip() + "\n\n" if old else "# Benchmark results\n\n") + block + "\n"
+        with open(path, "w") as fh:
+            fh.write(new)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
