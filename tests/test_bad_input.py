@@ -40,9 +40,8 @@ def test_open_surface(cube):
 
 def test_non_manifold_surface(cube):
     V, F = cube
-    # a second cube sharing one edge with the first: four faces at that edge
-    V2 = V + np.array([2.0, 2.0, 0.0])
-    V2[np.all(np.isclose(V2[:, :2], [1.0, 1.0]), axis=1)] -= np.array([0, 0, 0])
+    # a second cube glued onto the face x = 1 of the first: those faces
+    # appear twice, so their edges have four faces
     W = np.vstack([V, V + np.array([2.0, 0.0, 0.0])])
     FF = np.vstack([F, F + len(V)])
     W, FF = merge_vertices(W, FF)  # shares the face x = 1: faces there appear twice

@@ -21,6 +21,7 @@ from solver.analysis import (
     normal_adaptation,
     subdomain_faces,
     tangent_adaptation,
+    vertices_near_polylines,
 )
 from solver.examples import load_example
 from solver.rotations import cross_distance
@@ -43,18 +44,6 @@ def solved():
 
 
 # ------------------------------------------------------------------ helpers
-def polyline_distance(X: np.ndarray, polylines) -> np.ndarray:
-    """Distance of points X to the nearest of the polylines."""
-    best = np.full(len(X), np.inf)
-    for P in polylines:
-        a, b = P[:-1], P[1:]
-        ab = b - a
-        t = np.clip(np.einsum("nkj,kj->nk", X[:, None] - a[None], ab) / np.einsum("kj,kj->k", ab, ab), 0, 1)
-        d = np.linalg.norm(X[:, None] - (a[None] + t[..., None] * ab[None]), axis=2).min(axis=1)
-        best = np.minimum(best, d)
-    return best
-
-
 def network_neighbourhood(result) -> np.ndarray:
     """Faces belonging to the network's discretisation: those it passes
     through (pierced faces, node regions, curve-end triangles), the faces
@@ -69,7 +58,7 @@ def network_neighbourhood(result) -> np.ndarray:
     curves = [c.points for c in result.problem.network.curves]
     if curves:
         h = result.problem.edge_length
-        near |= polyline_distance(mesh.vertices, curves) < 0.3 * h
+        near |= vertices_near_polylines(mesh.vertices, curves, 0.3 * h)
     out |= near[mesh.faces].any(axis=1)
     return out
 
