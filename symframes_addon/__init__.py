@@ -5,11 +5,14 @@ Modules, in the order data flows through them:
 * properties        -- scene settings and per-curve settings (saved in the .blend)
 * scene_io          -- domain mesh + network curves -> solver arrays
 * job               -- the solve, off the main thread, cancellable
-* display           -- glyph samples and streamlines from a field (solver.streamlines)
-* storage           -- the solved field in the .blend; the output objects
+* display           -- glyph samples, streamlines and the diagnostics' slice
+                       faces and edges from a field (solver.streamlines, .analysis)
+* storage           -- the solved field (frames, omega) in the .blend; the output objects
 * glyphs            -- instanced cross glyphs via Geometry Nodes
 * streamline_curves -- streamlines as a bevelled curve object
 * diagnostics       -- singular faces of a stored field as a mesh object
+* omega_arrows      -- the Darboux derivative omega as instanced arrows
+* error_slice       -- tet faces coloured by monodromy or adaptation error
 * operators, panel  -- the user interface
 * examples, presentation -- example scenes; camera, lights, render settings
 """

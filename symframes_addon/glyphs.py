@@ -6,10 +6,12 @@ bars (red, green, blue for the frame's first, second and third axis) on
 every point, rotated by Named Attribute(frame) -> Instance on Points.Rotation.
 Writing 100k points is two foreach_set calls.
 
-In the adaptation-error colouring the points also carry a FLOAT attribute
-``adaptation`` (radians); the node group stores error / Error Scale, clamped
-to [0, 1], on the instances as ``symframes_error``, which the error
-material reads with an Attribute node (Instancer) through a colour ramp.
+In the error colourings the points also carry a FLOAT attribute (radians):
+``adaptation`` (normal adaptation error) or ``monodromy`` (mean monodromy
+of the faces around the vertex); the modifier's Error Attribute names it.
+The node group stores error / Error Scale, clamped to [0, 1], on the
+instances as ``symframes_error``, which the error material reads with an
+Attribute node (Instancer) through a colour ramp.
 """
 
 from __future__ import annotations
@@ -17,15 +19,16 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from . import storage
+from . import display, storage
 
 NODE_GROUP = "SymFrames Cross Glyph"
-NODE_GROUP_VERSION = 2
+NODE_GROUP_VERSION = 3
 MODIFIER = "SymFrames Glyphs"
 AXIS_COLOURS = ((0.85, 0.12, 0.10), (0.15, 0.65, 0.15), (0.12, 0.30, 0.90))
 AXIS_MATERIALS = tuple(f"SymFrames Axis {a}" for a in "XYZ")
 ERROR_MATERIAL = "SymFrames Adaptation Error"
-ERROR_ATTRIBUTE = "adaptation"
+ERROR_ATTRIBUTE = display.ERROR_ATTRIBUTES["ADAPTATION"]
+MONODROMY_ATTRIBUTE = display.ERROR_ATTRIBUTES["MONODROMY"]
 ERROR_FACTOR = "symframes_error"
 BAR_THICKNESS = 0.14  # relative to the bar length
 # modifier inputs: name -> (socket type, default)
@@ -33,6 +36,7 @@ INPUTS = {
     "Size": ("NodeSocketFloat", 0.1),
     "Colour by Error": ("NodeSocketBool", False),
     "Error Scale": ("NodeSocketFloat", 0.0872665),
+    "Error Attribute": ("NodeSocketString", ERROR_ATTRIBUTE),
 }
 
 
@@ -143,7 +147,7 @@ def node_group():
     err = nodes.new("GeometryNodeInputNamedAttribute")
     err.location = (0, -250)
     err.data_type = "FLOAT"
-    err.inputs["Name"].default_value = ERROR_ATTRIBUTE
+    links.new(gin.outputs["Error Attribute"], err.inputs["Name"])
     div = nodes.new("ShaderNodeMath")
     div.location = (200, -250)
     div.operation = "DIVIDE"
@@ -174,9 +178,10 @@ def remove_unused_helpers() -> None:
 
 # ------------------------------------------------------------------- write
 def new_glyph_mesh(points: np.ndarray, quaternions: np.ndarray, error: np.ndarray | None = None,
-                   name: str = "SymFrames Glyph Points"):
+                   error_attribute: str = ERROR_ATTRIBUTE, name: str = "SymFrames Glyph Points"):
     """A new mesh of loose points with the ``frame`` quaternion attribute
-    (w, x, y, z) and, if error is given, the ``adaptation`` attribute."""
+    (w, x, y, z) and, if error is given, the error attribute of that name
+    (``adaptation`` or ``monodromy``)."""
     me = bpy.data.meshes.new(name)
     try:
         me.vertices.add(len(points))
@@ -187,8 +192,10 @@ def new_glyph_mesh(points: np.ndarray, quaternions: np.ndarray, error: np.ndarra
         me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_set(
             "value", np.asarray(quaternions, np.float32).ravel())
         if error is not None:
-            me.attributes.new(ERROR_ATTRIBUTE, "FLOAT", "POINT")
-            me.attributes[ERROR_ATTRIBUTE].data.foreach_set("value", np.asarray(error, np.float32).ravel())
+            if error_attribute not in (ERROR_ATTRIBUTE, MONODROMY_ATTRIBUTE):
+                raise ValueError(f"unknown glyph error attribute {error_attribute!r}")
+            me.attributes.new(error_attribute, "FLOAT", "POINT")
+            me.attributes[error_attribute].data.foreach_set("value", np.asarray(error, np.float32).ravel())
         me.update()
     except Exception:
         bpy.data.meshes.remove(me)
@@ -210,14 +217,22 @@ def install_glyph_mesh(scene, me):
     return obj
 
 
-def write_glyphs(scene, points: np.ndarray, quaternions: np.ndarray, error: np.ndarray | None = None):
+def write_glyphs(scene, points: np.ndarray, quaternions: np.ndarray, error: np.ndarray | None = None,
+                 error_attribute: str = ERROR_ATTRIBUTE):
     """Replace the scene's glyph points; returns the glyph object."""
-    return install_glyph_mesh(scene, new_glyph_mesh(points, quaternions, error))
+    return install_glyph_mesh(scene, new_glyph_mesh(points, quaternions, error, error_attribute))
+
+
+def error_attribute(obj) -> str | None:
+    """The error attribute a glyph object's points carry, or None."""
+    if obj.type != "MESH":
+        return None
+    return next((a for a in (ERROR_ATTRIBUTE, MONODROMY_ATTRIBUTE) if a in obj.data.attributes), None)
 
 
 def sync_modifier(scene) -> None:
     """Copy the scene's glyph size and error scale into the modifier (live,
-    no resampling); colour by error when the points carry the error."""
+    no resampling); colour by error when the points carry an error."""
     obj = storage.output_object(scene, "glyphs")
     if obj is None:
         return
@@ -225,10 +240,12 @@ def sync_modifier(scene) -> None:
     if mod is None or mod.node_group is None:
         return
     s = scene.symframes
+    attr = error_attribute(obj)
     values = {
         "Size": float(s.glyph_size),
-        "Colour by Error": obj.type == "MESH" and ERROR_ATTRIBUTE in obj.data.attributes,
-        "Error Scale": float(s.error_scale),
+        "Colour by Error": attr is not None,
+        "Error Scale": float(s.monodromy_scale if attr == MONODROMY_ATTRIBUTE else s.error_scale),
+        "Error Attribute": attr or ERROR_ATTRIBUTE,
     }
     for item in mod.node_group.interface.items_tree:
         if getattr(item, "in_out", None) == "INPUT" and item.name in values:

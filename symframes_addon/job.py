@@ -46,7 +46,9 @@ class Outcome:
     report: dict
     adaptation: np.ndarray | None = None  # (n,) radians, -1 where not measured
     network_faces: np.ndarray | None = None  # (k, 3) vertex triples
-    glyphs: tuple | None = None  # (points, quaternions, errors or None)
+    edges: np.ndarray | None = None  # (e, 2) tet-mesh edges i -> j
+    omega: np.ndarray | None = None  # (e, 3) the solver's Darboux derivative on them
+    glyphs: tuple | None = None  # (points, quaternions, errors or None, error attribute name)
     streamlines: tuple | None = None  # (lines, families)
     remeshed: bool = True
 
@@ -125,12 +127,16 @@ class SolveJob:
         }
         adaptation, network_faces = diagnostic_data(result)
         out = Outcome(result.mesh.vertices, result.mesh.tets, result.quaternions(), report, adaptation,
-                      network_faces, remeshed=mesh is None)
+                      network_faces, result.mesh.edges, result.omega, remeshed=mesh is None)
         if self.want_glyphs or self.want_streamlines:
             self._progress("display", 0.97, "sampling glyphs and streamlines")
             f = FrameField.from_result(result)
             if self.want_glyphs:
-                out.glyphs = display.glyph_samples(f, self.display, adaptation)
+                mono = None
+                if self.display.colour == "MONODROMY":
+                    mono = display.vertex_monodromy(result.mesh, result.omega, network_faces)
+                attr = display.ERROR_ATTRIBUTES.get(self.display.colour, display.ERROR_ATTRIBUTES["ADAPTATION"])
+                out.glyphs = (*display.glyph_samples(f, self.display, adaptation, mono), attr)
             if self._is_cancelled():
                 raise Cancelled()
             if self.want_streamlines:

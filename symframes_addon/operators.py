@@ -8,14 +8,28 @@ arrays, and the scene is written only after everything succeeded.
 import traceback
 
 import bpy
+import numpy as np
 from bpy.props import BoolProperty, EnumProperty
 
 from ..solver import SymFramesError, TopologyError
 from ..solver.examples import EXAMPLES
 from ..solver.validation import check_input
-from . import diagnostics, display, examples, glyphs, job, scene_io, storage, streamline_curves
+from . import (
+    diagnostics,
+    display,
+    error_slice,
+    examples,
+    glyphs,
+    job,
+    omega_arrows,
+    scene_io,
+    storage,
+    streamline_curves,
+)
 
 _RUNNING: dict = {}  # the one solve running in the background, if any
+OMEGA_FROM_FRAMES = ("; this result predates stored omega, so omega is recomputed from the frames "
+                     "(monodromy 0 off the singular faces): compute the field again for the solver's omega")
 
 
 def running_job():
@@ -39,7 +53,7 @@ def write_outcome(scene, out: job.Outcome) -> None:
     created = []
     try:
         field_me = storage.new_field_mesh(out.vertices, out.tets, out.quaternions, out.report, out.adaptation,
-                                          out.network_faces)
+                                          out.network_faces, out.edges, out.omega)
         created.append((bpy.data.meshes, field_me))
         glyph_me = curve = None
         if out.glyphs is not None:
@@ -61,7 +75,8 @@ def write_outcome(scene, out: job.Outcome) -> None:
         storage.replace_output(scene, "streamlines", "SymFrames Streamlines", curve)
     else:
         storage.remove_output(scene, "streamlines")
-    storage.remove_output(scene, "singular_faces")
+    for role in ("singular_faces", omega_arrows.ROLE, error_slice.ROLE):
+        storage.remove_output(scene, role)
 
 
 def finish_job(scene, j: job.SolveJob) -> tuple[str, str]:
@@ -258,16 +273,20 @@ class SYMFRAMES_OT_show_glyphs(_FieldOperator, bpy.types.Operator):
             f = _stored_field(self, context)
             if f is None:
                 return {"CANCELLED"}
-            P, Q, err = display.glyph_samples(f, display.DisplaySettings.from_scene(scene),
-                                              storage.read_adaptation(scene.symframes.field))
+            ds = display.DisplaySettings.from_scene(scene)
+            mono, stored = None, True
+            if ds.colour == "MONODROMY":
+                omega, stored = storage.field_omega(scene)
+                mono = display.vertex_monodromy(f.mesh, omega, storage.read_network_faces(scene.symframes.field))
+            P, Q, err = display.glyph_samples(f, ds, storage.read_adaptation(scene.symframes.field), mono)
             if len(P) == 0:
                 self.report({"ERROR"}, "no glyph to show: raise Glyphs, or move the slice plane into the solid")
                 return {"CANCELLED"}
-            glyphs.write_glyphs(scene, P, Q, err)
+            glyphs.write_glyphs(scene, P, Q, err, display.ERROR_ATTRIBUTES.get(ds.colour, glyphs.ERROR_ATTRIBUTE))
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"SymFrames: {len(P):,} glyphs")
+        self.report({"INFO"}, f"SymFrames: {len(P):,} glyphs" + ("" if stored else OMEGA_FROM_FRAMES))
         return {"FINISHED"}
 
 
@@ -318,8 +337,59 @@ class SYMFRAMES_OT_show_singular_faces(_FieldOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SYMFRAMES_OT_show_omega(_FieldOperator, bpy.types.Operator):
+    """Draw the Darboux derivative omega as an arrow per tet edge: rotation axis, length by angle"""
+
+    bl_idname = "symframes.show_omega"
+    bl_label = "Show Omega Arrows"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        scene = context.scene
+        try:
+            f = _stored_field(self, context)
+            if f is None:
+                return {"CANCELLED"}
+            omega, stored = storage.field_omega(scene)
+            P, W, e = display.omega_arrows(f, omega, display.DisplaySettings.from_scene(scene))
+            if len(P) == 0:
+                self.report({"ERROR"}, "no edge to draw: move the slice plane into the solid (Slice Position), "
+                                       "or pick the Volume region")
+                return {"CANCELLED"}
+            omega_arrows.write_arrows(scene, P, W, e, f.mesh.mean_edge_length)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"SymFrames: {len(P):,} omega arrows, largest rotation "
+                              f"{np.degrees(np.linalg.norm(W, axis=1).max()):.3g} deg"
+                    + ("" if stored else OMEGA_FROM_FRAMES))
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_show_slice(_FieldOperator, bpy.types.Operator):
+    """Show tet faces coloured by monodromy (along the slice plane) or adaptation error (surface, cut away)"""
+
+    bl_idname = "symframes.show_slice"
+    bl_label = "Show Error Slice"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        scene = context.scene
+        try:
+            if _stored_field(self, context) is None:
+                return {"CANCELLED"}
+            st = error_slice.write_slice(scene, scene.symframes.slice_quantity)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return {"CANCELLED"}
+        what = "monodromy" if st["quantity"] == "MONODROMY" else "adaptation error"
+        self.report({"INFO"}, f"SymFrames: {st['faces']:,} faces, {what} mean {st['mean_deg']:.3g} deg, "
+                              f"max {st['max_deg']:.3g} deg" + ("" if st["omega_stored"] else OMEGA_FROM_FRAMES))
+        return {"FINISHED"}
+
+
 class SYMFRAMES_OT_clear(bpy.types.Operator):
-    """Remove the stored field and every SymFrames output object (glyphs, streamlines, singular faces)"""
+    """Remove the stored field and every SymFrames output object (glyphs, streamlines, diagnostics)"""
 
     bl_idname = "symframes.clear"
     bl_label = "Clear Results"
@@ -361,6 +431,8 @@ CLASSES = (
     SYMFRAMES_OT_show_glyphs,
     SYMFRAMES_OT_trace_streamlines,
     SYMFRAMES_OT_show_singular_faces,
+    SYMFRAMES_OT_show_omega,
+    SYMFRAMES_OT_show_slice,
     SYMFRAMES_OT_clear,
     SYMFRAMES_OT_add_example,
 )

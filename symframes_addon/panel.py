@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import diagnostics, operators, storage
+from . import diagnostics, error_slice, operators, storage
 
 
 class SymFramesPanel:
@@ -121,10 +121,12 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text="Integrability (monodromy)")
         col.label(text=f"   mean {m.get('monodromy_mean_deg', 0):.3g}°   max {m.get('monodromy_max_deg', 0):.3g}°")
-        col.label(text="Adaptation (mean)")
-        col.label(text=f"   normals {m.get('normal_adaptation_mean_deg', 0):.3g}°"
-                       + (f"   tangents {m['tangent_adaptation_mean_deg']:.3g}°"
-                          if "tangent_adaptation_mean_deg" in m else ""))
+        col.label(text="Adaptation (mean, max)")
+        col.label(text=f"   normals {m.get('normal_adaptation_mean_deg', 0):.3g}°, "
+                       f"{m.get('normal_adaptation_max_deg', 0):.3g}°")
+        if "tangent_adaptation_mean_deg" in m:
+            col.label(text=f"   tangents {m['tangent_adaptation_mean_deg']:.3g}°, "
+                           f"{m.get('tangent_adaptation_max_deg', 0):.3g}°")
         col = layout.column(align=True)
         spurious, missing = m.get("spurious_singular_faces", 0), m.get("missing_singular_faces", 0)
         col.label(text=f"Singular faces {m.get('singular_faces', 0)}",
@@ -147,12 +149,31 @@ class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
             c = obj[diagnostics.COUNTS_KEY]
             layout.label(text=f"{c['singular']:,} singular faces, {c['spurious']:,} spurious (red)",
                          icon="CHECKMARK" if c["spurious"] == 0 else "ERROR")
+        if storage.field_omega_stored(scene) is False:
+            layout.label(text="Older result: omega recomputed from the frames", icon="INFO")
+        # omega arrows
         col = layout.column()
-        col.prop(s, "glyph_colour")
-        sub = col.column()
-        sub.active = s.glyph_colour == "ADAPTATION"
-        sub.prop(s, "error_scale")
+        col.prop(s, "omega_region")
+        col.prop(s, "omega_count")
+        col.prop(s, "omega_scale")
+        layout.operator("symframes.show_omega", icon="ORIENTATION_GIMBAL")
+        # error slice and glyph colours; both use the Display panel's slice plane
+        col = layout.column()
+        col.prop(s, "slice_quantity")
+        col.prop(s, "monodromy_scale")
+        col.prop(s, "error_scale")
+        layout.operator("symframes.show_slice", icon="MOD_BOOLEAN")
+        obj = storage.output_object(scene, error_slice.ROLE)
+        if obj is not None and error_slice.STATS_KEY in obj:
+            st = obj[error_slice.STATS_KEY]
+            what = "monodromy" if st["quantity"] == "MONODROMY" else "adaptation"
+            grey = "network" if st["quantity"] == "MONODROMY" else "not measured"
+            col = layout.column(align=True)
+            col.label(text=f"{st['faces']:,} faces ({st['grey']:,} {grey}, grey)")
+            col.label(text=f"   {what} mean {st['mean_deg']:.3g}°   max {st['max_deg']:.3g}°")
+        layout.prop(s, "glyph_colour")
         layout.operator("symframes.show_glyphs", text="Show Glyphs", icon="EMPTY_AXIS")
+        layout.label(text="Colours: Solid view → Color → Attribute, or Material Preview")
 
 
 CLASSES = (SYMFRAMES_PT_main, SYMFRAMES_PT_curve, SYMFRAMES_PT_display, SYMFRAMES_PT_result, SYMFRAMES_PT_diagnostics)

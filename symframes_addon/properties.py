@@ -34,7 +34,22 @@ GLYPH_COLOURS = (
     ("AXES", "Axes", "Bars coloured by frame axis (red, green, blue)"),
     ("ADAPTATION", "Adaptation Error",
      "Glyphs at the boundary vertices, coloured by the angle between the surface normal and the nearest frame "
-     "axis (blue: 0 degrees, red: the Error Scale and above)"),
+     "axis (blue: 0 degrees, red: the Adaptation Scale and above)"),
+    ("MONODROMY", "Monodromy",
+     "Glyphs at tet-mesh vertices (all, the cutaway's or the slice faces'), coloured by the mean monodromy angle "
+     "of the faces around the vertex, off the network (blue: 0, red: the Monodromy Scale and above)"),
+)
+OMEGA_REGIONS = (
+    ("VOLUME", "Volume", "Arrows on edges throughout the solid"),
+    ("CUTAWAY", "Cutaway", "Arrows on the edges on one side of the slice plane only"),
+    ("SLICE", "Slice", "Arrows on the edges of the tet faces along the slice plane"),
+)
+SLICE_QUANTITIES = (
+    ("MONODROMY", "Monodromy",
+     "Tet faces along the slice plane, coloured by how far omega fails to close around each (Eq. 9); "
+     "faces the network passes through are grey"),
+    ("ADAPTATION", "Adaptation Error",
+     "The domain surface on the kept side of the slice plane, coloured by the normal adaptation error"),
 )
 INITS = (
     ("zero", "Zero", "Start Levenberg-Marquardt from omega = 0"),
@@ -53,6 +68,19 @@ def _update_glyph_inputs(self, context):
     from . import glyphs
 
     glyphs.sync_modifier(context.scene)
+
+
+def _update_error_scales(self, context):
+    from . import error_slice, glyphs
+
+    glyphs.sync_modifier(context.scene)
+    error_slice.recolour(context.scene)
+
+
+def _update_omega_scale(self, context):
+    from . import omega_arrows
+
+    omega_arrows.sync_modifier(context.scene)
 
 
 def _update_streamline_radius(self, context):
@@ -131,9 +159,25 @@ class SymFramesSettings(bpy.types.PropertyGroup):
                                description="Where glyphs are sampled")
     glyph_colour: EnumProperty(name="Colour", items=GLYPH_COLOURS, default="AXES")
     error_scale: FloatProperty(
-        name="Error Scale", default=0.08726646259971647, min=1e-4, max=1.5707963267948966, subtype="ANGLE",
-        description="Adaptation error shown in full red", update=_update_glyph_inputs,
+        name="Adaptation Scale", default=0.08726646259971647, min=1e-4, max=1.5707963267948966, subtype="ANGLE",
+        description="Adaptation error shown in full red (glyphs and error slice)", update=_update_error_scales,
     )
+    monodromy_scale: FloatProperty(
+        name="Monodromy Scale", default=0.0017453292519943296, min=1e-7, max=3.141592653589793, subtype="ANGLE",
+        precision=4, description="Monodromy angle shown in full red (glyphs and error slice); the paper's fields "
+        "stay below a small fraction of a degree", update=_update_error_scales,
+    )
+    omega_region: EnumProperty(name="Region", items=OMEGA_REGIONS, default="SLICE",
+                               description="Which edges get an omega arrow")
+    omega_count: IntProperty(name="Arrows", default=20000, min=1, soft_max=200000,
+                             description="Largest number of omega arrows (a random subset of the edges beyond it)")
+    omega_scale: FloatProperty(
+        name="Arrow Scale", default=2.0, min=0.0, soft_max=20.0,
+        description="Arrow length per radian of rotation, in mean tet edge lengths (live)",
+        update=_update_omega_scale,
+    )
+    slice_quantity: EnumProperty(name="Quantity", items=SLICE_QUANTITIES, default="MONODROMY",
+                                 description="What the error slice shows")
     slice_axis: EnumProperty(name="Slice Axis", items=AXES, default="Y")
     slice_offset: FloatProperty(
         name="Slice Position", default=0.5, min=0.0, max=1.0, subtype="FACTOR",

@@ -5,19 +5,28 @@ setting ``symframes.field`` (a pointer counts as a user, so it is saved):
 
 * vertices       = tet-mesh vertices
 * faces          = one 4-corner face per tetrahedron (corner vertices = the tet)
+* edges          = the tet-mesh edges (all six of every tet)
 * ``frame``      = QUATERNION point attribute, the frame of each vertex (w, x, y, z)
 * ``adaptation`` = FLOAT point attribute, the normal adaptation error
                    (radians) of boundary vertices, -1 elsewhere and at sharp
                    feature vertices (whose frames are fixed)
+* ``omega``      = FLOAT_VECTOR edge attribute, the solver's Darboux
+                   derivative: the rotation vector from the frame at the
+                   edge's first vertex to the one at its second (Eq. 8,
+                   E_j = exp(omega_ij) E_i, world coordinates).  Results
+                   saved before it was stored lack it (and their edges are
+                   only those of the 4-corner faces); ``field_omega`` then
+                   computes omega from the frames.
 * ``["symframes_network_faces"]`` = int array, the vertex triples of the
                    tet-mesh faces the network passes through (flattened)
 * ``["symframes_report"]`` = JSON with the report's sizes, metrics and summary
 
-Positions and quaternions are float32 in Blender; the frames are rebuilt by
-normalising the quaternions, so they are exact rotations.
+Positions, quaternions and omega are float32 in Blender; the frames are
+rebuilt by normalising the quaternions, so they are exact rotations.
 
-Output objects (glyphs, streamlines) are found by the custom property
-``symframes_role`` on objects of the scene, so that renaming them is harmless.
+Output objects (glyphs, streamlines, the diagnostics: see OUTPUT_ROLES) are
+found by the custom property ``symframes_role`` on objects of the scene, so
+that renaming them is harmless.
 """
 
 from __future__ import annotations
@@ -30,22 +39,28 @@ import numpy as np
 FIELD_NAME = "SymFrames Field"
 FRAME_ATTRIBUTE = "frame"
 ADAPTATION_ATTRIBUTE = "adaptation"
+OMEGA_ATTRIBUTE = "omega"
 NETWORK_FACES_KEY = "symframes_network_faces"
 REPORT_KEY = "symframes_report"
 ROLE_KEY = "symframes_role"
 RESULTS_COLLECTION = "SymFrames Results"
-OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces")
+OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "error_slice")
 
 
 # ------------------------------------------------------------------- field
 def new_field_mesh(vertices: np.ndarray, tets: np.ndarray, quaternions: np.ndarray, report: dict,
-                   adaptation: np.ndarray | None = None, network_faces: np.ndarray | None = None):
+                   adaptation: np.ndarray | None = None, network_faces: np.ndarray | None = None,
+                   edges: np.ndarray | None = None, omega: np.ndarray | None = None):
     """A new (unlinked) mesh datablock holding a solved field.
 
     vertices (n, 3), tets (m, 4), quaternions (n, 4) w x y z; adaptation
-    (n,) radians or -1; network_faces (k, 3) vertex triples.
+    (n,) radians or -1; network_faces (k, 3) vertex triples; edges (e, 2)
+    the tet-mesh edges i -> j and omega (e, 3) their rotation vectors
+    (both or neither).
     """
     n, m = len(vertices), len(tets)
+    if (edges is None) != (omega is None) or (omega is not None and len(omega) != len(edges)):
+        raise ValueError("omega needs the edges it lives on: pass both, with one rotation vector per edge")
     me = bpy.data.meshes.new(FIELD_NAME)
     try:
         me.vertices.add(n)
@@ -54,7 +69,12 @@ def new_field_mesh(vertices: np.ndarray, tets: np.ndarray, quaternions: np.ndarr
         me.polygons.add(m)
         me.polygons.foreach_set("loop_start", np.arange(0, 4 * m, 4, dtype=np.int32))
         me.loops.foreach_set("vertex_index", np.asarray(tets, np.int32).ravel())
-        me.update(calc_edges=True)
+        if edges is None:
+            me.update(calc_edges=True)
+        else:
+            _set_edges(me, n, np.asarray(tets, np.int64), np.asarray(edges, np.int64))
+            me.attributes.new(OMEGA_ATTRIBUTE, "FLOAT_VECTOR", "EDGE")
+            me.attributes[OMEGA_ATTRIBUTE].data.foreach_set("vector", np.asarray(omega, np.float32).ravel())
         me.attributes.new(FRAME_ATTRIBUTE, "QUATERNION", "POINT")
         # fetch by name: a reference taken before another attributes.new() goes stale
         me.attributes[FRAME_ATTRIBUTE].data.foreach_set("value", np.asarray(quaternions, np.float32).ravel())
@@ -68,6 +88,30 @@ def new_field_mesh(vertices: np.ndarray, tets: np.ndarray, quaternions: np.ndarr
         bpy.data.meshes.remove(me)
         raise
     return me
+
+
+def _edge_keys(edges: np.ndarray, n: int) -> np.ndarray:
+    e = np.sort(np.asarray(edges, np.int64), axis=1)
+    return e[:, 0] * n + e[:, 1]
+
+
+def _set_edges(me, n: int, tets: np.ndarray, edges: np.ndarray) -> None:
+    """Give the field mesh exactly the tet-mesh edges, in the given order,
+    and point each face corner at the edge to the next corner (the two
+    diagonals of a tet's 4-corner face are edges of no face corner)."""
+    keys = _edge_keys(edges, n)
+    order = np.argsort(keys)
+    a = tets.ravel()
+    b = np.roll(tets, -1, axis=1).ravel()
+    want = _edge_keys(np.c_[a, b], n)
+    pos = np.clip(np.searchsorted(keys, want, sorter=order), 0, len(keys) - 1)
+    loop_edge = order[pos]
+    if not np.array_equal(keys[loop_edge], want):
+        raise ValueError("the edges do not contain every edge of the tets")
+    me.edges.add(len(edges))
+    me.edges.foreach_set("vertices", edges.astype(np.int32).ravel())
+    me.loops.foreach_set("edge_index", loop_edge.astype(np.int32))
+    me.update()
 
 
 def read_field(me) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,6 +136,30 @@ def read_adaptation(me) -> np.ndarray | None:
     a = np.empty(len(me.vertices), np.float32)
     attr.data.foreach_get("value", a)
     return a.astype(float)
+
+
+def read_omega(me, edges: np.ndarray) -> np.ndarray | None:
+    """(e, 3) stored omega on the given edges (e, 2), oriented edges[:, 0] ->
+    edges[:, 1], or None if the field stores no omega (or not on all of them)."""
+    attr = me.attributes.get(OMEGA_ATTRIBUTE)
+    k, n = len(me.edges), len(me.vertices)
+    if attr is None or attr.domain != "EDGE" or attr.data_type != "FLOAT_VECTOR" or k == 0:
+        return None
+    ev = np.empty(2 * k, np.int32)
+    me.edges.foreach_get("vertices", ev)
+    ev = ev.reshape(-1, 2).astype(np.int64)
+    w = np.empty(3 * k, np.float32)
+    attr.data.foreach_get("vector", w)
+    w = w.reshape(-1, 3).astype(float)
+    keys = _edge_keys(ev, n)
+    order = np.argsort(keys)
+    want = _edge_keys(edges, n)
+    pos = order[np.clip(np.searchsorted(keys, want, sorter=order), 0, k - 1)]
+    if not np.array_equal(keys[pos], want):
+        return None
+    # a stored edge j -> i holds -omega_ij
+    same = ev[pos, 0] == np.asarray(edges)[:, 0]
+    return np.where(same[:, None], w[pos], -w[pos])
 
 
 def read_network_faces(me) -> np.ndarray | None:
@@ -154,6 +222,35 @@ def frame_field(scene):
         _FIELD_CACHE.clear()
         _FIELD_CACHE.update(field=f, key=key)
     return f
+
+
+def field_omega(scene) -> tuple[np.ndarray, bool] | None:
+    """(omega (#E, 3) on frame_field(scene).mesh.edges, stored) of the
+    stored field, or None if there is no result.
+
+    stored is False for results saved before omega was kept: omega is then
+    the Darboux derivative of the stored frames (solver.analysis
+    .darboux_derivative), which is integrable by construction -- its
+    monodromy is zero except on singular faces.
+    """
+    from ..solver.analysis import darboux_derivative
+
+    f = frame_field(scene)
+    if f is None:
+        return None
+    got = _FIELD_CACHE.get("omega")
+    if got is None:
+        w = read_omega(scene.symframes.field, f.mesh.edges)
+        got = (darboux_derivative(f.mesh, f.frames), False) if w is None else (w, True)
+        _FIELD_CACHE["omega"] = got
+    return got
+
+
+def field_omega_stored(scene) -> bool | None:
+    """Whether the stored field keeps the solver's omega (None: no field).
+    Cheap: for the panel."""
+    me = stored_field(scene)
+    return None if me is None else OMEGA_ATTRIBUTE in me.attributes
 
 
 def set_field(scene, me) -> None:
@@ -231,7 +328,7 @@ def clear_results(scene) -> bool:
     Returns whether anything was removed.  Shared helpers (the glyph node
     group, the materials) are removed when nothing else uses them.
     """
-    from . import diagnostics, glyphs
+    from . import diagnostics, error_slice, glyphs, omega_arrows
 
     removed = False
     for role in OUTPUT_ROLES:
@@ -247,5 +344,7 @@ def clear_results(scene) -> bool:
         if c.get(ROLE_KEY) == "results" and not c.all_objects:
             bpy.data.collections.remove(c)
     glyphs.remove_unused_helpers()
+    omega_arrows.remove_unused_helpers()
     diagnostics.remove_unused_materials()
+    error_slice.remove_unused_material()
     return removed

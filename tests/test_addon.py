@@ -44,13 +44,20 @@ def load_addon():
 
 addon = load_addon()
 from symframes.solver import FieldProblem  # noqa: E402
-from symframes.solver.analysis import matched_singular_faces, normal_adaptation  # noqa: E402
+from symframes.solver.analysis import (  # noqa: E402
+    darboux_derivative,
+    matched_singular_faces,
+    monodromy_angles,
+    normal_adaptation,
+)
 from symframes.solver.streamlines import FrameField  # noqa: E402
 from symframes.symframes_addon import (  # noqa: E402
     diagnostics,
     display,
+    error_slice,
     glyphs,
     job,
+    omega_arrows,
     operators,
     scene_io,
     storage,
@@ -350,7 +357,7 @@ def test_error_empty_network():
 def test_error_display_without_field():
     add_example("cube")
     for op in (bpy.ops.symframes.show_glyphs, bpy.ops.symframes.trace_streamlines,
-               bpy.ops.symframes.show_singular_faces):
+               bpy.ops.symframes.show_singular_faces, bpy.ops.symframes.show_omega, bpy.ops.symframes.show_slice):
         _fails("no field computed yet", op)
 
 
@@ -502,7 +509,16 @@ def test_clear_removes_everything_it_added(cube):
     add_example("cube")
     clean = scene_state()
     open_blend(cube.path)
+    s = scene().symframes
     assert bpy.ops.symframes.show_singular_faces() == {"FINISHED"}
+    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
+    for quantity in ("MONODROMY", "ADAPTATION"):  # one object, replaced
+        s.slice_quantity = quantity
+        assert bpy.ops.symframes.show_slice() == {"FINISHED"}
+    s.glyph_colour = "MONODROMY"
+    assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
+    roles = [o.get(storage.ROLE_KEY) for o in bpy.data.objects]
+    assert sorted(r for r in roles if r) == sorted(storage.OUTPUT_ROLES)
     assert bpy.ops.symframes.clear() == {"FINISHED"}
     after = scene_state()
     assert after == clean
@@ -638,6 +654,321 @@ def test_glyphs_coloured_by_adaptation_error(plate):
     inst = geo.instances_pointcloud()  # valid while geo lives
     fac = np.array([d.value for d in inst.attributes[glyphs.ERROR_FACTOR].data])
     np.testing.assert_allclose(fac, np.clip(err / s.error_scale, 0, 1), atol=1e-5)
+
+
+# ------------------------------------------------------------ omega, slices
+def _instance_transforms(obj) -> np.ndarray:
+    """(k, 4, 4) transforms of the instances an object's modifier makes."""
+    geo = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).evaluated_geometry()
+    inst = geo.instances_pointcloud()  # valid while geo lives
+    return np.array([np.array(d.value) for d in inst.attributes["instance_transform"].data])
+
+
+def _face_attribute(me, name, dtype=np.float32) -> np.ndarray:
+    out = np.empty(len(me.polygons), dtype)
+    me.attributes[name].data.foreach_get("value", out)
+    return out
+
+
+def _face_colours(me) -> np.ndarray:
+    c = np.empty(4 * len(me.loops), np.float32)
+    me.color_attributes[error_slice.COLOUR_ATTRIBUTE].data.foreach_get("color", c)
+    return c.reshape(-1, 3, 4)[:, 0]  # every corner of a face has its colour
+
+
+def test_field_stores_the_solvers_omega(plate):
+    """The field mesh holds exactly the tet-mesh edges with the solver's
+    omega on them (same tet mesh, so the same solve)."""
+    open_blend(plate.path)
+    inp = plate.inputs
+    result = FieldProblem(inp.V, inp.F, inp.network, inp.options, mesh=plate.mesh).solve()
+    me = scene().symframes.field
+    assert len(me.edges) == plate.mesh.n_edges
+    assert me.validate() is False  # a valid mesh: nothing to fix
+    omega, stored = storage.field_omega(scene())
+    assert stored
+    f = storage.frame_field(scene())
+    assert np.array_equal(f.mesh.edges, result.mesh.edges)
+    assert np.linalg.norm(result.omega, axis=1).max() > 0.3  # a field that turns: the test can fail
+    np.testing.assert_allclose(omega, result.omega, atol=1e-6)
+    # its monodromy off the network is the report's (float32 storage costs < 1e-4 degrees)
+    regular = np.nonzero(display.regular_faces(f.mesh, storage.read_network_faces(me)))[0]
+    mono = np.degrees(monodromy_angles(f.mesh, omega, regular))
+    assert mono.mean() == pytest.approx(plate.report["metrics"]["monodromy_mean_deg"], abs=1e-4)
+
+
+def test_omega_arrows_match_the_stored_omega(plate):
+    open_blend(plate.path)
+    s = scene().symframes
+    f = storage.frame_field(scene())
+    omega, _ = storage.field_omega(scene())
+    h = f.mesh.mean_edge_length
+    s.omega_region, s.omega_count = "VOLUME", 10**6
+    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
+    obj = output("omega_arrows")
+    P, W, e = omega_arrows.arrow_points(obj)
+    assert np.array_equal(e, np.arange(f.mesh.n_edges))  # every edge, once
+    np.testing.assert_allclose(P, f.mesh.vertices[f.mesh.edges].mean(axis=1), atol=1e-6)
+    np.testing.assert_allclose(W, omega, atol=1e-7)
+    # the instanced arrows: from the midpoint along the axis, length |omega| * scale * h, width 5% of h
+    M = _instance_transforms(obj)
+    assert len(M) == f.mesh.n_edges
+    some = np.argsort(-np.linalg.norm(omega, axis=1))[:50]  # the longest arrows, and a few short ones
+    some = np.r_[some, np.arange(0, f.mesh.n_edges, 97)]
+    np.testing.assert_allclose(M[some, :3, 3], P[some], atol=1e-6)
+    np.testing.assert_allclose(M[some, :3, 2], s.omega_scale * h * omega[some], atol=1e-6)
+    np.testing.assert_allclose(np.einsum("kij,ki->kj", M[some, :3, :2], omega[some]), 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(M[some, :3, :2], axis=1), omega_arrows.WIDTH * h, rtol=1e-4)
+    # the scale is live
+    s.omega_scale = 0.5
+    np.testing.assert_allclose(_instance_transforms(obj)[some, :3, 2], 0.5 * h * omega[some], atol=1e-6)
+    # the slice region: the edges of the slice faces; a cap picks a subset; re-running replaces the object
+    s.omega_region, s.omega_count = "SLICE", 10**6
+    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
+    _, W, e = omega_arrows.arrow_points(output("omega_arrows"))
+    sf, _ = display.slice_faces(f, display.DisplaySettings.from_scene(scene()))
+    assert len(sf) > 0 and np.array_equal(e, np.unique(f.mesh.face_edges[sf]))
+    np.testing.assert_allclose(W, omega[e], atol=1e-7)
+    s.omega_count = 10
+    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
+    _, W, e2 = omega_arrows.arrow_points(output("omega_arrows"))
+    assert len(e2) == 10 and np.isin(e2, e).all()
+    assert sum(o.get(storage.ROLE_KEY) == "omega_arrows" for o in bpy.data.objects) == 1
+
+
+def test_monodromy_slice_matches_the_solver(plate):
+    open_blend(plate.path)
+    s = scene().symframes
+    s.slice_axis, s.slice_offset = "Z", 0.5  # across the plate: the four curves pierce it
+    s.slice_quantity = "MONODROMY"
+    assert bpy.ops.symframes.show_slice() == {"FINISHED"}
+    obj = output("error_slice")
+    me = obj.data
+    f = storage.frame_field(scene())
+    omega, _ = storage.field_omega(scene())
+    faces = _face_attribute(me, "face", np.int32)
+    expect_faces, tris = display.slice_faces(f, display.DisplaySettings.from_scene(scene()))
+    assert np.array_equal(faces, expect_faces)
+    # the triangles are those faces (only the used vertices kept)
+    X = np.array([v.co for v in me.vertices])
+    T = np.array([p.vertices[:] for p in me.polygons])
+    np.testing.assert_allclose(X[T], f.mesh.vertices[tris], atol=1e-6)
+    # the slice lies along the plane, between a kept and a cut-away tet
+    origin, normal = display.DisplaySettings.from_scene(scene()).plane(*f.bounds)
+    assert np.abs((X - origin) @ normal).max() < 2 * f.mesh.edge_lengths.max()
+    value = _face_attribute(me, "monodromy")
+    np.testing.assert_allclose(value, monodromy_angles(f.mesh, omega, faces), atol=1e-6)
+    # the network's faces are flagged and grey; they turn by a quarter turn (index -1/4)
+    net = _face_attribute(me, "network", bool)
+    ids = f.mesh.face_index(storage.read_network_faces(s.field))
+    assert np.array_equal(net, np.isin(faces, ids))
+    assert net.sum() >= 4
+    np.testing.assert_allclose(np.degrees(value[net]).max(), 90.0, atol=0.5)
+    # elsewhere a fraction of a degree, within the report's largest monodromy
+    st = obj[error_slice.STATS_KEY].to_dict()
+    assert st["faces"] == len(faces) and st["grey"] == net.sum() and st["omega_stored"]
+    assert st["max_deg"] == pytest.approx(np.degrees(value[~net]).max(), rel=1e-5)
+    assert st["max_deg"] <= plate.report["metrics"]["monodromy_max_deg"] + 1e-4
+    # colours: the ramp at the Monodromy Scale, live
+    for scale in (s.monodromy_scale, 1e-5):
+        s.monodromy_scale = scale
+        C = _face_colours(me)
+        assert np.abs(C[net, :3] - error_slice.GREY).max() < 1e-6
+        np.testing.assert_allclose(C[~net], error_slice.ramp_colours(value[~net], scale), atol=1e-6)
+    assert not np.allclose(C[~net], error_slice.ramp_colours(value[~net], 1.0))
+
+
+def test_adaptation_slice_is_the_cut_surface(plate):
+    open_blend(plate.path)
+    s = scene().symframes
+    s.slice_axis, s.slice_offset, s.slice_quantity = "X", 0.6, "ADAPTATION"
+    assert bpy.ops.symframes.show_slice() == {"FINISHED"}
+    me = output("error_slice").data
+    f = storage.frame_field(scene())
+    mesh = f.mesh
+    faces = _face_attribute(me, "face", np.int32)
+    assert mesh.is_boundary_face[faces].all()
+    origin, normal = display.DisplaySettings.from_scene(scene()).plane(*f.bounds)
+    C = mesh.vertices[mesh.tets[mesh.face_tets[faces, 0]]].mean(axis=1)
+    assert np.all((C - origin) @ normal <= 0)
+    # every boundary face of a kept tet
+    Cb = mesh.vertices[mesh.tets[mesh.face_tets[mesh.boundary_faces, 0]]].mean(axis=1)
+    assert len(faces) == np.sum((Cb - origin) @ normal <= 0)
+    # each face: the mean of its vertices' normal adaptation errors (the sharp-feature ones not measured)
+    err = normal_adaptation(mesh, f.frames)
+    na = np.full(mesh.n_vertices, np.nan)
+    stored = storage.read_adaptation(s.field)
+    na[stored >= 0] = err[np.searchsorted(mesh.boundary_vertices, np.nonzero(stored >= 0)[0])]
+    A = na[mesh.faces[faces]]
+    n = np.isfinite(A).sum(axis=1)
+    expect = np.where(n > 0, np.nansum(A, axis=1) / np.maximum(n, 1), np.nan)
+    value = _face_attribute(me, "adaptation")
+    ok = np.isfinite(expect)
+    assert ok.sum() > 0.9 * len(faces)
+    np.testing.assert_allclose(value[ok], expect[ok], atol=1e-5)
+    assert np.all(value[~ok] == -1)
+    assert np.abs(_face_colours(me)[~ok, :3] - error_slice.GREY).max() < 1e-6
+
+
+def test_glyphs_coloured_by_monodromy(plate):
+    open_blend(plate.path)
+    s = scene().symframes
+    s.glyph_colour, s.glyph_region, s.glyph_count = "MONODROMY", "VOLUME", 100_000
+    s.monodromy_scale = 1e-4
+    assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
+    g = output("glyphs")
+    P, _ = glyphs.glyph_points(g)
+    f = storage.frame_field(scene())
+    mesh = f.mesh
+    assert len(P) == mesh.n_vertices  # one per vertex, in order
+    np.testing.assert_allclose(P, mesh.vertices, atol=1e-6)
+    err = np.empty(len(P), np.float32)
+    g.data.attributes[glyphs.MONODROMY_ATTRIBUTE].data.foreach_get("value", err)
+    # mean over the interior faces around the vertex that the network does not pass through
+    omega, _ = storage.field_omega(scene())
+    net = np.zeros(mesh.n_faces, bool)
+    net[mesh.face_index(storage.read_network_faces(s.field))] = True
+    regular = np.nonzero(~net & ~mesh.is_boundary_face)[0]
+    import scipy.sparse as sparse
+
+    rows, cols = mesh.faces[regular].ravel(), np.repeat(np.arange(len(regular)), 3)
+    A = sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(mesh.n_vertices, len(regular)))
+    n = np.asarray(A.sum(axis=1)).ravel()
+    expect = (A @ monodromy_angles(mesh, omega, regular)) / np.maximum(n, 1)
+    np.testing.assert_allclose(err, expect, atol=1e-7)
+    assert err.max() > 0
+    mod = g.modifiers[glyphs.MODIFIER]
+    values = {i.name: mod[i.identifier] for i in mod.node_group.interface.items_tree
+              if getattr(i, "in_out", None) == "INPUT" and i.name != "Geometry"}
+    assert values["Colour by Error"] and values["Error Attribute"] == glyphs.MONODROMY_ATTRIBUTE
+    assert values["Error Scale"] == pytest.approx(1e-4)
+    geo = g.evaluated_get(bpy.context.evaluated_depsgraph_get()).evaluated_geometry()
+    inst = geo.instances_pointcloud()
+    fac = np.array([d.value for d in inst.attributes[glyphs.ERROR_FACTOR].data])
+    np.testing.assert_allclose(fac, np.clip(err / 1e-4, 0, 1), atol=1e-5)
+    # the slice region: the vertices of the slice faces
+    s.glyph_region = "SLICE"
+    assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
+    P, _ = glyphs.glyph_points(output("glyphs"))
+    sf, _ = display.slice_faces(f, display.DisplaySettings.from_scene(scene()))
+    np.testing.assert_allclose(P, mesh.vertices[np.unique(mesh.faces[sf])], atol=1e-6)
+
+
+def test_diagnostics_survive_save_and_reload(plate, tmp_path):
+    open_blend(plate.path)
+    s = scene().symframes
+    s.slice_axis = "Z"
+    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
+    assert bpy.ops.symframes.show_slice() == {"FINISHED"}
+    M = _instance_transforms(output("omega_arrows"))
+    value = _face_attribute(output("error_slice").data, "monodromy")
+    path = tmp_path / "diagnostics.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    open_blend(path)
+    s = scene().symframes
+    assert storage.field_omega(scene())[1] is True
+    np.testing.assert_allclose(_instance_transforms(output("omega_arrows")), M, atol=1e-7)
+    np.testing.assert_array_equal(_face_attribute(output("error_slice").data, "monodromy"), value)
+    s.omega_scale *= 2  # still live
+    np.testing.assert_allclose(_instance_transforms(output("omega_arrows"))[:, :3, 2], 2 * M[:, :3, 2], atol=1e-6)
+    # and the operators run again from the reopened file, replacing their objects
+    before = scene_state()
+    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
+    assert bpy.ops.symframes.show_slice() == {"FINISHED"}
+    assert scene_state() == before
+    np.testing.assert_array_equal(_face_attribute(output("error_slice").data, "monodromy"), value)
+
+
+def test_older_results_without_omega_fall_back_to_the_frames(plate):
+    """A field saved before omega was stored (edges of the 4-corner faces
+    only, no omega attribute): omega is the Darboux derivative of the frames."""
+    open_blend(plate.path)
+    s = scene().symframes
+    old = s.field
+    V, T, q = storage.read_field(old)
+    older = storage.new_field_mesh(V, T, q, storage.stored_report(scene()), storage.read_adaptation(old),
+                                   storage.read_network_faces(old))
+    storage.set_field(scene(), older)
+    assert len(older.edges) < plate.mesh.n_edges and storage.OMEGA_ATTRIBUTE not in older.attributes
+    f = storage.frame_field(scene())
+    omega, stored = storage.field_omega(scene())
+    assert not stored
+    np.testing.assert_allclose(omega, darboux_derivative(f.mesh, f.frames))
+    s.omega_region, s.omega_count = "VOLUME", 10**6
+    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
+    _, W, e = omega_arrows.arrow_points(output("omega_arrows"))
+    np.testing.assert_allclose(W, omega[e], atol=1e-7)
+    # integrable by construction: monodromy only on the singular faces (the network's)
+    s.slice_axis, s.slice_offset = "Z", 0.5
+    assert bpy.ops.symframes.show_slice() == {"FINISHED"}
+    obj = output("error_slice")
+    st = obj[error_slice.STATS_KEY].to_dict()
+    assert not st["omega_stored"] and st["max_deg"] < 1e-3 and st["grey"] >= 4
+    assert storage.field_omega_stored(scene()) is False
+
+
+def test_diagnostics_bad_plane_undo_and_recompute(cube):
+    open_blend(cube.path)
+    s = scene().symframes
+    s.slice_offset = 0.0  # at the edge of the solid: nothing on the plane
+    s.omega_region = "SLICE"
+    _fails("move the slice plane into the solid", bpy.ops.symframes.show_slice)
+    _fails("move the slice plane into the solid", bpy.ops.symframes.show_omega)
+    s.slice_quantity = "ADAPTATION"  # the cutaway keeps nothing
+    _fails("move the slice plane into the solid", bpy.ops.symframes.show_slice)
+    s.slice_offset = 0.5
+    bpy.ops.ed.undo_push(message="before the diagnostics")
+    before = scene_state()
+    assert bpy.ops.symframes.show_omega("EXEC_DEFAULT", True) == {"FINISHED"}
+    assert bpy.ops.symframes.show_slice("EXEC_DEFAULT", True) == {"FINISHED"}
+    assert scene_state() != before
+    bpy.ops.ed.undo()
+    bpy.ops.ed.undo()
+    assert scene_state() == before and output("omega_arrows") is None
+    bpy.ops.ed.redo()
+    bpy.ops.ed.redo()
+    assert output("omega_arrows") is not None and output("error_slice") is not None
+    # computing again removes them: they showed the old field; the glyphs are coloured in the solve
+    s = scene().symframes  # undo reloads the scene: references from before it are stale
+    s.glyph_colour = "MONODROMY"
+    assert bpy.ops.symframes.compute() == {"FINISHED"}
+    assert output("omega_arrows") is None and output("error_slice") is None
+    g = output("glyphs")
+    assert len(g.data.vertices) == GLYPHS and glyphs.error_attribute(g) == glyphs.MONODROMY_ATTRIBUTE
+
+
+def test_panels_draw_the_diagnostics(plate):
+    """Every panel draws (with a stand-in layout that checks each property
+    exists) and the Diagnostics panel reports the error slice."""
+    from symframes.symframes_addon import panel
+
+    class Layout:
+        def __init__(self, labels):
+            self.labels = labels
+
+        def __getattr__(self, name):
+            def call(*args, **kw):
+                if name == "prop":
+                    getattr(args[0], args[1])
+                elif name == "label":
+                    self.labels.append(kw.get("text", ""))
+                return self
+            return call
+
+    open_blend(plate.path)
+    s = scene().symframes
+    s.slice_axis, s.slice_quantity = "Z", "MONODROMY"
+    assert bpy.ops.symframes.show_slice() == {"FINISHED"}
+    bpy.data.objects["hole 0"].select_set(True)
+    bpy.context.view_layer.objects.active = bpy.data.objects["hole 0"]
+    labels = {}
+    for cls in panel.CLASSES:
+        labels[cls.__name__] = []
+        cls.draw(SimpleNamespace(layout=Layout(labels[cls.__name__])), bpy.context)
+    st = output("error_slice")[error_slice.STATS_KEY]
+    assert any(f"{st['faces']:,} faces" in t and "network" in t for t in labels["SYMFRAMES_PT_diagnostics"])
+    assert any("tangents" in t for t in labels["SYMFRAMES_PT_result"])
 
 
 # ------------------------------------------------------------------ headless
