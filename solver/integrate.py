@@ -100,3 +100,69 @@ def develop(mesh: TetMesh, omega: np.ndarray, root: int, E_root: np.ndarray,
     M = np.broadcast_to(np.eye(3), (mesh.n_vertices, 3, 3)).copy()
     M[child] = exp_so3(sign[:, None] * omega[e])
     return multiply_along_tree(order, pred, M, E_root)
+
+
+def symmetric_turn(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, axis: int,
+                   skip_edges: np.ndarray | None = None, min_angle: float = np.radians(5.0)) -> float:
+    """The turn theta about the frames' local axis ``axis`` that makes the
+    developed field a consistent cross field (§4.2.3, Fig. 8).
+
+    omega fixes the frames only up to one global rotation, and the boundary
+    constraint (Eq. 20) leaves the rotation about the root's normal free: a
+    common shift of every alpha does not change omega.  That turn is not
+    arbitrary, though.  Around a singular curve the monodromy of omega is a
+    quarter turn about the curve tangent, which is a symmetry of the frame
+    only if the frame is adapted to the tangent; with the wrong turn, frames
+    developed along different paths around a curve disagree by a rotation
+    that is no cube symmetry.
+
+    The frames E_i (developed with theta = 0) give, per edge, the mismatch
+    M_ij = E_j^T exp(omega_ij) E_i: the identity on the development tree and a
+    cube symmetry across its cuts when the field is consistent.  Turning
+    every frame by R(theta) about its local axis conjugates M_ij by R(theta);
+    we return the theta in [-pi/4, pi/4) that brings the mismatches closest to
+    cube symmetries (least squares of the residual angles), or 0.0 when no
+    edge constrains it (no interior singular curve: every turn is
+    consistent).
+    """
+    from .rotations import CUBE_GROUP, rotation_angle
+
+    E = mesh.edges
+    keep = np.ones(mesh.n_edges, bool) if skip_edges is None else ~skip_edges
+    M = np.einsum("nji,njk,nkl->nil", frames[E[keep, 1]], exp_so3(omega[keep]), frames[E[keep, 0]])
+    M = M[rotation_angle(M) > min_angle]
+    if len(M) == 0:
+        return 0.0
+    G = CUBE_GROUP.reshape(len(CUBE_GROUP), 9)
+
+    def cost(theta):
+        theta = np.atleast_1d(theta)
+        R = exp_so3(np.outer(theta, np.eye(3)[axis]))  # (t, 3, 3)
+        C = np.einsum("tji,njk,tkl->tnil", R, M, R).reshape(len(theta), len(M), 9)
+        tr = (C @ G.T).max(axis=2)  # trace(C g^T), best symmetry per edge
+        ang = np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0))
+        return np.sum(ang**2, axis=1)
+
+    # the cost has period pi/2 in theta (quarter turns about a frame axis
+    # are symmetries): scan it, then refine the best bracket by golden section
+    grid = np.linspace(-np.pi / 4, np.pi / 4, 91)[:-1]
+    f = np.concatenate([cost(grid[k:k + 10]) for k in range(0, len(grid), 10)])
+    if f.max() - f.min() <= 1e-9 * max(f.max(), 1e-300):
+        return 0.0
+    k = int(np.argmin(f))
+    step = grid[1] - grid[0]
+    a, b = grid[k] - step, grid[k] + step
+    g = (np.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = cost(c)[0], cost(d)[0]
+    for _ in range(40):
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = cost(c)[0]
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = cost(d)[0]
+    theta = 0.5 * (a + b)
+    return float((theta + np.pi / 4) % (np.pi / 2) - np.pi / 4)

@@ -22,7 +22,7 @@ from .constraints import TUBE, AffineOmega, build_constraints
 from .embed import Embedding, embed_network
 from .errors import Cancelled, MeshingError, TopologyError
 from .features import FeatureGraph, check_poincare_hopf, transfer_features
-from .integrate import develop
+from .integrate import develop, symmetric_turn
 from .network import Network, PreparedNetwork
 from .rotations import exp_so3
 from .tetmesh import TetMesh, tetrahedralize
@@ -332,8 +332,8 @@ class FieldProblem:
                        False, lm_progress, cancel)
         report.lm = lm
         omega = self.constraints.omega(x)
+        self._last_x, self._root_frame = x, None
         root, E_root = self.default_root(x) if root is None else (root, None)
-        self._last_x = x
         frames = st.run("integrate", self.develop, omega, root, E_root)
         res = Result(problem=self, omega=omega, x=x, frames=frames, root=root, report=report)
         report.metrics.update(res.quick_metrics())
@@ -355,12 +355,34 @@ class FieldProblem:
     def default_root(self, x: np.ndarray | None = None):
         """A boundary vertex and its frame: a sharp-feature vertex (frame
         fixed) if any, else a boundary vertex rotated by its solved alpha
-        about its normal (Eq. 20)."""
+        about its normal (Eq. 20) and, for the solved x, by the turn that
+        makes the developed field consistent (integrate.symmetric_turn)."""
         mesh, cons, bf = self.mesh, self.constraints, self.boundary
         bv = mesh.boundary_vertices
         if len(cons.fixed_frame_vertices):
             r = int(cons.fixed_frame_vertices[0])
             return r, bf.E0[np.searchsorted(bv, r)]
+        if x is not None and x is getattr(self, "_last_x", None):
+            if getattr(self, "_root_frame", None) is None:
+                self._root_frame = self._symmetric_root(x)
+            return self._root_frame
+        return self._normal_root(x)
+
+    def _symmetric_root(self, x):
+        """The root frame turned about its normal so that the field is a
+        consistent cross field (integrate.symmetric_turn)."""
+        r, E = self._normal_root(x)
+        omega = self.constraints.omega(x)
+        frames = develop(self.mesh, omega, r, E, self.avoid_edges)
+        bv = self.mesh.boundary_vertices
+        n = self.boundary.normals[np.searchsorted(bv, r)]
+        axis = int(np.argmax(np.abs(E.T @ n)))
+        theta = symmetric_turn(self.mesh, omega, frames, axis, self.avoid_edges)
+        return r, E @ exp_so3(theta * np.eye(3)[axis])
+
+    def _normal_root(self, x):
+        mesh, cons, bf = self.mesh, self.constraints, self.boundary
+        bv = mesh.boundary_vertices
         loc = int(np.argmax(cons.alpha_column >= 0)) if np.any(cons.alpha_column >= 0) else 0
         r = int(bv[loc])
         E = bf.E0[loc]

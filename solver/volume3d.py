@@ -38,7 +38,7 @@ class LMIteration:
     cg_iterations: int
     accepted: bool
     seconds: float
-    step: float = 0.0  # |dx| / |x| of the step tried
+    step: float = 0.0  # |d omega| / |omega| of the step tried
 
 
 @dataclass
@@ -49,6 +49,7 @@ class LMReport:
     reason: str = ""
     seconds: float = 0.0
     setup_seconds: float = 0.0
+    preconditioner_builds: int = 0
 
     @property
     def n_iterations(self) -> int:
@@ -169,15 +170,20 @@ class VolumeProblem:
                        sp.csr_matrix((self.cons.n_gamma, 3 * nV))]).tocsr()
         return G[:, self._aux_cols].tocsr()
 
+    @staticmethod
+    def damping_diagonal(blocks):
+        """diag H, which Marquardt's damping lambda diag(H) scales."""
+        B, d = blocks
+        return np.r_[np.einsum("nii->ni", B).reshape(-1), d]
+
     def make_preconditioner(self, blocks, damping, Jx, omega):
         """Block Jacobi plus the covariant auxiliary-space correction
         G (G^T H G)^-1 G^T, whose coarse operator is inverted by one V-cycle
         of a nodal AMG."""
         B, d = blocks
-        nfree = len(self.cons.free_edges)
+        diagH = self.damping_diagonal(blocks)
         B = B + damping * np.einsum("nii->ni", B)[:, :, None] * np.eye(3)
         d = d * (1.0 + damping)
-        diagH = np.r_[np.einsum("nii->ni", B).reshape(-1), d] / (1 + damping)
         # block Jacobi as one sparse matrix: 3x3 inverses on free edges, the
         # diagonal on the adaptation parameters
         Dinv = sp.block_diag([block_diag_matrix(np.linalg.inv(B)), sp.diags(1.0 / d)], format="csr")
@@ -204,6 +210,7 @@ class VolumeProblem:
         cancel=None,
         cg_rtol_floor: float = 1e-4,
         step_tol: float = 1e-6,
+        reuse_step: float = 0.05,
     ):
         rep = LMReport(init=init, setup_seconds=self.setup_seconds)
         t0 = time.perf_counter()
@@ -215,7 +222,7 @@ class VolumeProblem:
         g, Jx, blocks = self.linearise(x, linear)
         g0 = np.linalg.norm(g)
         rep.iterations.append(LMIteration(0, F, es, ep, g0, lam, 0, True, 0.0))
-        xprev_step = None
+        pc, pc_lam, moved = None, lam, 0.0
         rejected = 0
         g_prev = g0
         for it in range(1, max_iterations + 1):
@@ -227,13 +234,21 @@ class VolumeProblem:
             # minimum, tighten as the gradient falls (superlinear overall)
             rtol = min(0.1, 0.9 * (gn / g_prev) ** 2) if it > 1 else 0.1
             rtol = max(cg_rtol_floor, rtol)
-            prec, diagH = self.make_preconditioner(blocks, lam, Jx, self.omega(x))
+            # the preconditioner (block Jacobi + AMG on the covariant
+            # gradients) changes slowly with omega and lambda: rebuild it only
+            # once omega has moved or the damping changed by a large factor
+            if (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
+                prec, diagH = self.make_preconditioner(blocks, lam, Jx, self.omega(x))
+                pc, pc_lam, moved = prec, lam, 0.0
+                rep.preconditioner_builds += 1
+            else:
+                diagH = self.damping_diagonal(blocks)
             HW, JxT, a = self.HW, Jx.T.tocsr(), self.a
 
             def matvec(v):
                 return HW @ v + 2.0 * a * (JxT @ (Jx @ v)) + lam * diagH * v
 
-            res = pcg(matvec, -g, prec, x0=xprev_step, rtol=rtol, maxiter=5000)
+            res = pcg(matvec, -g, pc, rtol=rtol, maxiter=5000)
             dx = res.x
             xn = x + dx
             esn, epn = self.energy_terms(xn, linear)
@@ -243,10 +258,14 @@ class VolumeProblem:
             pred = -(g @ dx) - 0.5 * (dx @ Hdx)
             rho = (F - Fn) / pred if pred > 0 else -1.0
             accepted = Fn < F
-            step = float(np.linalg.norm(dx) / max(np.linalg.norm(xn), 1e-300))
+            # the step measured on omega, not on x: x also holds the
+            # boundary angles alpha, whose common shift per boundary
+            # component is a null mode of Eq. 23 that omega does not see
+            step = float(np.linalg.norm(self.P @ dx) / max(np.linalg.norm(self.omega(xn)), 1e-300))
             if accepted:
                 g_prev = gn
                 x = xn
+                moved += step
                 dF = F - Fn
                 F, es, ep = Fn, esn, epn
                 lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if rho > 0 else 1.0

@@ -24,7 +24,7 @@ from solver.analysis import (
     vertices_near_polylines,
 )
 from solver.examples import load_example
-from solver.rotations import cross_distance
+from solver.rotations import cross_distance, exp_so3
 
 H = {"cube": 0.3, "cylinder": 0.2, "ball": 0.18, "torus": 0.15}
 
@@ -132,6 +132,24 @@ def test_frames_are_adapted_to_curves_and_boundary(solved, name):
     fixed = r.problem.boundary.is_feature_vertex
     na = np.degrees(normal_adaptation(r.mesh, r.frames))[~fixed]
     assert na.mean() <= 1.7, na.mean()
+
+
+def test_frames_do_not_depend_on_the_turn_of_the_2d_field(solved):
+    """The 2D field is defined up to one turn about the normals (§3.4) and a
+    common shift of the alphas of Eq. 20 leaves omega unchanged; the 3D field
+    must not turn with it: the quarter turns around the interior curves fix
+    that turn (§4.2.3)."""
+    r = solved("ball")
+    p, bf = r.problem, r.problem.boundary
+    E0 = bf.E0.copy()
+    try:
+        bf.E0 = exp_so3(0.5 * bf.normals) @ E0
+        turned = p.solve()
+    finally:
+        bf.E0 = E0
+    assert np.degrees(cross_distance(r.frames, turned.frames)).max() <= 0.01
+    _, ta = tangent_adaptation(turned)
+    assert np.degrees(ta).mean() <= 2.0
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
