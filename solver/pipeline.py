@@ -144,7 +144,7 @@ def default_edge_length(checked: CheckedInput, target_tets: int) -> float:
     vol = float(np.sum(np.abs(checked.surface.signed_volumes())))
     h = (15.0 * vol / target_tets) ** (1.0 / 3.0)
     if np.isfinite(checked.feature_size):
-        h = min(h, checked.feature_size / 2.5)
+        h = min(h, checked.feature_size / 3.0)
     return float(max(h, 1e-3 * checked.surface.bbox_diagonal))
 
 
