@@ -81,6 +81,11 @@ def check_input(V, F, net: Network, check_intersections: bool = True) -> Checked
             d, f, q = S.closest_points(x[None])
             if d[0] > btol:
                 where = "starts" if end == 0 else "ends"
+                if S.winding_number(x[None])[0] < 0.5:
+                    raise NetworkError(
+                        f"{label(ci)} {where} at {_fmt(x)}, outside the solid (distance to the surface "
+                        f"{d[0]:.3g}); move that end onto the surface, or inside the solid at a node"
+                    )
                 raise NetworkError(
                     f"{label(ci)} {where} at {_fmt(x)}, inside the solid but not at a node or on the boundary "
                     f"(distance to the surface {d[0]:.3g}); extend it to the surface, or connect 3-4 curve ends "

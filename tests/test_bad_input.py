@@ -90,7 +90,7 @@ def test_curve_outside_the_solid(cube):
     V, F = cube
     c = Curve(seg([0.0, 0.0, -1.0], [0.0, 0.0, 1.0]) + [0.0, 1.5, 0.0], 0.25, name="outside")
     msg = expect(NetworkError, "'outside'", V, F, Network([c]))
-    assert "outside" in msg and ("solid" in msg or "boundary" in msg)
+    assert "outside the solid" in msg and "but not at a node" not in msg, msg
 
 
 def test_curve_leaving_and_reentering(cube):
