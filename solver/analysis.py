@@ -109,6 +109,36 @@ def matched_singular_faces(mesh: TetMesh, frames: np.ndarray, faces: np.ndarray 
     return sing, rot
 
 
+def omega_matchings(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Index into CUBE_GROUP of g_ij with E_j g_ij closest to exp(omega_ij) E_i
+    (the frame at i carried to j by omega, Eq. 8), per ordered vertex pair."""
+    pairs = np.asarray(pairs)
+    e = mesh.edge_index(pairs[:, 0], pairs[:, 1])
+    sign = np.where(pairs[:, 0] < pairs[:, 1], 1.0, -1.0)
+    carried = exp_so3(sign[:, None] * omega[e]) @ frames[pairs[:, 0]]
+    return closest_symmetry(np.einsum("nji,njk->nik", carried, frames[pairs[:, 1]]))
+
+
+def omega_singular_faces(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray,
+                         faces: np.ndarray | None = None) -> np.ndarray:
+    """Faces where the omega-aware matchings fail to close (mask over faces).
+
+    Closest-rotation matching (matched_singular_faces) reads an edge whose
+    frames turn by more than 45 degrees as a quarter-turn jump, so a smooth
+    but fast-turning field (the twisted field of a solid torus on a coarse
+    mesh) shows faces that are not singular.  Here each edge is matched
+    against the frame omega carries across it instead; with omega the field's
+    Darboux derivative this finds the faces whose monodromy is a nontrivial
+    cube symmetry, whatever the turn per edge."""
+    faces = np.arange(mesh.n_faces) if faces is None else np.asarray(faces)
+    F = mesh.faces[faces]
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    G = CUBE_GROUP
+    P = (G[omega_matchings(mesh, omega, frames, np.c_[c, a])] @ G[omega_matchings(mesh, omega, frames, np.c_[b, c])]
+         @ G[omega_matchings(mesh, omega, frames, np.c_[a, b])])
+    return np.einsum("nii->n", P) < 2.5
+
+
 @dataclass
 class SingularCurve:
     """A connected set of singular faces (faces joined through shared tets).
@@ -592,6 +622,12 @@ def quick_metrics(result) -> dict:
     out["spurious_singular_faces"] = int((sing & ~net_faces).sum())
     pierced = emb.pierce_count > 0
     out["missing_singular_faces"] = int((pierced & ~sing & ~emb.face_excluded).sum())
+    # the same with omega-aware matchings, and the largest turn of an edge
+    # (above 45 degrees closest-rotation matching is ambiguous)
+    osing = omega_singular_faces(mesh, result.omega, result.frames)
+    out["omega_spurious_singular_faces"] = int((osing & ~net_faces).sum())
+    out["omega_missing_singular_faces"] = int((pierced & ~osing & ~emb.face_excluded).sum())
+    out["max_edge_turn_deg"] = float(np.degrees(np.linalg.norm(result.omega, axis=1).max()))
     fixed = result.problem.boundary.is_feature_vertex
     na = np.degrees(normal_adaptation(mesh, result.frames))
     out["normal_adaptation_mean_deg"] = float(na[~fixed].mean()) if np.any(~fixed) else 0.0

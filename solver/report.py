@@ -85,6 +85,7 @@ COLUMNS = [
     ("sing faces", "singular", "{}"),
     ("missing", "missing", "{}"),
     ("spurious", "spurious", "{}"),
+    ("spurious ω-matched", "omega_spurious", "{}"),
     ("φ_θ", "phi_theta", "{:.4g}"),
     ("φ_H", "phi_H", "{:.4g}"),
     ("smooth max°", "smooth_max", "{:.3g}"),
@@ -113,7 +114,9 @@ COLUMN_NOTES = """\
   carrying a curve constraint (§5.2).
 * **sing faces / missing / spurious**: faces whose closest-rotation matchings (24 cube symmetries) fail to close;
   missing: faces the network pierces (with an index ≠ 0) that are not singular; spurious: singular faces outside
-  the pierced faces, node regions and curve-end boundary faces.
+  the pierced faces, node regions and curve-end boundary faces.  **spurious ω-matched**: the same with each edge
+  matched against the frame ω carries across it (`analysis.omega_singular_faces`), which closest-rotation matching
+  misreads wherever an edge turns by more than 45° (the twisted field of the coarse torus).
 * **φ_θ, φ_H**: §5.4 over interior faces, frames per tet = Karcher mean of its vertex frames, weights face area over
   the distance between the two tets' centroids (circumcentres are degenerate on these meshes).
 * **smooth max/mean°, φ_θ drop %**: {n} Jacobi sweeps of Karcher-mean smoothing (§5.2, Fig. 18) with the Eq. 16
@@ -177,6 +180,11 @@ def measure(result, others: dict | None = None, smoothing_iterations: int = SMOO
     row["expected"] = len(ss.expected)
     row["missing"] = len(ss.missing)
     row["spurious"] = len(ss.spurious)
+    # omega-aware matching: not fooled by edges turning more than 45 degrees
+    osing = an.omega_singular_faces(mesh, result.omega, result.frames)
+    net = np.zeros(mesh.n_faces, bool)
+    net[emb.network_faces(mesh)] = True
+    row["omega_spurious"] = int((osing & ~net).sum())
     row["wrong_index"] = len(ss.wrong_index)
     row["axis_error_max"] = float(np.degrees(ss.axis_error.max())) if len(ss.axis_error) else 0.0
     row["singular_curves"] = len(ss.curves)

@@ -24,6 +24,7 @@ from solver.analysis import (
     matched_singular_faces,
     monodromy_angles,
     normal_adaptation,
+    omega_singular_faces,
     pick_roots,
     root_independence,
     singular_structure,
@@ -416,3 +417,21 @@ def test_matched_singular_faces_keeps_its_interface(mesh6):
     E = np.broadcast_to(np.eye(3), (m.n_vertices, 3, 3))
     mask, rot = matched_singular_faces(m, E, np.arange(10))
     assert mask.shape == (10,) and rot.shape == (10, 3) and not mask.any()
+
+
+def test_omega_aware_matching_sees_through_fast_turns():
+    """A smooth field turning ~45 degrees per edge: closest-rotation matching
+    reads some edges as quarter-turn jumps and flags faces, the omega-aware
+    matching flags none; on a real singular line both find the pierced faces."""
+    m = box_mesh(6, jitter=0.2)
+    E = rz(4.7 * m.vertices[:, 0])
+    i, j = m.edges.T
+    om = Rotation.from_matrix(E[j] @ np.transpose(E[i], (0, 2, 1))).as_rotvec()  # exact, unmatched
+    assert np.degrees(np.linalg.norm(om, axis=1)).max() > 45.0
+    assert matched_singular_faces(m, E)[0].sum() > 0
+    assert not omega_singular_faces(m, om, E).any()
+    m8 = box_mesh(8)
+    E8, P = line_field(m8)
+    want = pierced_faces(m8, P)
+    got = np.nonzero(omega_singular_faces(m8, darboux_derivative(m8, E8), E8))[0]
+    np.testing.assert_array_equal(got, want)
