@@ -54,10 +54,10 @@ def _material(name, colour):
     return mat
 
 
-def new_singular_mesh(vertices: np.ndarray, tris: np.ndarray, spurious: np.ndarray,
-                      name: str = "SymFrames Singular Faces"):
-    """A mesh of the triangles tris (k, 3) into vertices (n, 3), only the
-    used vertices kept; spurious (k,) sets the material and the attribute."""
+def new_triangle_mesh(name: str, vertices: np.ndarray, tris: np.ndarray, finish):
+    """A new mesh of the triangles tris (k, 3) into vertices (n, 3), only the
+    used vertices kept; finish(me) then adds materials and attributes.
+    Nothing is left in the file if any step fails."""
     used, local = np.unique(np.asarray(tris, np.int64).ravel(), return_inverse=True)
     k = len(tris)
     me = bpy.data.meshes.new(name)
@@ -69,16 +69,27 @@ def new_singular_mesh(vertices: np.ndarray, tris: np.ndarray, spurious: np.ndarr
         me.polygons.add(k)
         me.polygons.foreach_set("loop_start", np.arange(0, 3 * k, 3, dtype=np.int32))
         me.loops.foreach_set("vertex_index", local.astype(np.int32))
-        for name_, colour in MATERIALS:
-            me.materials.append(_material(name_, colour))
-        me.polygons.foreach_set("material_index", np.asarray(spurious, np.int32))
         me.update(calc_edges=True)
-        me.attributes.new(SPURIOUS_ATTRIBUTE, "BOOLEAN", "FACE")
-        me.attributes[SPURIOUS_ATTRIBUTE].data.foreach_set("value", np.asarray(spurious, bool))
+        finish(me)
     except Exception:
         bpy.data.meshes.remove(me)
         raise
     return me
+
+
+def new_singular_mesh(vertices: np.ndarray, tris: np.ndarray, spurious: np.ndarray,
+                      name: str = "SymFrames Singular Faces"):
+    """A mesh of the triangles tris (k, 3) into vertices (n, 3), only the
+    used vertices kept; spurious (k,) sets the material and the attribute."""
+
+    def finish(me):
+        for name_, colour in MATERIALS:
+            me.materials.append(_material(name_, colour))
+        me.polygons.foreach_set("material_index", np.asarray(spurious, np.int32))
+        me.attributes.new(SPURIOUS_ATTRIBUTE, "BOOLEAN", "FACE")
+        me.attributes[SPURIOUS_ATTRIBUTE].data.foreach_set("value", np.asarray(spurious, bool))
+
+    return new_triangle_mesh(name, vertices, tris, finish)
 
 
 def write_singular_faces(scene) -> dict:

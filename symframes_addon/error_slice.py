@@ -26,7 +26,7 @@ import bpy
 import numpy as np
 
 from ..solver.analysis import monodromy_angles
-from . import display, glyphs, storage
+from . import diagnostics, display, glyphs, storage
 
 ROLE = "error_slice"
 OBJECT_NAME = "SymFrames Error Slice"
@@ -89,18 +89,8 @@ def new_slice_mesh(vertices: np.ndarray, tris: np.ndarray, faces: np.ndarray, va
                    grey: np.ndarray, quantity: str, scale: float, name: str = "SymFrames Error Slice"):
     """A mesh of the triangles tris (k, 3) into vertices (n, 3), only the
     used vertices kept, with the attributes of the module docstring."""
-    used, local = np.unique(np.asarray(tris, np.int64).ravel(), return_inverse=True)
-    k = len(tris)
-    me = bpy.data.meshes.new(name)
-    try:
-        me.vertices.add(len(used))
-        if len(used):  # an empty mesh has no position attribute
-            me.attributes["position"].data.foreach_set("vector", np.asarray(vertices[used], np.float32).ravel())
-        me.loops.add(3 * k)
-        me.polygons.add(k)
-        me.polygons.foreach_set("loop_start", np.arange(0, 3 * k, 3, dtype=np.int32))
-        me.loops.foreach_set("vertex_index", local.astype(np.int32))
-        me.update(calc_edges=True)
+
+    def finish(me):
         me.materials.append(material())
         attr = QUANTITY_ATTRIBUTES[quantity]
         me.attributes.new(attr, "FLOAT", "FACE")
@@ -114,10 +104,8 @@ def new_slice_mesh(vertices: np.ndarray, tris: np.ndarray, faces: np.ndarray, va
         me.color_attributes.active_color = me.color_attributes[COLOUR_ATTRIBUTE]
         me.color_attributes.render_color_index = me.color_attributes.active_color_index
         _set_colours(me, ramp_colours(values, scale, grey))
-    except Exception:
-        bpy.data.meshes.remove(me)
-        raise
-    return me
+
+    return diagnostics.new_triangle_mesh(name, vertices, tris, finish)
 
 
 def _set_colours(me, rgba: np.ndarray) -> None:

@@ -88,23 +88,38 @@ def error_material():
 
 
 # -------------------------------------------------------------- node group
-def node_group():
-    """The glyph node group, built once per file (rebuilt if outdated)."""
-    ng = bpy.data.node_groups.get(NODE_GROUP)
-    if ng is not None and ng.get("symframes_version") == NODE_GROUP_VERSION:
-        return ng
-    if ng is not None:
-        ng.name = NODE_GROUP + " (old)"
-    ng = bpy.data.node_groups.new(NODE_GROUP, "GeometryNodeTree")
-    ng["symframes_version"] = NODE_GROUP_VERSION
+def current_node_group(name: str, version: int):
+    """The node group of that name if it is of this version, else None."""
+    ng = bpy.data.node_groups.get(name)
+    return ng if ng is not None and ng.get("symframes_version") == version else None
+
+
+def new_node_group(name: str, version: int, inputs: dict):
+    """A new Geometry Nodes group: Geometry in, the given inputs
+    {name: (socket type, default)} (floats clamped at 0), Geometry out.  An
+    outdated group of that name is renamed out of the way."""
+    old = bpy.data.node_groups.get(name)
+    if old is not None:
+        old.name = name + " (old)"
+    ng = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    ng["symframes_version"] = version
     iface = ng.interface
     iface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    for name, (kind, default) in INPUTS.items():
-        sock = iface.new_socket(name, in_out="INPUT", socket_type=kind)
+    for socket, (kind, default) in inputs.items():
+        sock = iface.new_socket(socket, in_out="INPUT", socket_type=kind)
         sock.default_value = default
         if kind == "NodeSocketFloat":
             sock.min_value = 0.0
     iface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    return ng
+
+
+def node_group():
+    """The glyph node group, built once per file (rebuilt if outdated)."""
+    ng = current_node_group(NODE_GROUP, NODE_GROUP_VERSION)
+    if ng is not None:
+        return ng
+    ng = new_node_group(NODE_GROUP, NODE_GROUP_VERSION, INPUTS)
 
     nodes, links = ng.nodes, ng.links
     gin = nodes.new("NodeGroupInput")

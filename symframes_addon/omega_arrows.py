@@ -47,20 +47,10 @@ def material():
 
 def node_group():
     """The arrow node group, built once per file (rebuilt if outdated)."""
-    ng = bpy.data.node_groups.get(NODE_GROUP)
-    if ng is not None and ng.get("symframes_version") == NODE_GROUP_VERSION:
-        return ng
+    ng = glyphs.current_node_group(NODE_GROUP, NODE_GROUP_VERSION)
     if ng is not None:
-        ng.name = NODE_GROUP + " (old)"
-    ng = bpy.data.node_groups.new(NODE_GROUP, "GeometryNodeTree")
-    ng["symframes_version"] = NODE_GROUP_VERSION
-    iface = ng.interface
-    iface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    for name, (kind, default) in INPUTS.items():
-        sock = iface.new_socket(name, in_out="INPUT", socket_type=kind)
-        sock.default_value = default
-        sock.min_value = 0.0
-    iface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        return ng
+    ng = glyphs.new_node_group(NODE_GROUP, NODE_GROUP_VERSION, INPUTS)
 
     nodes, links = ng.nodes, ng.links
     gin = nodes.new("NodeGroupInput")
