@@ -134,6 +134,22 @@ def test_singular_structure_matches_the_network(solved, name):
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
+def test_omega_matched_singular_faces_are_exactly_the_network(solved, name):
+    """Matched against the frame omega carries across each edge (not fooled
+    by edges turning ~45 degrees), the singular faces are the network's:
+    every pierced face, and nothing outside the network's faces (pierced,
+    node regions, curve ends)."""
+    r = solved(name)
+    mesh, emb = r.mesh, r.embedding
+    sing = omega_singular_faces(mesh, r.omega, r.frames)
+    net = np.zeros(mesh.n_faces, bool)
+    net[emb.network_faces(mesh)] = True
+    assert not np.any(sing & ~net), int((sing & ~net).sum())
+    pierced = (emb.pierce_count > 0) & ~emb.face_excluded
+    assert np.all(sing[pierced]), int((pierced & ~sing).sum())
+
+
+@pytest.mark.parametrize("name", ["cylinder", "ball"])
 def test_frames_are_adapted_to_curves_and_boundary(solved, name):
     r = solved(name)
     _, ta = tangent_adaptation(r)
