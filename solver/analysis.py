@@ -97,13 +97,7 @@ def matched_singular_faces(mesh: TetMesh, frames: np.ndarray, faces: np.ndarray 
     or third turn about an axis of the cross at a.
     """
     faces = np.arange(mesh.n_faces) if faces is None else np.asarray(faces)
-    F = mesh.faces[faces]
-    a, b, c = F[:, 0], F[:, 1], F[:, 2]
-    G = CUBE_GROUP
-    gab = G[edge_matchings(frames, np.c_[a, b])]
-    gbc = G[edge_matchings(frames, np.c_[b, c])]
-    gca = G[edge_matchings(frames, np.c_[c, a])]
-    P = gca @ gbc @ gab
+    a, P = _loop_matching(mesh, faces, lambda pairs: edge_matchings(frames, pairs))
     sing = np.einsum("nii->n", P) < 2.5
     rot = log_so3(np.einsum("nij,njk,nlk->nil", frames[a], P, frames[a]))
     return sing, rot
@@ -131,12 +125,18 @@ def omega_singular_faces(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray,
     Darboux derivative this finds the faces whose monodromy is a nontrivial
     cube symmetry, whatever the turn per edge."""
     faces = np.arange(mesh.n_faces) if faces is None else np.asarray(faces)
+    _, P = _loop_matching(mesh, faces, lambda pairs: omega_matchings(mesh, omega, frames, pairs))
+    return np.einsum("nii->n", P) < 2.5
+
+
+def _loop_matching(mesh: TetMesh, faces: np.ndarray, match):
+    """(first vertex a of each face abc, g_ca g_bc g_ab) for edge matchings
+    match(ordered pairs) -> CUBE_GROUP indices; the identity where the
+    matchings close around the face."""
     F = mesh.faces[faces]
     a, b, c = F[:, 0], F[:, 1], F[:, 2]
     G = CUBE_GROUP
-    P = (G[omega_matchings(mesh, omega, frames, np.c_[c, a])] @ G[omega_matchings(mesh, omega, frames, np.c_[b, c])]
-         @ G[omega_matchings(mesh, omega, frames, np.c_[a, b])])
-    return np.einsum("nii->n", P) < 2.5
+    return a, G[match(np.c_[c, a])] @ G[match(np.c_[b, c])] @ G[match(np.c_[a, b])]
 
 
 @dataclass

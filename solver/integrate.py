@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from .rotations import exp_so3
+from .rotations import CUBE_GROUP, exp_so3, rotation_angle
 from .tetmesh import TetMesh
 
 
@@ -125,8 +125,6 @@ def symmetric_turn(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, axis: i
     edge constrains it (no interior singular curve: every turn is
     consistent).
     """
-    from .rotations import CUBE_GROUP, rotation_angle
-
     E = mesh.edges
     keep = np.ones(mesh.n_edges, bool) if skip_edges is None else ~skip_edges
     M = np.einsum("nji,njk,nkl->nil", frames[E[keep, 1]], exp_so3(omega[keep]), frames[E[keep, 0]])

@@ -196,7 +196,7 @@ class VolumeProblem:
         def apply(r):
             return Dinv @ r + G @ amg.vcycle(GT @ r)
 
-        return apply, diagH
+        return apply
 
     def _direct_step(self, g, Jx, lam, diagH):
         """The damped Gauss-Newton step by SciPy's sparse LU of the assembled
@@ -252,14 +252,10 @@ class VolumeProblem:
             # the preconditioner (block Jacobi + AMG on the covariant
             # gradients) changes slowly with omega and lambda: rebuild it only
             # once omega has moved or the damping changed by a large factor
-            if direct:
-                diagH = self.damping_diagonal(blocks)
-            elif (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
-                prec, diagH = self.make_preconditioner(blocks, lam, Jx, self.omega(x))
-                pc, pc_lam, moved = prec, lam, 0.0
+            diagH = self.damping_diagonal(blocks)
+            if not direct and (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
+                pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Jx, self.omega(x)), lam, 0.0
                 rep.preconditioner_builds += 1
-            else:
-                diagH = self.damping_diagonal(blocks)
             HW, JxT, a = self.HW, Jx.T.tocsr(), self.a
 
             def matvec(v):

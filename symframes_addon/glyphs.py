@@ -180,42 +180,59 @@ def node_group():
     return ng
 
 
-def remove_unused_helpers() -> None:
-    """Drop the node group and the materials once nothing uses them."""
-    for ng in [g for g in bpy.data.node_groups if g.name.startswith(NODE_GROUP)]:
+def remove_unused(node_group_prefix: str, material_names) -> None:
+    """Drop the node groups named with that prefix (old versions included)
+    and the named materials once nothing uses them."""
+    for ng in [g for g in bpy.data.node_groups if g.name.startswith(node_group_prefix)]:
         if ng.users == 0:
             bpy.data.node_groups.remove(ng)
-    for name in (*AXIS_MATERIALS, ERROR_MATERIAL):
+    for name in material_names:
         mat = bpy.data.materials.get(name)
         if mat is not None and mat.users == 0:
             bpy.data.materials.remove(mat)
 
 
+def remove_unused_helpers() -> None:
+    """Drop the node group and the materials once nothing uses them."""
+    remove_unused(NODE_GROUP, (*AXIS_MATERIALS, ERROR_MATERIAL))
+
+
 # ------------------------------------------------------------------- write
-def new_glyph_mesh(points: np.ndarray, quaternions: np.ndarray, error: np.ndarray | None = None,
-                   error_attribute: str = ERROR_ATTRIBUTE, name: str = "SymFrames Glyph Points"):
-    """A new mesh of loose points with the ``frame`` quaternion attribute
-    (w, x, y, z) and, if error is given, the error attribute of that name
-    (``adaptation`` or ``monodromy``)."""
+_ATTRIBUTE_KEYS = {"FLOAT": ("value", np.float32), "INT": ("value", np.int32),
+                   "QUATERNION": ("value", np.float32), "FLOAT_VECTOR": ("vector", np.float32)}
+
+
+def new_point_mesh(name: str, points: np.ndarray, attributes: dict):
+    """A new mesh of loose points (k, 3) with the point attributes
+    {name: (type, values)}; nothing is left in the file if a step fails."""
     me = bpy.data.meshes.new(name)
     try:
         me.vertices.add(len(points))
         if len(points):  # an empty mesh has no position attribute
             me.attributes["position"].data.foreach_set("vector", np.asarray(points, np.float32).ravel())
-        me.attributes.new(storage.FRAME_ATTRIBUTE, "QUATERNION", "POINT")
-        # fetch by name: a reference taken before another attributes.new() goes stale
-        me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_set(
-            "value", np.asarray(quaternions, np.float32).ravel())
-        if error is not None:
-            if error_attribute not in (ERROR_ATTRIBUTE, MONODROMY_ATTRIBUTE):
-                raise ValueError(f"unknown glyph error attribute {error_attribute!r}")
-            me.attributes.new(error_attribute, "FLOAT", "POINT")
-            me.attributes[error_attribute].data.foreach_set("value", np.asarray(error, np.float32).ravel())
+        for attr, (kind, values) in attributes.items():
+            key, dtype = _ATTRIBUTE_KEYS[kind]
+            me.attributes.new(attr, kind, "POINT")
+            # fetch by name: a reference taken before another attributes.new() goes stale
+            me.attributes[attr].data.foreach_set(key, np.asarray(values, dtype).ravel())
         me.update()
     except Exception:
         bpy.data.meshes.remove(me)
         raise
     return me
+
+
+def new_glyph_mesh(points: np.ndarray, quaternions: np.ndarray, error: np.ndarray | None = None,
+                   error_attribute: str = ERROR_ATTRIBUTE, name: str = "SymFrames Glyph Points"):
+    """A new mesh of loose points with the ``frame`` quaternion attribute
+    (w, x, y, z) and, if error is given, the error attribute of that name
+    (``adaptation`` or ``monodromy``)."""
+    attributes = {storage.FRAME_ATTRIBUTE: ("QUATERNION", quaternions)}
+    if error is not None:
+        if error_attribute not in (ERROR_ATTRIBUTE, MONODROMY_ATTRIBUTE):
+            raise ValueError(f"unknown glyph error attribute {error_attribute!r}")
+        attributes[error_attribute] = ("FLOAT", error)
+    return new_point_mesh(name, points, attributes)
 
 
 def install_glyph_mesh(scene, me):

@@ -114,32 +114,14 @@ def node_group():
 
 
 def remove_unused_helpers() -> None:
-    for ng in [g for g in bpy.data.node_groups if g.name.startswith(NODE_GROUP)]:
-        if ng.users == 0:
-            bpy.data.node_groups.remove(ng)
-    mat = bpy.data.materials.get(MATERIAL[0])
-    if mat is not None and mat.users == 0:
-        bpy.data.materials.remove(mat)
+    glyphs.remove_unused(NODE_GROUP, (MATERIAL[0],))
 
 
 def new_arrow_mesh(points: np.ndarray, omega: np.ndarray, edges: np.ndarray, name: str = "SymFrames Omega Points"):
     """A mesh of loose points (k, 3) with the ``omega`` (k, 3) and ``edge``
     (k,) point attributes."""
-    me = bpy.data.meshes.new(name)
-    try:
-        me.vertices.add(len(points))
-        if len(points):  # an empty mesh has no position attribute
-            me.attributes["position"].data.foreach_set("vector", np.asarray(points, np.float32).ravel())
-        me.attributes.new(OMEGA_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
-        # fetch by name: a reference taken before another attributes.new() goes stale
-        me.attributes[OMEGA_ATTRIBUTE].data.foreach_set("vector", np.asarray(omega, np.float32).ravel())
-        me.attributes.new(EDGE_ATTRIBUTE, "INT", "POINT")
-        me.attributes[EDGE_ATTRIBUTE].data.foreach_set("value", np.asarray(edges, np.int32).ravel())
-        me.update()
-    except Exception:
-        bpy.data.meshes.remove(me)
-        raise
-    return me
+    return glyphs.new_point_mesh(name, points, {OMEGA_ATTRIBUTE: ("FLOAT_VECTOR", omega),
+                                                EDGE_ATTRIBUTE: ("INT", edges)})
 
 
 def write_arrows(scene, points: np.ndarray, omega: np.ndarray, edges: np.ndarray, mean_edge: float):
