@@ -32,6 +32,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="result .npz (default: next to the network file, or NAME.npz)")
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
     p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
+    p.add_argument("--refine", type=int, help="red-refinement levels after fTetWild (default: automatic, 0-2)")
     p.add_argument("--penalty", type=float, help="penalty a of Eq. 23 (default 1000)")
     p.add_argument("--iterations", type=int, help="maximum Levenberg-Marquardt iterations (default 30)")
     p.add_argument("--init", choices=INITS, help="initial guess (default zero)")
@@ -46,7 +47,7 @@ def _parser() -> argparse.ArgumentParser:
 def _options(args, file_options: dict):
     d = dict(file_options)
     for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets),
-                     ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init)):
+                     ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init), ("refine", args.refine)):
         if val is not None:
             d[key] = val
     return io.options_from_dict(d)

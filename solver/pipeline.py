@@ -25,6 +25,7 @@ from .features import FeatureGraph, check_poincare_hopf, transfer_features
 from .integrate import develop, symmetric_turn
 from .network import Network, PreparedNetwork
 from .rotations import exp_so3
+from .refine import red_refine
 from .tetmesh import TetMesh, tetrahedralize
 from .tubes import build_tubes
 from .validation import CheckedInput, check_input
@@ -49,6 +50,11 @@ class Options:
     node_radius    : radius of node regions, relative to edge_length
     epsilon        : fTetWild envelope, relative to the bounding-box diagonal
     target_tets    : tet count aimed at when edge_length is None
+    refine         : red refinement levels (refine.py): fTetWild meshes at
+                     edge_length * 2**refine and each level splits every tet
+                     into eight; None picks 0-2 so that fTetWild's mesh keeps
+                     >= ~6k tets and >= 3 edges along the shortest curve
+                     (as the default edge length does)
     """
 
     edge_length: float | None = None
@@ -62,6 +68,7 @@ class Options:
     epsilon: float = 1e-3
     target_tets: int = 15000
     check_intersections: bool = True
+    refine: int | None = None
 
     def __post_init__(self):
         if self.init not in INITS:
@@ -72,6 +79,8 @@ class Options:
             raise ValueError(f"penalty must be positive, got {self.penalty}")
         if int(self.max_iterations) < 1:
             raise ValueError("max_iterations must be at least 1")
+        if self.refine is not None and not 0 <= int(self.refine) <= 3:
+            raise ValueError(f"refine must be 0-3 levels (or None for automatic), got {self.refine}")
 
 
 @dataclass
@@ -91,6 +100,9 @@ class Report:
     def summary(self) -> str:
         lines = [f"tets {self.sizes.get('tets', 0):,}  vertices {self.sizes.get('vertices', 0):,}  "
                  f"edges {self.sizes.get('edges', 0):,}  (edge length {self.edge_length:.4g})"]
+        if self.sizes.get("refine_levels"):
+            lines.append(f"  fTetWild meshed {self.sizes['mesher_tets']:,} tets, refined "
+                         f"{self.sizes['refine_levels']}x (each tet into 8)")
         for k, v in self.stage_seconds.items():
             lines.append(f"  {k:<12s} {v:8.2f} s")
         lines.append(f"  {'total':<12s} {self.total_seconds:8.2f} s")
@@ -167,6 +179,7 @@ class FieldProblem:
         self.edge_length = h
         self.report.edge_length = h
         self.network: PreparedNetwork = self.checked.network
+        self.hierarchy = []  # refine.Refinement per level, coarse to fine
         if mesh is None:
             mesh = st.run("tetmesh", self._mesh, h, cancel)
         self.mesh = mesh
@@ -177,7 +190,9 @@ class FieldProblem:
                                                self.embedding, self.boundary)
         self.report.sizes = {"tets": mesh.n_tets, "vertices": mesh.n_vertices, "edges": mesh.n_edges,
                              "faces": mesh.n_faces, "unknowns": self.constraints.n_unknowns,
-                             "curves": len(self.network.curves), "nodes": len(self.network.nodes)}
+                             "curves": len(self.network.curves), "nodes": len(self.network.nodes),
+                             "refine_levels": len(self.hierarchy),
+                             "mesher_tets": self.hierarchy[0].coarse.n_tets if self.hierarchy else mesh.n_tets}
         self._stages = st
         self._volume = None
 
@@ -191,18 +206,58 @@ class FieldProblem:
             r = min(r, 0.4 * d.min())
         return r
 
+    def refine_levels(self, h) -> int:
+        """Red-refinement levels for a final edge length h (Options.refine)."""
+        if self.options.refine is not None:
+            return int(self.options.refine)
+        vol = float(np.sum(np.abs(self.checked.surface.signed_volumes())))
+        est = 15.0 * vol / h**3
+        k = 0
+        while (k < 2 and est / 8.0 ** (k + 1) >= 6000.0
+               and h * 2.0 ** (k + 1) <= self.checked.feature_size / 3.0):
+            k += 1
+        return k
+
     def _mesh(self, h, cancel=None):
-        r = self.options.tube_radius * h
-        tubes = build_tubes(self.network, self.checked.surface, r, r * np.sqrt(3.0), self._node_radius(h))
-        mesh = tetrahedralize(self.checked.surface, h, (tubes.V, tubes.F), self.options.epsilon, cancel)
-        nin = self.checked.surface.n_components
-        nout = mesh.boundary.n_components
-        if nout != nin:
-            raise MeshingError(
-                f"the tet mesh has {nout} boundary components but the surface has {nin}; a thin part was lost "
-                f"or a cavity appeared. Try a smaller edge length (now {h:.4g})"
-            )
+        """fTetWild at h * 2**k, then k red refinements (refine.py).  A coarse
+        mesh that changed the boundary's topology (a pinch or a handle where
+        curve tubes pass close to the surface) is retried one level finer
+        when the levels were chosen automatically."""
+        k = self.refine_levels(h)
+        while True:
+            H = h * 2.0**k
+            r = self.options.tube_radius * H
+            tubes = build_tubes(self.network, self.checked.surface, r, r * np.sqrt(3.0), self._node_radius(H))
+            mesh = tetrahedralize(self.checked.surface, H, (tubes.V, tubes.F), self.options.epsilon, cancel)
+            problem = self._topology_change(mesh)
+            if problem is None or k == 0 or self.options.refine is not None:
+                break
+            k -= 1
+        if problem is not None:
+            hint = (f"Try a smaller edge length (now {h:.4g})" if k == 0 else
+                    f"fTetWild meshed at {H:.4g} before {k} refinement level(s): try refine={k - 1}")
+            raise MeshingError(f"the tet mesh's boundary {problem}; a thin part was lost, a cavity appeared or "
+                               f"curve tubes too close to the surface merged with it. {hint}")
+        self.hierarchy = []
+        for _ in range(k):
+            ref = red_refine(mesh, self.checked.surface)
+            self.hierarchy.append(ref)
+            mesh = ref.fine
         return mesh
+
+    def _topology_change(self, mesh: TetMesh) -> str | None:
+        """How the boundary of mesh differs topologically from the input
+        surface, or None."""
+        S, B = self.checked.surface, mesh.boundary
+        if B.n_components != S.n_components:
+            return f"has {B.n_components} components but the surface has {S.n_components}"
+        _, _, cnt = B._edge_data
+        if np.any(cnt != 2):
+            return f"is not manifold ({int(np.sum(cnt != 2))} edges with more than two faces)"
+        chi_in, chi_out = int(np.sum(S.euler_characteristics())), int(np.sum(B.euler_characteristics()))
+        if chi_in != chi_out:
+            return f"has Euler characteristic {chi_out} but the surface has {chi_in}"
+        return None
 
     def _boundary(self) -> BoundaryField:
         mesh = self.mesh

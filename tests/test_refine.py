@@ -1,0 +1,97 @@
+"""Red refinement (solver/refine.py) and solves on refined meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from solver import FieldProblem, Options
+from solver.analysis import matched_singular_faces
+from solver.examples import icosphere, load_example
+from solver.refine import red_refine
+from solver.rotations import cross_distance
+from solver.tetmesh import TetMesh, tetrahedralize
+from solver.trisurface import TriSurface
+
+from tests.meshes import box_mesh
+
+
+def quality(M: TetMesh) -> np.ndarray:
+    """Volume over rms edge length cubed, 1 for the regular tet."""
+    L = M.edge_lengths[M.tet_edges]
+    return 6.0 * np.sqrt(2.0) * M.tet_volumes / np.sqrt((L**2).mean(axis=1)) ** 3
+
+
+@pytest.fixture(scope="module")
+def box_refinement():
+    coarse = box_mesh(3, jitter=0.25, seed=3)
+    return coarse, red_refine(coarse)
+
+
+def test_red_refinement_is_conforming_and_keeps_volume_and_shape(box_refinement):
+    coarse, ref = box_refinement
+    fine = ref.fine
+    assert fine.n_tets == 8 * coarse.n_tets
+    assert fine.n_vertices == coarse.n_vertices + coarse.n_edges
+    assert fine.tet_volumes.min() > 0
+    assert np.isclose(fine.tet_volumes.sum(), coarse.tet_volumes.sum(), rtol=1e-12)
+    # conforming: every face has two tets except the boundary, which is split 4:1
+    assert len(fine.boundary_faces) == 4 * len(coarse.boundary_faces)
+    assert fine.boundary.n_components == 1
+    assert int(fine.boundary.euler_characteristics()[0]) == 2
+    # Bey's shortest-diagonal rule keeps the shapes of the coarse tets
+    assert quality(fine).min() >= 0.5 * quality(coarse).min()
+
+
+def test_whitney_prolongation_is_exact_for_constant_forms(box_refinement):
+    coarse, ref = box_refinement
+    fine = ref.fine
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        c = rng.normal(size=3)
+        wc = (coarse.vertices[coarse.edges[:, 1]] - coarse.vertices[coarse.edges[:, 0]]) @ c
+        wf = (fine.vertices[fine.edges[:, 1]] - fine.vertices[fine.edges[:, 0]]) @ c
+        assert np.abs(ref.whitney @ wc - wf).max() < 1e-12
+    half = ref.edge_parent >= 0
+    assert half.sum() == 2 * coarse.n_edges
+    # a half edge runs from a coarse vertex to a midpoint: along its parent
+    # where that vertex is the parent's first end
+    par = ref.edge_parent[half]
+    sign = np.where(fine.edges[half, 0] == coarse.edges[par, 0], 1.0, -1.0)
+    wc = rng.normal(size=coarse.n_edges)
+    assert np.allclose((ref.whitney @ wc)[half], 0.5 * sign * wc[par])
+
+
+def test_refined_boundary_lies_on_the_input_surface():
+    V, F = icosphere(3)
+    S = TriSurface(V, F)
+    coarse = tetrahedralize(S, 0.45)
+    ref = red_refine(coarse, S)
+    fine = ref.fine
+    assert fine.tet_volumes.min() > 0
+    mids = fine.boundary_vertices[fine.boundary_vertices >= coarse.n_vertices]
+    d_mid, _, _ = S.closest_points(fine.vertices[mids])
+    d_coarse, _, _ = S.closest_points(coarse.vertices[coarse.boundary_vertices])
+    # midpoints of smooth boundary edges were moved onto the surface; a chord
+    # midpoint would sag by ~ l^2 / 8 (about 0.02 here)
+    assert np.mean(d_mid < 1e-9) > 0.95, np.mean(d_mid < 1e-9)
+    assert d_mid.max() <= max(d_coarse.max(), 1e-9) + 0.03
+    assert np.isclose(fine.tet_volumes.sum(), 4.0 / 3.0 * np.pi, rtol=0.03)
+
+
+def test_cube_on_a_refined_mesh_keeps_its_sharp_edges():
+    V, F, net = load_example("cube")
+    problem = FieldProblem(V, F, net, Options(edge_length=0.15, refine=1))
+    assert len(problem.hierarchy) == 1
+    assert problem.mesh.n_tets == 8 * problem.hierarchy[0].coarse.n_tets
+    r = problem.solve()
+    dev = np.degrees(cross_distance(r.frames, np.broadcast_to(np.eye(3), r.frames.shape)))
+    assert dev.max() <= 0.5, dev.max()
+    sing, _ = matched_singular_faces(r.mesh, r.frames)
+    assert not sing.any()
+    assert r.report.lm.converged
+
+
+def test_refine_option_is_checked():
+    with pytest.raises(ValueError, match="refine"):
+        Options(refine=7)
