@@ -91,6 +91,18 @@ def check_singular_structure(result):
     return sing
 
 
+def check_omega_singular_set(result):
+    """omega-matched singular faces: every pierced face, and nothing outside
+    the network's faces (pierced, node regions, curve ends)."""
+    mesh, emb = result.mesh, result.embedding
+    sing = omega_singular_faces(mesh, result.omega, result.frames)
+    net = np.zeros(mesh.n_faces, bool)
+    net[emb.network_faces(mesh)] = True
+    assert not np.any(sing & ~net), int((sing & ~net).sum())
+    pierced = (emb.pierce_count > 0) & ~emb.face_excluded
+    assert pierced.sum() > 0 and np.all(sing[pierced]), int((pierced & ~sing).sum())
+
+
 def regular_monodromy_deg(result) -> np.ndarray:
     mesh = result.mesh
     net = np.zeros(mesh.n_faces, bool)
@@ -139,14 +151,7 @@ def test_omega_matched_singular_faces_are_exactly_the_network(solved, name):
     by edges turning ~45 degrees), the singular faces are the network's:
     every pierced face, and nothing outside the network's faces (pierced,
     node regions, curve ends)."""
-    r = solved(name)
-    mesh, emb = r.mesh, r.embedding
-    sing = omega_singular_faces(mesh, r.omega, r.frames)
-    net = np.zeros(mesh.n_faces, bool)
-    net[emb.network_faces(mesh)] = True
-    assert not np.any(sing & ~net), int((sing & ~net).sum())
-    pierced = (emb.pierce_count > 0) & ~emb.face_excluded
-    assert np.all(sing[pierced]), int((pierced & ~sing).sum())
+    check_omega_singular_set(solved(name))
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])

@@ -101,21 +101,15 @@ def test_cylinder_on_a_refined_mesh_has_the_network_as_its_singular_set():
     """The O-grid cylinder solved on a refined mesh (fTetWild at 0.23, one
     level of red refinement): the same singular-structure and adaptation
     checks as on a direct mesh."""
-    from solver.analysis import omega_singular_faces, tangent_adaptation
+    from solver.analysis import tangent_adaptation
 
-    from tests.test_examples import check_singular_structure
+    from tests.test_examples import check_omega_singular_set, check_singular_structure
 
     V, F, net = load_example("cylinder")
     problem = FieldProblem(V, F, net, Options(edge_length=0.115, refine=1))
     r = problem.solve()
     assert r.report.lm.converged
     check_singular_structure(r)
-    mesh, emb = r.mesh, r.embedding
-    sing = omega_singular_faces(mesh, r.omega, r.frames)
-    netf = np.zeros(mesh.n_faces, bool)
-    netf[emb.network_faces(mesh)] = True
-    assert not np.any(sing & ~netf), int((sing & ~netf).sum())
-    pierced = (emb.pierce_count > 0) & ~emb.face_excluded
-    assert pierced.sum() > 0 and np.all(sing[pierced])
+    check_omega_singular_set(r)
     _, ta = tangent_adaptation(r)
     assert np.degrees(ta).mean() <= 2.0
