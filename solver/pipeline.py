@@ -191,8 +191,9 @@ class FieldProblem:
         self.report.sizes = {"tets": mesh.n_tets, "vertices": mesh.n_vertices, "edges": mesh.n_edges,
                              "faces": mesh.n_faces, "unknowns": self.constraints.n_unknowns,
                              "curves": len(self.network.curves), "nodes": len(self.network.nodes),
-                             "refine_levels": len(self.hierarchy),
-                             "mesher_tets": self.hierarchy[0].coarse.n_tets if self.hierarchy else mesh.n_tets}
+                             # kept in mesh.info, so a reused mesh still says how it was made
+                             "refine_levels": int(mesh.info.get("refine_levels", 0)),
+                             "mesher_tets": int(mesh.info.get("mesher_tets", mesh.n_tets))}
         self._stages = st
         self._volume = None
 

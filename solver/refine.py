@@ -95,7 +95,8 @@ def red_refine(coarse: TetMesh, surface: TriSurface | None = None, crease_deg: f
         Pf = _project_boundary_midpoints(coarse, Pf, Tf, surface, crease_deg, min_volume_ratio)
     fine = TetMesh(Pf, Tf)
     fine.info.update(coarse.info)
-    fine.info["refined_from_tets"] = coarse.n_tets
+    fine.info["refine_levels"] = coarse.info.get("refine_levels", 0) + 1
+    fine.info.setdefault("mesher_tets", coarse.n_tets)
     parent, W = _whitney_prolongation(coarse, fine)
     return Refinement(fine=fine, coarse=coarse, edge_parent=parent, whitney=W)
 

@@ -84,6 +84,11 @@ def test_cube_on_a_refined_mesh_keeps_its_sharp_edges():
     problem = FieldProblem(V, F, net, Options(edge_length=0.15, refine=1))
     assert len(problem.hierarchy) == 1
     assert problem.mesh.n_tets == 8 * problem.hierarchy[0].coarse.n_tets
+    assert problem.report.sizes["refine_levels"] == 1
+    assert problem.report.sizes["mesher_tets"] == problem.hierarchy[0].coarse.n_tets
+    # a reused mesh still reports how it was made
+    again = FieldProblem(V, F, net, Options(edge_length=0.15), mesh=problem.mesh)
+    assert again.report.sizes["refine_levels"] == 1
     r = problem.solve()
     dev = np.degrees(cross_distance(r.frames, np.broadcast_to(np.eye(3), r.frames.shape)))
     assert dev.max() <= 0.5, dev.max()
