@@ -935,7 +935,11 @@ def test_diagnostics_bad_plane_undo_and_recompute(cube):
     assert bpy.ops.symframes.compute() == {"FINISHED"}
     assert output("omega_arrows") is None and output("error_slice") is None
     g = output("glyphs")
-    assert len(g.data.vertices) == GLYPHS and glyphs.error_attribute(g) == glyphs.MONODROMY_ATTRIBUTE
+    # monodromy glyphs sit on vertices: as many as asked for, or every vertex
+    # of a small mesh (fTetWild's vertex count varies from run to run)
+    n_vertices = len(storage.read_field(scene().symframes.field)[0])
+    assert len(g.data.vertices) == min(GLYPHS, n_vertices)
+    assert glyphs.error_attribute(g) == glyphs.MONODROMY_ATTRIBUTE
 
 
 def test_panels_draw_the_diagnostics(plate):
