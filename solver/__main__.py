@@ -47,7 +47,8 @@ def _parser() -> argparse.ArgumentParser:
 def _options(args, file_options: dict):
     d = dict(file_options)
     for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets),
-                     ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init), ("refine", args.refine)):
+                     ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init),
+                     ("refine", args.refine)):
         if val is not None:
             d[key] = val
     return io.options_from_dict(d)

@@ -150,11 +150,17 @@ class _Stages:
         return out
 
 
+TETS_PER_H3 = 15.0  # fTetWild meshes hold about 15 tets per h^3 of volume
+
+
+def _volume(checked: CheckedInput) -> float:
+    return float(np.sum(np.abs(checked.surface.signed_volumes())))
+
+
 def default_edge_length(checked: CheckedInput, target_tets: int) -> float:
-    """An edge length giving about target_tets tets (fTetWild meshes hold
-    about 15 tets per h^3 of volume), reduced to resolve the network."""
-    vol = float(np.sum(np.abs(checked.surface.signed_volumes())))
-    h = (15.0 * vol / target_tets) ** (1.0 / 3.0)
+    """An edge length giving about target_tets tets, reduced to resolve the
+    network."""
+    h = (TETS_PER_H3 * _volume(checked) / target_tets) ** (1.0 / 3.0)
     if np.isfinite(checked.feature_size):
         h = min(h, checked.feature_size / 3.0)
     return float(max(h, 1e-3 * checked.surface.bbox_diagonal))
@@ -211,8 +217,7 @@ class FieldProblem:
         """Red-refinement levels for a final edge length h (Options.refine)."""
         if self.options.refine is not None:
             return int(self.options.refine)
-        vol = float(np.sum(np.abs(self.checked.surface.signed_volumes())))
-        est = 15.0 * vol / h**3
+        est = TETS_PER_H3 * _volume(self.checked) / h**3
         k = 0
         while (k < 2 and est / 8.0 ** (k + 1) >= 6000.0
                and h * 2.0 ** (k + 1) <= self.checked.feature_size / 3.0):

@@ -16,18 +16,20 @@ refined boundary approximates the solid as well as a direct mesh would
 flatten a tet is undone.  Midpoints on sharp creases stay on the crease.
 
 The nested meshes also give a prolongation for 1-forms (Whitney
-interpolation), which volume3d.py uses as a coarse space in the
-preconditioner of the Levenberg-Marquardt systems.
+interpolation), computed on demand: a coarse space for multilevel solves of
+the Levenberg-Marquardt systems (measured in bench/RESULTS.md, not used by
+the solver yet).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
 
-from .tetmesh import TetMesh
+from .tetmesh import TET_EDGES, TetMesh
 from .trisurface import TriSurface
 
 # the three diagonals of the inner octahedron, given by the local edge ids of
@@ -44,7 +46,7 @@ _DIAGONALS = (
 class Refinement:
     """A coarse mesh and its red refinement.
 
-    fine        : the refined TetMesh
+    fine        : the refined TetMesh (fine tet k lies in coarse tet k // 8)
     coarse      : the mesh it was made from
     edge_parent : (#E_fine,) coarse edge a fine edge halves, -1 for edges
                   inside coarse faces and tets
@@ -55,8 +57,18 @@ class Refinement:
 
     fine: TetMesh
     coarse: TetMesh
-    edge_parent: np.ndarray
-    whitney: sp.csr_matrix
+
+    @cached_property
+    def _prolongation(self):
+        return _whitney_prolongation(self.coarse, self.fine)
+
+    @property
+    def edge_parent(self) -> np.ndarray:
+        return self._prolongation[0]
+
+    @property
+    def whitney(self) -> sp.csr_matrix:
+        return self._prolongation[1]
 
 
 def red_refine(coarse: TetMesh, surface: TriSurface | None = None, crease_deg: float = 25.0,
@@ -66,7 +78,8 @@ def red_refine(coarse: TetMesh, surface: TriSurface | None = None, crease_deg: f
     surface : the input boundary; when given, midpoints of boundary edges
               whose dihedral angle is below ``crease_deg`` are moved onto it
               (undone where a tet would keep less than ``min_volume_ratio`` of
-              its volume before the move).
+              its volume before the move).  The coarse boundary must then
+              be manifold (ValueError otherwise).
     """
     P = coarse.vertices
     T = coarse.tets
@@ -97,36 +110,30 @@ def red_refine(coarse: TetMesh, surface: TriSurface | None = None, crease_deg: f
     fine.info.update(coarse.info)
     fine.info["refine_levels"] = coarse.info.get("refine_levels", 0) + 1
     fine.info.setdefault("mesher_tets", coarse.n_tets)
-    parent, W = _whitney_prolongation(coarse, fine)
-    return Refinement(fine=fine, coarse=coarse, edge_parent=parent, whitney=W)
+    return Refinement(fine=fine, coarse=coarse)
 
 
 def _project_boundary_midpoints(coarse, Pf, Tf, surface, crease_deg, min_ratio):
     B = coarse.boundary
     bv = coarse.boundary_vertices
-    # dihedral angle per boundary edge; edges without exactly two boundary
-    # faces (a non-manifold pinch of a coarse mesh) count as creases
-    fe = B.face_edges.reshape(-1)
-    nf = np.bincount(fe, minlength=len(B.edges))
-    order = np.argsort(fe, kind="stable")
-    first = np.r_[0, np.cumsum(nf)[:-1]]
-    f0 = np.repeat(np.arange(len(B.F)), 3)[order][first]
-    f1 = np.repeat(np.arange(len(B.F)), 3)[order][np.minimum(first + 1, len(fe) - 1)]
-    cosang = np.einsum("ij,ij->i", B.face_normals[f0], B.face_normals[f1])
-    smooth = (nf == 2) & (cosang > np.cos(np.deg2rad(crease_deg)))
+    if np.any(B._edge_data[2] != 2):
+        raise ValueError("red_refine: the coarse mesh's boundary is not manifold, so its midpoints cannot be "
+                         "projected; mesh finer, or pass surface=None to refine without projection")
+    smooth = B.dihedral_angles < np.deg2rad(crease_deg)
     be = bv[B.edges[smooth]]
     mids = len(coarse.vertices) + coarse.edge_index(be[:, 0], be[:, 1])
     if len(mids) == 0:
         return Pf
     _, _, q = surface.closest_points(Pf[mids])
+    # the child tets are not oriented yet (TetMesh flips them): compare
+    # signed volumes after the move with those before
     vol0 = TetMesh._signed_volumes(Pf, Tf)
-    vol0 = np.abs(vol0)
     Pn = Pf.copy()
     Pn[mids] = q
     moved = np.zeros(len(Pf), bool)
     moved[mids] = True
     for _ in range(5):
-        bad_t = TetMesh._signed_volumes(Pn, Tf) * np.sign(TetMesh._signed_volumes(Pf, Tf)) < min_ratio * vol0
+        bad_t = TetMesh._signed_volumes(Pn, Tf) * np.sign(vol0) < min_ratio * np.abs(vol0)
         bad_t &= moved[Tf].any(axis=1)
         if not np.any(bad_t):
             break
@@ -148,8 +155,7 @@ def _whitney_prolongation(coarse: TetMesh, fine: TetMesh):
     nVc = coarse.n_vertices
     Ec = coarse.edges
     # the barycentric coordinates of every fine vertex in one coarse tet that
-    # contains it: a coarse vertex is its own corner, a midpoint is half-half
-    Tf = fine.tets
+    # contains it: a coarse vertex is its own corner, a midpoint is half-half;
     # fine tet k came from coarse tet k // 8
     parent_tet = np.arange(fine.n_tets) // 8
     Ef = fine.edges
@@ -165,8 +171,6 @@ def _whitney_prolongation(coarse: TetMesh, fine: TetMesh):
         mid = ~is_vert
         e = v[mid] - nVc
         loc = np.argmax(te[mid] == e[:, None], axis=1)
-        from .tetmesh import TET_EDGES
-
         pairs = TET_EDGES[loc]
         r = np.nonzero(mid)[0]
         lam[r, pairs[:, 0]] = 0.5
@@ -174,8 +178,6 @@ def _whitney_prolongation(coarse: TetMesh, fine: TetMesh):
         return lam
 
     p, q = bary(Ef[:, 0]), bary(Ef[:, 1])
-    from .tetmesh import TET_EDGES
-
     cols, vals = [], []
     for k, (i, j) in enumerate(TET_EDGES):
         w = 0.5 * (p[:, i] + q[:, i]) * (q[:, j] - p[:, j]) - 0.5 * (p[:, j] + q[:, j]) * (q[:, i] - p[:, i])
