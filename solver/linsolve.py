@@ -28,10 +28,13 @@ class PCGResult:
     iterations: int
     converged: bool
     relative_residual: float
+    negative_curvature: bool = False  # stopped at a direction p with p^T A p <= 0
 
 
 def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000) -> PCGResult:
-    """Solve A x = b for SPD A given as a matvec, preconditioner as a function."""
+    """Solve A x = b for SPD A given as a matvec, preconditioner as a function.
+    Stops early, flagging negative_curvature, if A turns out not to be
+    positive definite."""
     x = np.zeros_like(b) if x0 is None else x0.copy()
     r = b - matvec(x) if x0 is not None else b.copy()
     nb = np.linalg.norm(b)
@@ -46,7 +49,7 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000) -> PCGResult:
         Ap = matvec(p)
         pAp = p @ Ap
         if pAp <= 0:
-            break
+            return PCGResult(x, it, False, res, True)
         alpha = rz / pAp
         x += alpha * p
         r -= alpha * Ap

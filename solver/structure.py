@@ -91,6 +91,32 @@ class StructureEquation:
         """Sparse (3m x 3 n_edges) Jacobian."""
         return self.assemble(self.jacobian_blocks(omega, linear))
 
+    def residual_hessian(self, mu: np.ndarray) -> sp.csr_matrix:
+        """The (3 n_edges)^2 Hessian of sum_f mu_f . r_f(omega) for fixed
+        weights mu (m, 3): the second-order term that Gauss-Newton drops.
+        r is quadratic in omega (the wedge of Eq. 18), so this does not
+        depend on omega.  With [mu] the cross-product matrix, the face term
+        -1/2 w_b mu . (A x B) = 1/2 w_b A^T [mu] B couples A and B by
+        1/2 w_b [mu] (and B, A by its transpose), likewise (B, C) with w_c
+        and (C, A) with w_a; C = -omega_ac flips the sign of the blocks
+        that touch the third edge."""
+        fe = self.face_edges
+        wa, wb, wc = (self.weights[:, k, None, None] for k in range(3))
+        M = 0.5 * _cross_mat(mu)
+        # (row edge slot, column edge slot, block): A = e0, B = e1, C = -e2
+        pairs = ((0, 1, wb * M), (1, 2, -wc * M), (2, 0, -wa * M))
+        rows, cols, vals = [], [], []
+        r3 = np.arange(3)
+        for i, j, blk in pairs:
+            for p, q, b in ((i, j, blk), (j, i, np.swapaxes(blk, 1, 2))):
+                rows.append(np.broadcast_to((3 * fe[:, p])[:, None, None] + r3[None, :, None], b.shape))
+                cols.append(np.broadcast_to((3 * fe[:, q])[:, None, None] + r3[None, None, :], b.shape))
+                vals.append(b)
+        n = 3 * self.n_edges
+        return sp.csr_matrix((np.concatenate([v.reshape(-1) for v in vals]),
+                              (np.concatenate([r.reshape(-1) for r in rows]),
+                               np.concatenate([c.reshape(-1) for c in cols]))), shape=(n, n))
+
     def gram_blocks(self, Jb: np.ndarray) -> np.ndarray:
         """(n_edges, 3, 3): sum over faces of J_fe^T J_fe, the diagonal blocks
         of J^T J."""

@@ -1,0 +1,76 @@
+"""The linear algebra under Levenberg-Marquardt: the nodal AMG that
+preconditions the gradient space, PCG, and the row-split products that use
+several cores."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from solver import parallel
+from solver.amg import AMG
+from solver.linsolve import pcg
+from tests.meshes import box_mesh
+
+
+@pytest.fixture
+def block_laplacian():
+    """A vertex Laplacian of a jittered box mesh, three unknowns per vertex
+    (the shape of the gradient-space operator), slightly shifted."""
+    mesh = box_mesh(8, jitter=0.2)
+    d0 = mesh.d0
+    L = (d0.T @ d0).tocsr()
+    A = sp.kron(L, np.eye(3)).tocsr() + 1e-3 * sp.eye(3 * mesh.n_vertices)
+    return A.tocsr()
+
+
+def test_amg_vcycle_is_symmetric_and_beats_jacobi(block_laplacian):
+    A = block_laplacian
+    amg = AMG.build(A, block=3, max_coarse=50)
+    assert amg.n_levels >= 2
+    rng = np.random.default_rng(0)
+    u, v = rng.normal(size=(2, A.shape[0]))
+    # a symmetric preconditioner, so CG may use it
+    assert abs(u @ amg.vcycle(v) - v @ amg.vcycle(u)) <= 1e-10 * np.linalg.norm(u) * np.linalg.norm(v)
+    b = rng.normal(size=A.shape[0])
+    mg = pcg(lambda x: A @ x, b, amg.vcycle, rtol=1e-8, maxiter=500)
+    jac = pcg(lambda x: A @ x, b, lambda r: r / A.diagonal(), rtol=1e-8, maxiter=5000)
+    assert mg.converged and jac.converged
+    assert np.linalg.norm(A @ mg.x - b) <= 1e-8 * np.linalg.norm(b) * 1.0001
+    assert mg.iterations * 4 < jac.iterations, (mg.iterations, jac.iterations)
+
+
+def test_pcg_reports_negative_curvature():
+    A = sp.diags([1.0, 2.0, -1.0]).tocsr()
+    res = pcg(lambda x: A @ x, np.ones(3), lambda r: r, rtol=1e-12)
+    assert res.negative_curvature and not res.converged
+
+
+@pytest.mark.parametrize("cols", [None, 3])
+def test_row_split_products_match_serial(block_laplacian, cols):
+    A = block_laplacian
+    old = parallel.threads()
+    parallel.set_threads(3)
+    try:
+        P = parallel.RowSplitMatrix(A, 3)
+        assert len(P.blocks) == 3 and P.shape == A.shape
+        x = np.random.default_rng(1).normal(size=(A.shape[0],) if cols is None else (A.shape[0], cols))
+        assert np.array_equal(P @ x, A @ x)
+        # small matrices are left alone
+        assert parallel.parallel(sp.eye(10, format="csr")).__class__ is not parallel.RowSplitMatrix
+    finally:
+        parallel.set_threads(old)
+
+
+def test_thread_setting_is_validated(monkeypatch):
+    with pytest.raises(ValueError, match="at least 1"):
+        parallel.set_threads(0)
+    monkeypatch.setattr(parallel, "_threads", None)
+    monkeypatch.setenv("SYMFRAMES_THREADS", "two")
+    with pytest.raises(ValueError, match="SYMFRAMES_THREADS"):
+        parallel.threads()
+    monkeypatch.setenv("SYMFRAMES_THREADS", "1")
+    assert parallel.threads() == 1
+    A = sp.random(400, 400, density=0.9, format="csr", random_state=0)
+    assert parallel.parallel(A) is A
