@@ -69,11 +69,11 @@ def _print_profile(result) -> None:
     lm = result.report.lm
     print("\nLevenberg-Marquardt iterations:")
     print(f"  {'it':>3} {'energy':>12} {'smooth':>12} {'penalty':>10} {'|grad|':>10} {'damping':>9} {'CG':>5} "
-          f"{'ok':>3} {'s':>7} {'step':>9}")
+          f"{'ok':>3} {'s':>7} {'step':>9}  kind")
     for it in lm.iterations:
         print(f"  {it.iteration:3d} {it.energy:12.6g} {it.smoothness:12.6g} {it.penalty:10.3g} "
               f"{it.gradient_norm:10.3g} {it.damping:9.2g} {it.cg_iterations:5d} {'y' if it.accepted else 'n':>3} "
-              f"{it.seconds:7.2f} {it.step:9.2e}")
+              f"{it.seconds:7.2f} {it.step:9.2e}  {'' if it.iteration == 0 else 'Newton' if it.newton else 'GN'}")
     print(f"  setup {lm.setup_seconds:.2f} s, total {lm.seconds:.2f} s")
 
 

@@ -46,6 +46,7 @@ class LMIteration:
     accepted: bool
     seconds: float
     step: float = 0.0  # |d omega| / |omega| of the step tried
+    newton: bool = False  # the step used the full Hessian (not Gauss-Newton)
 
 
 @dataclass
@@ -328,7 +329,7 @@ class VolumeProblem:
                 newton, K = False, None
             rep.iterations.append(
                 LMIteration(it, F, es, ep, float(np.linalg.norm(g)), lam, res.iterations, accepted,
-                            time.perf_counter() - ti, step)
+                            time.perf_counter() - ti, step, newton=Kp is not None)
             )
             if progress is not None:
                 progress(it, F)
