@@ -84,9 +84,15 @@ def main(argv=None) -> int:
     text = table(rows)
     if len(rows) >= 2:
         k = np.polyfit(np.log([r["tets"] for r in rows]), np.log([r["wall"] for r in rows]), 1)[0]
-        text += f"\n\nFitted growth: time ~ n^{k:.2f} over {rows[0]['tets']:,}-{rows[-1]['tets']:,} tets."
+        text += f"\n\nFitted growth: time ~ n^{k:.2f} over {rows[0]['tets']:,}-{rows[-1]['tets']:,} tets"
+        k_lm = np.polyfit(np.log([r["tets"] for r in rows]),
+                          np.log([r["stages"].get("volume3d", 0.0) for r in rows]), 1)[0]
+        text += f" (LM alone: n^{k_lm:.2f})."
     cpu = platform.processor() or platform.machine()
-    text += f"\n\nMachine: {os.cpu_count()} cores ({cpu}), Python {platform.python_version()}."
+    from solver.parallel import threads
+
+    text += (f"\n\nMachine: {os.cpu_count()} cores ({cpu}), Python {platform.python_version()}; "
+             f"{threads()} threads for sparse products.")
     print(text)
     if args.write:
         path = os.path.join(ROOT, "bench", "RESULTS.md")

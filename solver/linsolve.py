@@ -31,10 +31,11 @@ class PCGResult:
     negative_curvature: bool = False  # stopped at a direction p with p^T A p <= 0
 
 
-def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000) -> PCGResult:
+def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None) -> PCGResult:
     """Solve A x = b for SPD A given as a matvec, preconditioner as a function.
     Stops early, flagging negative_curvature, if A turns out not to be
-    positive definite."""
+    positive definite.  A RitzRecorder, if given, collects approximate
+    eigenvectors of the smallest eigenvalues on the way."""
     x = np.zeros_like(b) if x0 is None else x0.copy()
     r = b - matvec(x) if x0 is not None else b.copy()
     nb = np.linalg.norm(b)
@@ -43,6 +44,8 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000) -> PCGResult:
     z = precond(r)
     p = z.copy()
     rz = r @ z
+    if recorder is not None:
+        recorder.start(z, rz)
     it = 0
     res = np.linalg.norm(r) / nb
     while res > rtol and it < maxiter:
@@ -51,6 +54,8 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000) -> PCGResult:
         if pAp <= 0:
             return PCGResult(x, it, False, res, True)
         alpha = rz / pAp
+        if recorder is not None:
+            recorder.add_alpha(alpha)
         x += alpha * p
         r -= alpha * Ap
         it += 1
@@ -59,6 +64,79 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000) -> PCGResult:
             break
         z = precond(r)
         rz_new = r @ z
-        p = z + (rz_new / rz) * p
+        beta = rz_new / rz
+        if recorder is not None:
+            recorder.add_vector(beta, z, rz_new)
+        p = z + beta * p
         rz = rz_new
     return PCGResult(x, it, res <= rtol, res)
+
+
+class RitzRecorder:
+    """Approximate eigenvectors of the smallest eigenvalues of M^-1 A,
+    gathered while PCG runs, without further products with A (eigCG,
+    Stathopoulos & Orginos 2010).
+
+    PCG is a Lanczos process: v_k = (-1)^k z_k / sqrt(r_k . z_k) are its
+    vectors and T (tridiagonal, from CG's alpha and beta) is V^T A V.  We keep
+    at most m of them; when the basis is full it is restarted with the Ritz
+    vectors of the nev smallest Ritz values of T_m and of T_(m-1) (2 nev
+    vectors), and the Lanczos recurrence continues unchanged."""
+
+    def __init__(self, n: int, nev: int = 8, m: int = 48):
+        if not 0 < 2 * nev < m:
+            raise ValueError(f"need 0 < 2 nev < m, got nev={nev}, m={m}")
+        self.nev, self.m = nev, m
+        self.V = np.empty((m, n), dtype=np.float32)  # a Lanczos vector per row; single precision is
+        # plenty for a preconditioner and halves the restarts' memory traffic
+        self.T = np.zeros((m, m))
+        self.cur = 0
+
+    def start(self, z, rz):
+        self.T[:] = 0.0
+        self.V[0] = z / np.sqrt(rz)
+        self.cur, self.sign = 1, 1.0
+        self.alpha_prev = self.beta_prev = None
+        self.complete = False
+
+    def add_alpha(self, alpha):
+        j = self.cur - 1  # the diagonal of the newest vector is now complete
+        self.T[j, j] += 1.0 / alpha + (self.beta_prev / self.alpha_prev if self.alpha_prev is not None else 0.0)
+        self.alpha_prev = alpha
+        self.complete = True
+
+    def add_vector(self, beta, z, rz):
+        t = np.sqrt(beta) / self.alpha_prev  # coupling of the newest and the next vector
+        self.sign = -self.sign
+        if self.cur == self.m:
+            W = self._restart()
+            k = self.cur
+            self.T[:k, k] = self.T[k, :k] = t * W[-1]
+        else:
+            k = self.cur
+            self.T[k - 1, k] = self.T[k, k - 1] = t
+        np.multiply(z, self.sign / np.sqrt(rz), out=self.V[k])
+        self.cur = k + 1
+        self.beta_prev = beta
+        self.complete = False
+
+    def _restart(self):
+        m, nev = self.m, self.nev
+        Tm = self.T.copy()
+        Y = np.linalg.eigh(Tm)[1][:, :nev]
+        Y1 = np.zeros((m, nev))
+        Y1[:-1] = np.linalg.eigh(Tm[:-1, :-1])[1][:, :nev]
+        Q = np.linalg.qr(np.hstack([Y, Y1]))[0]
+        lam, Z = np.linalg.eigh(Q.T @ Tm @ Q)
+        W = Q @ Z
+        self.V[:2 * nev] = W.T.astype(np.float32) @ self.V
+        self.T[:] = 0.0
+        self.T[np.arange(2 * nev), np.arange(2 * nev)] = lam
+        self.cur = 2 * nev
+        return W
+
+    def vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Ritz values, Ritz vectors as columns) of the nev smallest."""
+        k = self.cur if self.complete else self.cur - 1  # T's last diagonal needs one more alpha
+        lam, Y = np.linalg.eigh(self.T[:k, :k])
+        return lam[:self.nev], (Y[:, :self.nev].T.astype(np.float32) @ self.V[:k]).T.astype(np.float64)

@@ -14,7 +14,10 @@ the steps are small (< 1% of omega) H also gets the second-order term
 the minimiser, so Gauss-Newton alone converges only linearly there (ball,
 78k tets: 11 iterations; with the Newton term, 10 and a 100x smaller final
 gradient).  Where that Hessian is not positive definite, the step falls
-back to Gauss-Newton.
+back to Gauss-Newton.  From the same point on, approximate eigenvectors of
+the smallest eigenvalues, found while solving one system (eigCG,
+linsolve.RitzRecorder), deflate the next (ball, 78k tets: 4,320 -> 2,700 CG
+steps, LM 106 -> 89 s).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ import scipy.sparse as sp
 from .amg import AMG, block_diag_matrix
 from .constraints import FREE, AffineOmega
 from .errors import Cancelled
-from .linsolve import PCGResult, pcg
+from .linsolve import PCGResult, RitzRecorder, pcg
 from .parallel import parallel
 from .structure import StructureEquation, _cross_mat
 from .tetmesh import TetMesh
@@ -187,6 +190,26 @@ class VolumeProblem:
         return G[:, self._aux_cols].tocsr()
 
     @staticmethod
+    def _deflated(pc, U, matvec):
+        """pc plus the coarse correction U (U^T A U)^-1 U^T on the recorded
+        vectors (additive, so it stays symmetric positive definite).  U is
+        applied in single precision: it is only a preconditioner, and the
+        products with it are memory-bound."""
+        if U is None:
+            return pc
+        E = U.T @ np.column_stack([matvec(U[:, i]) for i in range(U.shape[1])])
+        w, S = np.linalg.eigh(0.5 * (E + E.T))
+        keep = w > 1e-12 * max(w.max(), 1e-300)
+        Einv = ((S[:, keep] / w[keep]) @ S[:, keep].T).astype(np.float32)
+        U32 = U.astype(np.float32)
+        U32T = np.ascontiguousarray(U32.T)
+
+        def apply(r):
+            return pc(r) + U32 @ (Einv @ (U32T @ r.astype(np.float32)))
+
+        return apply
+
+    @staticmethod
     def damping_diagonal(blocks):
         """diag H, which Marquardt's damping lambda diag(H) scales."""
         B, d = blocks
@@ -241,6 +264,8 @@ class VolumeProblem:
         reuse_step: float = 0.05,
         direct: bool = False,
         newton_step: float = 0.01,
+        deflate: int = 8,
+        deflate_step: float = 0.1,
     ):
         rep = LMReport(init=init, setup_seconds=self.setup_seconds)
         t0 = time.perf_counter()
@@ -257,6 +282,12 @@ class VolumeProblem:
         # (the residual r of Eq. 19 does not vanish at the minimiser), so
         # once the steps are small the Hessian gets its second-order term
         newton, K = False, None
+        # deflation (linsolve.RitzRecorder): once the steps are small, the
+        # systems change little from one iteration to the next and keep the
+        # same few very small eigenvalues (modes around node regions and
+        # curves that the preconditioner misses); eigenvectors found while
+        # solving one system are added as a coarse space to the next
+        U, recording = None, False
         rejected = 0
         g_prev = g0
         for it in range(1, max_iterations + 1):
@@ -292,12 +323,17 @@ class VolumeProblem:
             if direct:
                 res = self._direct_step(g, Jx, lam, diagH)
             else:
-                res = pcg(matvec, -g, pc, rtol=rtol, maxiter=5000)
+                pcd = self._deflated(pc, U, matvec)
+                rec = RitzRecorder(len(g), nev=deflate // 2) if recording and deflate >= 2 else None
+                res = pcg(matvec, -g, pcd, rtol=rtol, maxiter=5000, recorder=rec)
                 if res.negative_curvature and Kp is not None:
                     # the full Hessian is not positive definite here: take
                     # the Gauss-Newton step instead
-                    newton, Kp = False, None
-                    res = pcg(matvec, -g, pc, rtol=rtol, maxiter=5000)
+                    newton, Kp, rec = False, None, None
+                    pcd = self._deflated(pc, U, matvec)
+                    res = pcg(matvec, -g, pcd, rtol=rtol, maxiter=5000)
+                if rec is not None and res.converged and res.iterations > rec.m:
+                    U = _merge_vectors(rec.vectors()[1], U, deflate)
             dx = res.x
             xn = x + dx
             esn, epn = self.energy_terms(xn, linear)
@@ -321,6 +357,7 @@ class VolumeProblem:
                 nu = 2.0
                 g, Jx, blocks = self.linearise(x, linear)
                 newton = newton or (not linear and not direct and step < newton_step)
+                recording = recording or (not direct and step < deflate_step)
                 K = self.second_order(x) if newton else None
             else:
                 lam *= nu
@@ -358,3 +395,12 @@ class VolumeProblem:
             rep.reason = f"stopped after {max_iterations} iterations"
         rep.seconds = time.perf_counter() - t0
         return x, rep
+
+
+def _merge_vectors(new: np.ndarray, old: np.ndarray | None, cap: int) -> np.ndarray:
+    """An orthonormal basis of the newly recorded vectors and as many of the
+    earlier ones as fit in cap columns (the new ones first)."""
+    M = new if old is None else np.hstack([new, old])
+    Q, R = np.linalg.qr(M[:, :cap])
+    d = np.abs(np.diag(R))
+    return Q[:, d > 1e-8 * max(d.max(), 1e-300)]

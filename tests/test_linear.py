@@ -10,7 +10,7 @@ import scipy.sparse as sp
 
 from solver import parallel
 from solver.amg import AMG
-from solver.linsolve import pcg
+from solver.linsolve import RitzRecorder, pcg
 from tests.meshes import box_mesh
 
 
@@ -74,3 +74,24 @@ def test_thread_setting_is_validated(monkeypatch):
     assert parallel.threads() == 1
     A = sp.random(400, 400, density=0.9, format="csr", random_state=0)
     assert parallel.parallel(A) is A
+
+
+def test_ritz_recorder_finds_the_smallest_eigenpairs_while_cg_runs():
+    """eigCG: with a basis of 24 vectors, restarted many times, the recorded
+    Ritz pairs of M^-1 A match the true smallest ones."""
+    rng = np.random.default_rng(0)
+    n = 600
+    spectrum = np.r_[[1e-4, 3e-4, 1e-3, 2e-3], rng.uniform(0.1, 1.0, n - 4)]
+    Q = np.linalg.qr(rng.normal(size=(n, n)))[0]
+    A = (Q * spectrum) @ Q.T
+    m_diag = rng.uniform(0.5, 2.0, n)  # preconditioner M = diag(m_diag)
+    rec = RitzRecorder(n, nev=5, m=24)
+    res = pcg(lambda v: A @ v, rng.normal(size=n), lambda r: r / m_diag, rtol=1e-10, maxiter=2000,
+              recorder=rec)
+    assert res.converged and res.iterations > 3 * rec.m  # several restarts happened
+    lam, U = rec.vectors()
+    true = np.sort(np.linalg.eigvals(A / m_diag[:, None]).real)[:4]
+    assert np.allclose(lam[:4], true, rtol=1e-6)
+    for i in range(4):  # A u = lambda M u, to single precision (the basis is kept in float32; |A| ~ 1)
+        u = U[:, i]
+        assert np.linalg.norm(A @ u - lam[i] * m_diag * u) <= 1e-5 * np.linalg.norm(u)
