@@ -5,9 +5,10 @@ normal-equation system with SciPy's sparse LU (issue 5), on the same mesh.
     ./dev.sh python bench/lu_baseline.py --tets 10000 20000 --write
 
 Both runs use the same LM loop (solver/volume3d.py: acceptance, damping,
-stopping) and differ only in the linear solve: preconditioned CG with
-the block-Jacobi + auxiliary-space AMG preconditioner, or ``splu`` of the
-assembled damped Gauss-Newton matrix.  The LU run happens in a forked child
+stopping) and differ in the step: the solver's (preconditioned CG with the
+block-Jacobi + auxiliary-space AMG preconditioner, Newton steps and eigCG
+deflation near the minimum), or ``splu`` of the assembled damped
+Gauss-Newton matrix.  The LU run happens in a forked child
 that is stopped after --limit seconds (default 600); sizes grow until the
 baseline no longer finishes.  Reported: the LM time of each, the speed-up,
 the relative energy difference, and the LU child's peak memory.

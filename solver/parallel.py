@@ -56,6 +56,17 @@ def set_threads(n: int) -> None:
         _pool = None
 
 
+def _forget_pool_in_child() -> None:
+    # a forked child (multiprocessing, the LU baseline) inherits the pool
+    # object but not its threads: give it a fresh one on first use
+    global _pool
+    _pool = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool_in_child)
+
+
 def _get_pool() -> ThreadPoolExecutor:
     global _pool
     if _pool is None:

@@ -95,3 +95,27 @@ def test_ritz_recorder_finds_the_smallest_eigenpairs_while_cg_runs():
     for i in range(4):  # A u = lambda M u, to single precision (the basis is kept in float32; |A| ~ 1)
         u = U[:, i]
         assert np.linalg.norm(A @ u - lam[i] * m_diag * u) <= 1e-5 * np.linalg.norm(u)
+
+
+def test_row_split_products_work_in_a_forked_child(block_laplacian):
+    """A child forked after the pool started (multiprocessing's fork, as the
+    LU baseline does) gets a fresh pool instead of waiting on dead threads."""
+    import multiprocessing as mp
+
+    A = block_laplacian
+    old = parallel.threads()
+    parallel.set_threads(2)
+    try:
+        P = parallel.RowSplitMatrix(A, 2)
+        x = np.ones(A.shape[0])
+        P @ x  # starts the pool in this process
+        ctx = mp.get_context("fork")
+        with ctx.Pool(1) as pool:
+            y = pool.apply_async(_product_in_child, (A, x)).get(timeout=60)
+        assert np.array_equal(y, A @ x)
+    finally:
+        parallel.set_threads(old)
+
+
+def _product_in_child(A, x):
+    return parallel.RowSplitMatrix(A, 2) @ x
