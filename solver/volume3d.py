@@ -322,16 +322,20 @@ class VolumeProblem:
 
             if direct:
                 res = self._direct_step(g, Jx, lam, diagH)
+                cg_steps = 0
             else:
                 pcd = self._deflated(pc, U, matvec)
                 rec = RitzRecorder(len(g), nev=deflate // 2) if recording and deflate >= 2 else None
                 res = pcg(matvec, -g, pcd, rtol=rtol, maxiter=5000, recorder=rec)
+                cg_steps = res.iterations
                 if res.negative_curvature and Kp is not None:
                     # the full Hessian is not positive definite here: take
-                    # the Gauss-Newton step instead
+                    # the Gauss-Newton step instead (the steps spent on the
+                    # Newton attempt still count in the report)
                     newton, Kp, rec = False, None, None
                     pcd = self._deflated(pc, U, matvec)
                     res = pcg(matvec, -g, pcd, rtol=rtol, maxiter=5000)
+                    cg_steps += res.iterations
                 if rec is not None and res.converged and res.iterations > rec.m:
                     U = _merge_vectors(rec.vectors()[1], U, deflate)
             dx = res.x
@@ -365,7 +369,7 @@ class VolumeProblem:
                 dF = 0.0
                 newton, K = False, None
             rep.iterations.append(
-                LMIteration(it, F, es, ep, float(np.linalg.norm(g)), lam, res.iterations, accepted,
+                LMIteration(it, F, es, ep, float(np.linalg.norm(g)), lam, cg_steps, accepted,
                             time.perf_counter() - ti, step, newton=Kp is not None)
             )
             if progress is not None:

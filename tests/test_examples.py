@@ -233,3 +233,26 @@ def test_development_root_does_not_matter(solved):
         F2 = r.problem.develop(r.omega, root)
         dev = np.degrees(cross_distance(r.frames, F2))
         assert dev.max() <= 1.0, (root, dev.max())
+
+
+def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(solved, monkeypatch):
+    """Far from the minimum the full Hessian is indefinite: PCG stops on
+    negative curvature and LM re-solves with Gauss-Newton.  Both solves'
+    steps belong in the report."""
+    import solver.volume3d as v3
+
+    p = solved("ball").problem
+    calls = []
+    real_pcg = v3.pcg
+
+    def counting_pcg(*args, **kw):
+        res = real_pcg(*args, **kw)
+        calls.append(res)
+        return res
+
+    monkeypatch.setattr(v3, "pcg", counting_pcg)
+    # Newton from the first step on, where the Hessian is most often indefinite
+    x, rep = p.volume.solve(np.zeros(p.constraints.n_unknowns), newton_step=10.0, max_iterations=6)
+    assert any(c.negative_curvature for c in calls), "no Newton attempt fell back; the test needs one"
+    assert sum(it.cg_iterations for it in rep.iterations) == sum(c.iterations for c in calls)
+    assert rep.final.energy < rep.iterations[0].energy
