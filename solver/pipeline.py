@@ -157,6 +157,14 @@ def _volume(checked: CheckedInput) -> float:
     return float(np.sum(np.abs(checked.surface.signed_volumes())))
 
 
+def length_unit(checked: CheckedInput) -> float:
+    """The radius of the ball with the solid's volume: the unit in which the
+    smoothness weights of Eq. 16 are measured, so that the penalty a of
+    Eq. 23 strikes the same balance whatever the model's units (and its
+    orientation).  The built-in ball has unit 1."""
+    return float((3.0 * _volume(checked) / (4.0 * np.pi)) ** (1.0 / 3.0))
+
+
 def default_edge_length(checked: CheckedInput, target_tets: int) -> float:
     """An edge length giving about target_tets tets, reduced to resolve the
     network."""
@@ -349,7 +357,7 @@ class FieldProblem:
         if self._volume is None:
             self._volume = VolumeProblem(self.mesh, self.constraints, self.embedding.face_omega,
                                          self.embedding.face_excluded, self.options.penalty,
-                                         self.boundary.normals)
+                                         self.boundary.normals, length_unit(self.checked))
         return self._volume
 
     def initial_guess(self, init: str, seed: int = 0) -> np.ndarray:

@@ -80,7 +80,8 @@ class VolumeProblem:
     (the vertex Laplacian's AMG), which does not depend on omega."""
 
     def __init__(self, mesh: TetMesh, cons: AffineOmega, Omega: np.ndarray, excluded: np.ndarray,
-                 penalty: float = 1000.0, boundary_normals: np.ndarray | None = None):
+                 penalty: float = 1000.0, boundary_normals: np.ndarray | None = None,
+                 length_unit: float = 1.0):
         self.mesh = mesh
         self.boundary_normals = mesh.boundary.vertex_normals if boundary_normals is None else boundary_normals
         self.cons = cons
@@ -89,7 +90,11 @@ class VolumeProblem:
         self.faces = active
         self.se = StructureEquation(mesh.face_edges[active], mesh.corner_weights[active], Omega[active],
                                     mesh.n_edges)
-        self.w = mesh.dirichlet_weights
+        # w_ij of Eq. 16 scales like a length while the structure residuals
+        # of Eq. 19 are angles: measured in ``length_unit`` (pipeline.py: a
+        # fixed fraction of the solid's size), the balance that the penalty
+        # a sets does not depend on the model's units
+        self.w = mesh.dirichlet_weights / float(length_unit)
         self.W3 = np.repeat(self.w, 3)
         P = cons.P
         self.P = P
