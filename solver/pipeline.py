@@ -24,8 +24,9 @@ from .errors import Cancelled, MeshingError, TopologyError
 from .features import FeatureGraph, check_poincare_hopf, transfer_features
 from .integrate import develop, symmetric_turn
 from .network import Network, PreparedNetwork
-from .rotations import exp_so3
 from .refine import red_refine
+from .rotations import exp_so3
+from .snapping import snap_to_features
 from .tetmesh import TetMesh, tetrahedralize
 from .tubes import build_tubes
 from .validation import CheckedInput, check_input
@@ -55,6 +56,9 @@ class Options:
                      into eight; None picks 0-2 so that fTetWild's mesh keeps
                      >= ~6k tets and >= 3 edges along the shortest curve
                      (as the default edge length does)
+    snap_features  : move the tet mesh's boundary onto the input's sharp
+                     edges and patches (snapping.py); fTetWild leaves thin
+                     tilted triangles along creases that twist the field
     """
 
     edge_length: float | None = None
@@ -69,6 +73,7 @@ class Options:
     target_tets: int = 15000
     check_intersections: bool = True
     refine: int | None = None
+    snap_features: bool = True
 
     def __post_init__(self):
         if self.init not in INITS:
@@ -252,6 +257,8 @@ class FieldProblem:
                     f"fTetWild meshed at {H:.4g} before {k} refinement level(s): try refine={k - 1}")
             raise MeshingError(f"the tet mesh's boundary {problem}; a thin part was lost, a cavity appeared or "
                                f"curve tubes too close to the surface merged with it. {hint}")
+        if self.options.snap_features:
+            mesh, _ = snap_to_features(mesh, self.checked.features)
         self.hierarchy = []
         for _ in range(k):
             ref = red_refine(mesh, self.checked.surface)

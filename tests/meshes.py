@@ -38,3 +38,30 @@ def box_grid(n, lo=(0.0, 0.0, 0.0), hi=(1.0, 1.0, 1.0), jitter: float = 0.0, see
 
 def box_mesh(n, lo=(0.0, 0.0, 0.0), hi=(1.0, 1.0, 1.0), jitter: float = 0.0, seed: int = 0) -> TetMesh:
     return TetMesh(*box_grid(n, lo, hi, jitter, seed))
+
+
+def l_prism_surface():
+    """(V, F) of an L-shaped prism: unit cells (0, 0), (1, 0) and (0, 1) of
+    the xy grid extruded to z in [0, 1], outward triangles.  Its edge along
+    x = y = 1 is concave."""
+    cells = {(0, 0), (1, 0), (0, 1)}
+    quads = []
+    for i, j in sorted(cells):
+        # the side walls not shared with a neighbour, then bottom and top
+        if (i + 1, j) not in cells:
+            quads.append([(i + 1, j, 0), (i + 1, j + 1, 0), (i + 1, j + 1, 1), (i + 1, j, 1)])
+        if (i - 1, j) not in cells:
+            quads.append([(i, j, 0), (i, j, 1), (i, j + 1, 1), (i, j + 1, 0)])
+        if (i, j + 1) not in cells:
+            quads.append([(i, j + 1, 0), (i, j + 1, 1), (i + 1, j + 1, 1), (i + 1, j + 1, 0)])
+        if (i, j - 1) not in cells:
+            quads.append([(i, j, 0), (i + 1, j, 0), (i + 1, j, 1), (i, j, 1)])
+        quads.append([(i, j, 0), (i, j + 1, 0), (i + 1, j + 1, 0), (i + 1, j, 0)])
+        quads.append([(i, j, 1), (i + 1, j, 1), (i + 1, j + 1, 1), (i, j + 1, 1)])
+    ids = {}
+    for q in quads:
+        for v in q:
+            ids.setdefault(v, len(ids))
+    V = np.array(list(ids), float)
+    F = [[ids[q[0]], ids[q[k]], ids[q[k + 1]]] for q in quads for k in (1, 2)]
+    return V, np.array(F)
