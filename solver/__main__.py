@@ -33,6 +33,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
     p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
     p.add_argument("--refine", type=int, help="red-refinement levels after fTetWild (default: automatic, 0-2)")
+    p.add_argument("--no-snap", action="store_true", help="keep fTetWild's boundary as it is (default: moved "
+                   "back onto the input's sharp edges and patches)")
     p.add_argument("--penalty", type=float, help="penalty a of Eq. 23 (default 1000)")
     p.add_argument("--iterations", type=int, help="maximum Levenberg-Marquardt iterations (default 30)")
     p.add_argument("--init", choices=INITS, help="initial guess (default zero)")
@@ -51,6 +53,8 @@ def _options(args, file_options: dict):
                      ("refine", args.refine)):
         if val is not None:
             d[key] = val
+    if args.no_snap:
+        d["snap_features"] = False
     return io.options_from_dict(d)
 
 

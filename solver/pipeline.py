@@ -108,6 +108,11 @@ class Report:
         if self.sizes.get("refine_levels"):
             lines.append(f"  fTetWild meshed {self.sizes['mesher_tets']:,} tets, refined "
                          f"{self.sizes['refine_levels']}x (each tet into 8)")
+        if self.sizes.get("snapped_vertices") is not None:
+            kept = self.sizes.get("snap_kept_vertices", 0)
+            lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "
+                         f"vertices moved" + (f", {kept:,} left where fTetWild put them (the move was too "
+                                              f"long or would have flattened a tet)" if kept else ""))
         for k, v in self.stage_seconds.items():
             lines.append(f"  {k:<12s} {v:8.2f} s")
         lines.append(f"  {'total':<12s} {self.total_seconds:8.2f} s")
@@ -213,6 +218,10 @@ class FieldProblem:
                              # kept in mesh.info, so a reused mesh still says how it was made
                              "refine_levels": int(mesh.info.get("refine_levels", 0)),
                              "mesher_tets": int(mesh.info.get("mesher_tets", mesh.n_tets))}
+        snap = mesh.info.get("snap")
+        if snap is not None:
+            self.report.sizes["snapped_vertices"] = snap.moved
+            self.report.sizes["snap_kept_vertices"] = int(len(snap.kept))
         self._stages = st
         self._volume = None
 

@@ -106,6 +106,8 @@ def test_l_prism_field_is_the_identity():
     p = FieldProblem(V, F, Network([], sharp_angle=30.0), Options(edge_length=0.2))
     stats = p.mesh.info["snap"]
     assert stats.moved > 0
+    assert p.report.sizes["snapped_vertices"] == stats.moved
+    assert "boundary snapped" in p.report.summary()
     r = p.solve()
     assert r.report.lm.converged
     check_axis_aligned(r)
