@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .errors import TopologyError
 from .features import FeatureGraph, transfer_features
 from .tetmesh import TetMesh
 from .trisurface import TriSurface
@@ -124,7 +125,12 @@ def snap_to_features(mesh: TetMesh, src: FeatureGraph, max_move: float = 0.25,
     if not np.any(src.sharp):
         return mesh, stats
     B = mesh.boundary
-    sharp = transfer_features(src, B)
+    try:
+        sharp = transfer_features(src, B)
+    except TopologyError:
+        # the features could not be mapped: leave the mesh as it is, the
+        # boundary stage reports this with its hint
+        return mesh, stats
     target = boundary_targets(B, sharp, src)
     move = target - B.V
     length = np.linalg.norm(move, axis=1)

@@ -123,3 +123,18 @@ def test_l_prism_field_is_the_identity():
         far = cKDTree(mesh.vertices[stats.kept]).query(mesh.vertices)[0] > 2 * p.edge_length
     assert far.mean() > 0.5
     assert dev[far].max() <= 1e-4, dev[far].max()
+
+
+def test_features_that_cannot_be_mapped_leave_the_mesh_alone(monkeypatch):
+    """The boundary stage reports unmappable features with its hint; the
+    snapping step must not fail first or move anything."""
+    import solver.snapping as snapping
+    from solver.errors import TopologyError
+
+    def fail(src, dst):
+        raise TopologyError("a sharp feature curve does not lie on the surface")
+
+    monkeypatch.setattr(snapping, "transfer_features", fail)
+    _, shaken = shaken_box()
+    out, stats = snap_to_features(shaken, cube_features())
+    assert out is shaken and stats.moved == 0
