@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .curves import CurveGeometry
 from .errors import TopologyError
-from .features import FeatureGraph, transfer_features
+from .features import FeatureGraph, feature_polylines, transfer_features
 from .tetmesh import TetMesh
 from .trisurface import TriSurface
 
@@ -43,41 +44,25 @@ class SnapStats:
     kept: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # vertices left off their place
 
 
-def closest_on_segments(X: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance and closest point of each of X (k, 3) on the union of the
-    segments A[i] B[i] (m, 3); kd-tree on segment midpoints, exact among
-    the candidates."""
-    X = np.atleast_2d(X)
-    mid = 0.5 * (A + B)
-    half = 0.5 * np.linalg.norm(B - A, axis=1)
-    tree = cKDTree(mid)
-    kq = min(len(A), 8)
-    _, idx = tree.query(X, k=kq)
-    idx = np.asarray(idx).reshape(len(X), kq)
+def closest_on_features(X: np.ndarray, src: FeatureGraph) -> np.ndarray:
+    """Closest point of each of X (k, 3) on the sharp edges of src, chain by
+    chain (curves.CurveGeometry)."""
     best_d = np.full(len(X), np.inf)
-    best_p = np.zeros_like(X)
-    for j in range(kq):
-        s = idx[:, j]
-        d = B[s] - A[s]
-        t = np.clip(np.einsum("ij,ij->i", X - A[s], d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
-        q = A[s] + t[:, None] * d
-        dist = np.linalg.norm(q - X, axis=1)
-        better = dist < best_d
-        best_d[better], best_p[better] = dist[better], q[better]
-    # a segment whose midpoint was not among the nearest may still be closer
-    unsure = np.nonzero(best_d > np.linalg.norm(mid[idx[:, -1]] - X, axis=1) - half.max())[0]
-    for i in unsure:
-        cand = np.asarray(tree.query_ball_point(X[i], best_d[i] + half.max()), dtype=np.int64)
-        if len(cand) == 0:
-            continue
-        d = B[cand] - A[cand]
-        t = np.clip(((X[i] - A[cand]) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0, 1)
-        q = A[cand] + t[:, None] * d
-        dist = np.linalg.norm(q - X[i], axis=1)
-        k = int(np.argmin(dist))
-        if dist[k] < best_d[i]:
-            best_d[i], best_p[i] = dist[k], q[k]
-    return best_d, best_p
+    best_p = X.copy()
+    for verts, closed in feature_polylines(src):
+        P = src.S.V[np.r_[verts, verts[:1]] if closed else verts]
+        g = CurveGeometry(P, closed)
+        seg, t, d = g.closest(X)
+        better = d < best_d
+        best_d[better], best_p[better] = d[better], g.point(seg[better], t[better])
+    return best_p
+
+
+def _chain_ends(G: FeatureGraph) -> np.ndarray:
+    """Feature vertices where chains of sharp edges end or turn a corner."""
+    end = (G.degree > 0) & (G.degree != 2)
+    end[G.corners] = True
+    return np.nonzero(end)[0]
 
 
 def boundary_targets(B: TriSurface, sharp: np.ndarray, src: FeatureGraph) -> np.ndarray:
@@ -105,10 +90,8 @@ def boundary_targets(B: TriSurface, sharp: np.ndarray, src: FeatureGraph) -> np.
     # feature vertices: corners to corners, the others onto the sharp edges
     feat = np.nonzero(dst.degree > 0)[0]
     if len(feat):
-        Es = S.edges[src.sharp]
-        _, target[feat] = closest_on_segments(B.V[feat], S.V[Es[:, 0]], S.V[Es[:, 1]])
-        ends_src = np.nonzero((src.degree > 0) & ((src.degree != 2) | np.isin(np.arange(len(S.V)), src.corners)))[0]
-        ends_dst = np.nonzero((dst.degree > 0) & ((dst.degree != 2) | np.isin(np.arange(len(B.V)), dst.corners)))[0]
+        target[feat] = closest_on_features(B.V[feat], src)
+        ends_src, ends_dst = _chain_ends(src), _chain_ends(dst)
         if len(ends_src) and len(ends_dst):
             _, j = cKDTree(S.V[ends_src]).query(B.V[ends_dst])
             target[ends_dst] = S.V[ends_src[j]]
@@ -143,11 +126,9 @@ def snap_to_features(mesh: TetMesh, src: FeatureGraph, max_move: float = 0.25,
     wanted[bv] = (length > 0) & ~far
     P0 = mesh.vertices
     vol0 = TetMesh._signed_volumes(P0, mesh.tets)
-    active = np.zeros(mesh.n_vertices, bool)
-    active[bv] = np.linalg.norm(move, axis=1) > 0
+    active = wanted.copy()
     delta = np.zeros_like(P0)
     delta[bv] = move
-    stats.reverted = 0
     while True:
         P = P0 + np.where(active[:, None], delta, 0.0)
         vol = TetMesh._signed_volumes(P, mesh.tets)

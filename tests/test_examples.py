@@ -112,11 +112,11 @@ def regular_monodromy_deg(result) -> np.ndarray:
 
 
 def check_axis_aligned(result):
-    """The cube's field is the identity cross.  fTetWild's boundary lies
-    within its envelope of the input, so a face of the tet mesh can be
-    tilted off the cube's planes (about 1.6 degrees seen at edge length
-    0.15): the frames may turn as much as the boundary they are adapted to,
-    and no more."""
+    """The cube's field is the identity cross.  Snapping (snapping.py) puts
+    the tet mesh's boundary on the cube's planes, and the field is then
+    exact; where a move had to be undone a face keeps fTetWild's tilt (up to
+    1.6 degrees seen at edge length 0.15 without snapping), and the frames
+    may turn as much as the boundary they are adapted to, and no more."""
     mesh = result.mesh
     dev = np.degrees(cross_distance(result.frames, np.broadcast_to(np.eye(3), result.frames.shape)))
     n = mesh.face_normals[mesh.boundary_faces]

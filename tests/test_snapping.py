@@ -11,7 +11,7 @@ from solver.examples import box
 from solver.features import FeatureGraph, sharp_edges_by_angle, transfer_features
 from solver.network import Network
 from solver.rotations import cross_distance
-from solver.snapping import closest_on_segments, snap_to_features
+from solver.snapping import closest_on_features, snap_to_features
 from solver.tetmesh import TetMesh
 from solver.trisurface import TriSurface
 
@@ -36,13 +36,11 @@ def shaken_box(seed=0, amount=0.04):
     return mesh, TetMesh(P, mesh.tets.copy())
 
 
-def test_closest_points_on_segments():
-    A = np.array([[0.0, 0, 0], [0, 0, 0], [5, 5, 5]])
-    B = np.array([[1.0, 0, 0], [0, 2, 0], [6, 5, 5]])
-    X = np.array([[0.5, -1, 0], [2, 0, 0], [0.1, 1, 0.3], [5.5, 5, 7]])
-    d, q = closest_on_segments(X, A, B)
-    np.testing.assert_allclose(q, [[0.5, 0, 0], [1, 0, 0], [0, 1, 0], [5.5, 5, 5]], atol=1e-12)
-    np.testing.assert_allclose(d, np.linalg.norm(X - q, axis=1))
+def test_closest_points_on_the_sharp_edges():
+    G = cube_features()
+    X = np.array([[0.3, -1.2, -0.9], [2.0, 2.0, 2.0], [0.1, 0.0, 1.05], [-0.5, 1.1, 0.2]])
+    np.testing.assert_allclose(closest_on_features(X, G),
+                               [[0.3, -1, -1], [1, 1, 1], [1, 0, 1], [-1, 1, 0.2]], atol=1e-12)
 
 
 def test_a_shaken_box_is_put_back_on_its_faces_edges_and_corners():
