@@ -31,43 +31,56 @@ class PCGResult:
     negative_curvature: bool = False  # stopped at a direction p with p^T A p <= 0
 
 
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """a . b without BLAS.  OpenBLAS runs long dot products on several
+    threads, which then spin for a while and slow down the sparse products
+    on the other cores (parallel.py): PCG on the LM systems took 15% longer
+    per step with BLAS dots (bench/RESULTS.md)."""
+    return float(np.einsum("i,i->", a, b))
+
+
 def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None) -> PCGResult:
     """Solve A x = b for SPD A given as a matvec, preconditioner as a function.
     Stops early, flagging negative_curvature, if A turns out not to be
     positive definite.  A RitzRecorder, if given, collects approximate
     eigenvectors of the smallest eigenvalues on the way."""
-    x = np.zeros_like(b) if x0 is None else x0.copy()
-    r = b - matvec(x) if x0 is not None else b.copy()
-    nb = np.linalg.norm(b)
+    # vectors are updated in place through one scratch array: a CG step on
+    # these systems is memory-bound.  (Not with BLAS axpy: OpenBLAS threads
+    # spin after each call and slow down the products on the other core.)
+    x = np.zeros_like(b) if x0 is None else x0.astype(float, copy=True)
+    r = b - matvec(x) if x0 is not None else b.astype(float, copy=True)
+    nb = np.sqrt(dot(b, b))
     if nb == 0:
         return PCGResult(np.zeros_like(b), 0, True, 0.0)
     z = precond(r)
     p = z.copy()
-    rz = r @ z
+    tmp = np.empty_like(p)
+    rz = dot(r, z)
     if recorder is not None:
         recorder.start(z, rz)
     it = 0
-    res = np.linalg.norm(r) / nb
+    res = np.sqrt(dot(r, r)) / nb
     while res > rtol and it < maxiter:
         Ap = matvec(p)
-        pAp = p @ Ap
+        pAp = dot(p, Ap)
         if pAp <= 0:
             return PCGResult(x, it, False, res, True)
         alpha = rz / pAp
         if recorder is not None:
             recorder.add_alpha(alpha)
-        x += alpha * p
-        r -= alpha * Ap
+        x += np.multiply(p, alpha, out=tmp)
+        r -= np.multiply(Ap, alpha, out=tmp)
         it += 1
-        res = np.linalg.norm(r) / nb
+        res = np.sqrt(dot(r, r)) / nb
         if res <= rtol:
             break
         z = precond(r)
-        rz_new = r @ z
+        rz_new = dot(r, z)
         beta = rz_new / rz
         if recorder is not None:
             recorder.add_vector(beta, z, rz_new)
-        p = z + beta * p
+        p *= beta
+        p += z
         rz = rz_new
     return PCGResult(x, it, res <= rtol, res)
 

@@ -86,7 +86,11 @@ class RowSplitMatrix:
         # row boundaries that split the nonzeros evenly
         cuts = np.searchsorted(A.indptr, np.linspace(0, A.nnz, parts + 1)[1:-1])
         self.bounds = np.unique(np.r_[0, cuts, A.shape[0]])
-        self.blocks = [A[a:b] for a, b in zip(self.bounds[:-1], self.bounds[1:])]
+        # the blocks are views of A's arrays (no copy of the values)
+        ip = A.indptr
+        self.blocks = [sp.csr_matrix((A.data[ip[a]:ip[b]], A.indices[ip[a]:ip[b]], ip[a:b + 1] - ip[a]),
+                                     shape=(b - a, A.shape[1]))
+                       for a, b in zip(self.bounds[:-1], self.bounds[1:])]
 
     def __matmul__(self, x):
         out = np.empty((self.shape[0],) + np.shape(x)[1:], dtype=np.result_type(self.dtype, x))

@@ -93,38 +93,42 @@ class StructureEquation:
 
     def residual_hessian(self, mu: np.ndarray) -> sp.csr_matrix:
         """The (3 n_edges)^2 Hessian of sum_f mu_f . r_f(omega) for fixed
-        weights mu (m, 3): the second-order term that Gauss-Newton drops.
-        r is quadratic in omega (the wedge of Eq. 18), so this does not
-        depend on omega.  With [mu] the cross-product matrix, the face term
-        -1/2 w_b mu . (A x B) = 1/2 w_b A^T [mu] B couples A and B by
-        1/2 w_b [mu] (and B, A by its transpose), likewise (B, C) with w_c
-        and (C, A) with w_a; C = -omega_ac flips the sign of the blocks
-        that touch the third edge."""
-        fe = self.face_edges
+        weights mu (m, 3): the second-order term that Gauss-Newton drops
+        (assembled from residual_hessian_blocks)."""
+        return self.assemble_blocks(self.residual_hessian_blocks(mu))
+
+    def residual_hessian_blocks(self, mu: np.ndarray) -> np.ndarray:
+        """(m, 9, 9) per-face blocks of residual_hessian (row/column 3k + i:
+        component i of the face's k-th edge).  r is quadratic in omega (the
+        wedge of Eq. 18), so they do not depend on omega.  With [mu] the
+        cross-product matrix, the face term -1/2 w_b mu . (A x B) =
+        1/2 w_b A^T [mu] B couples A and B by 1/2 w_b [mu] (and B, A by its
+        transpose), likewise (B, C) with w_c and (C, A) with w_a; C = -omega_ac
+        flips the sign of the blocks that touch the third edge."""
+        m = len(self.face_edges)
         wa, wb, wc = (self.weights[:, k, None, None] for k in range(3))
         M = 0.5 * _cross_mat(mu)
-        # (row edge slot, column edge slot, block): A = e0, B = e1, C = -e2
-        pairs = ((0, 1, wb * M), (1, 2, -wc * M), (2, 0, -wa * M))
-        rows, cols, vals = [], [], []
-        r3 = np.arange(3)
-        for i, j, blk in pairs:
-            for p, q, b in ((i, j, blk), (j, i, np.swapaxes(blk, 1, 2))):
-                rows.append(np.broadcast_to((3 * fe[:, p])[:, None, None] + r3[None, :, None], b.shape))
-                cols.append(np.broadcast_to((3 * fe[:, q])[:, None, None] + r3[None, None, :], b.shape))
-                vals.append(b)
-        n = 3 * self.n_edges
-        return sp.csr_matrix((np.concatenate([v.reshape(-1) for v in vals]),
-                              (np.concatenate([r.reshape(-1) for r in rows]),
-                               np.concatenate([c.reshape(-1) for c in cols]))), shape=(n, n))
+        Q = np.zeros((m, 3, 3, 3, 3))  # (face, row slot, component, column slot, component)
+        for p, q, blk in ((0, 1, wb * M), (1, 2, -wc * M), (2, 0, -wa * M)):
+            Q[:, p, :, q, :] = blk
+            Q[:, q, :, p, :] = np.swapaxes(blk, 1, 2)
+        return Q.reshape(m, 9, 9)
 
-    def gram_blocks(self, Jb: np.ndarray) -> np.ndarray:
-        """(n_edges, 3, 3): sum over faces of J_fe^T J_fe, the diagonal blocks
-        of J^T J."""
-        G = np.einsum("mkij,mkil->mkjl", Jb, Jb)
-        out = np.zeros((self.n_edges, 3, 3))
-        for k in range(3):
-            np.add.at(out, self.face_edges[:, k], G[:, k])
-        return out
+    def assemble_blocks(self, Q: np.ndarray) -> sp.csr_matrix:
+        """The (3 n_edges)^2 sparse matrix sum_f E_f^T Q_f E_f of per-face
+        (m, 9, 9) blocks."""
+        dof = (3 * self.face_edges[:, :, None] + np.arange(3)).reshape(-1, 9)
+        rows = np.broadcast_to(dof[:, :, None], Q.shape).reshape(-1)
+        cols = np.broadcast_to(dof[:, None, :], Q.shape).reshape(-1)
+        n = 3 * self.n_edges
+        return sp.csr_matrix((Q.reshape(-1), (rows, cols)), shape=(n, n))
+
+    def jacobian_transpose_product(self, Jb: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """J^T r as (n_edges, 3), from jacobian_blocks Jb and residuals r (m, 3)."""
+        JTr = np.einsum("mkij,mi->mkj", Jb, r)
+        fe = self.face_edges.reshape(-1)
+        return np.stack([np.bincount(fe, weights=JTr[:, :, c].reshape(-1), minlength=self.n_edges)
+                         for c in range(3)], axis=1)
 
     def assemble(self, Jb: np.ndarray) -> sp.csr_matrix:
         """Sparse Jacobian from jacobian_blocks."""

@@ -7,8 +7,9 @@ Each LM step solves the damped Gauss-Newton system
 
     (H + lambda diag H) dx = -g,   H = 2 P^T (W + a J^T J) P,  g = 2 P^T (W omega + a J^T r)
 
-by PCG (linsolve.py), matrix-free: J is rebuilt per step as a sparse matrix
-and H is never formed; the products run on all cores (parallel.py).  Once
+by PCG (linsolve.py).  H is assembled per LM iteration in a sparsity
+pattern fixed once per problem (hessian.py: one 9x9 block per face), so a
+CG step costs one sparse product, run on all cores (parallel.py).  Once
 the steps are small (< 1% of omega) H also gets the second-order term
 2 a P^T (sum_f r_f . d^2 r_f) P: the residual of Eq. 19 does not vanish at
 the minimiser, so Gauss-Newton alone converges only linearly there (ball,
@@ -17,7 +18,7 @@ gradient).  Where that Hessian is not positive definite, the step falls
 back to Gauss-Newton.  From the same point on, approximate eigenvectors of
 the smallest eigenvalues, found while solving one system (eigCG,
 linsolve.RitzRecorder), deflate the next (ball, 78k tets: 4,320 -> 2,700 CG
-steps, LM 106 -> 89 s).
+steps).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import scipy.sparse as sp
 from .amg import AMG, block_diag_matrix
 from .constraints import FREE, AffineOmega
 from .errors import Cancelled
+from .hessian import FaceAssembly, gauss_newton_blocks
 from .linsolve import PCGResult, RitzRecorder, pcg
 from .parallel import parallel
 from .structure import StructureEquation, _cross_mat
@@ -102,6 +104,16 @@ class VolumeProblem:
         # smoothness part of H in x space: 2 P^T W P (constant)
         self.HW = (self.PT @ sp.diags(2.0 * self.W3) @ P).tocsr()
         t = time.perf_counter()
+        # the LM matrices are assembled in a pattern fixed here (hessian.py)
+        # (with the free edges' whole 3x3 diagonal blocks, which block
+        # Jacobi reads back)
+        nfree = len(cons.free_edges)
+        blk = 3 * np.arange(nfree)[:, None, None] + np.zeros((1, 3, 3), np.int64)
+        bi, bj = (blk + np.arange(3)[:, None]).reshape(-1), (blk + np.arange(3)[None, :]).reshape(-1)
+        n = P.shape[1]
+        self.assembly = FaceAssembly(self.se.face_edges, P, self.HW,
+                                     pattern=sp.csr_matrix((np.ones(len(bi)), (bi, bj)), shape=(n, n)))
+        self._block_pos = self.assembly.positions(bi, bj).reshape(nfree, 3, 3)
         self._setup_gradient_space()
         self.setup_seconds = time.perf_counter() - t
 
@@ -122,26 +134,32 @@ class VolumeProblem:
 
     # ------------------------------------------------------------ linearisation
     def linearise(self, x, linear=False):
-        """Gradient, the Jacobian in x space and the diagonal blocks of H."""
+        """Gradient, the values of the Gauss-Newton Hessian in x space
+        (FaceAssembly's pattern) and its diagonal blocks."""
         om = self.omega(x)
         r = self.se.residual(om, linear)
         Jb = self.se.jacobian_blocks(om, linear)
-        Jx = (self.se.assemble(Jb) @ self.P).tocsr()
-        g = 2.0 * (self.PT @ (self.W3 * om.reshape(-1))) + 2.0 * self.a * (Jx.T @ r.reshape(-1))
-        fe = self.cons.free_edges
-        B = 2.0 * (self.a * self.se.gram_blocks(Jb)[fe] + self.w[fe, None, None] * np.eye(3))
-        nfree = len(fe)
-        d = 2.0 * self.a * np.asarray(Jx.multiply(Jx).sum(axis=0)).ravel()[3 * nfree:]
-        d += self.HW.diagonal()[3 * nfree:]
-        return g, Jx, (B, d)
+        JTr = self.se.jacobian_transpose_product(Jb, r)
+        g = 2.0 * (self.PT @ (self.W3 * om.reshape(-1) + self.a * JTr.reshape(-1)))
+        data = self.assembly.data(gauss_newton_blocks(Jb, 2.0 * self.a)) + self.assembly.extra_data
+        B = data[self._block_pos]
+        d = data[self.assembly.diagonal_positions[3 * len(self.cons.free_edges):]]
+        return g, data, (B, d)
 
     def second_order(self, x, linear=False):
-        """2 a P^T (sum_f r_f . d^2 r_f) P: what Gauss-Newton leaves out of
-        the Hessian of Eq. 23.  Zero for the linear problem."""
+        """Values of 2 a P^T (sum_f r_f . d^2 r_f) P: what Gauss-Newton
+        leaves out of the Hessian of Eq. 23.  None for the linear problem."""
         if linear:
             return None
-        K = self.se.residual_hessian(self.se.residual(self.omega(x)))
-        return (2.0 * self.a * (self.PT @ K @ self.P)).tocsr()
+        Q = self.se.residual_hessian_blocks(self.se.residual(self.omega(x)))
+        return self.assembly.data(2.0 * self.a * Q)
+
+    def lm_matrix(self, data, damping=0.0, diagH=None):
+        """The assembled matrix with these values plus damping * diag(diagH)."""
+        if damping:
+            data = data.copy()
+            data[self.assembly.diagonal_positions] += damping * diagH
+        return self.assembly.matrix(data)
 
     def _setup_gradient_space(self):
         """Static parts of the auxiliary-space map (see covariant_gradient)."""
@@ -210,7 +228,9 @@ class VolumeProblem:
         U32T = np.ascontiguousarray(U32.T)
 
         def apply(r):
-            return pc(r) + U32 @ (Einv @ (U32T @ r.astype(np.float32)))
+            # einsum, not BLAS (see linsolve.dot)
+            y = Einv @ np.einsum("ij,j->i", U32T, r.astype(np.float32))
+            return pc(r) + np.einsum("ij,j->i", U32, y)
 
         return apply
 
@@ -220,10 +240,10 @@ class VolumeProblem:
         B, d = blocks
         return np.r_[np.einsum("nii->ni", B).reshape(-1), d]
 
-    def make_preconditioner(self, blocks, damping, Jx, omega):
+    def make_preconditioner(self, blocks, damping, Hdata, omega):
         """Block Jacobi plus the covariant auxiliary-space correction
         G (G^T H G)^-1 G^T, whose coarse operator is inverted by one V-cycle
-        of a nodal AMG."""
+        of a nodal AMG.  Hdata: the Gauss-Newton Hessian's values."""
         B, d = blocks
         diagH = self.damping_diagonal(blocks)
         B = B + damping * np.einsum("nii->ni", B)[:, :, None] * np.eye(3)
@@ -232,8 +252,7 @@ class VolumeProblem:
         # diagonal on the adaptation parameters
         Dinv = parallel(sp.block_diag([block_diag_matrix(np.linalg.inv(B)), sp.diags(1.0 / d)], format="csr"))
         G = self.covariant_gradient(omega)
-        JG = (Jx @ G).tocsr()
-        Ac = (G.T @ (self.HW @ G) + 2.0 * self.a * (JG.T @ JG) + G.T @ sp.diags(damping * diagH) @ G).tocsr()
+        Ac = (G.T @ (self.lm_matrix(Hdata, damping, diagH) @ G)).tocsr()
         amg = AMG.build(Ac, block=3)
         G, GT = parallel(G), parallel(G.T.tocsr())
 
@@ -242,13 +261,13 @@ class VolumeProblem:
 
         return apply
 
-    def _direct_step(self, g, Jx, lam, diagH):
+    def _direct_step(self, g, H):
         """The damped Gauss-Newton step by SciPy's sparse LU of the assembled
         normal equations: the straightforward baseline of bench/lu_baseline.py
         (its fill-in grows far faster than the mesh; see linsolve.py)."""
         import scipy.sparse.linalg as spla
 
-        H = (self.HW + 2.0 * self.a * (Jx.T @ Jx) + sp.diags(lam * diagH)).tocsc()
+        H = H.tocsc()
         dx = spla.splu(H).solve(-g)
         rel = float(np.linalg.norm(H @ dx + g) / max(np.linalg.norm(g), 1e-300))
         return PCGResult(dx, 0, True, rel)
@@ -279,7 +298,7 @@ class VolumeProblem:
         F = es + ep
         lam = 1e-4
         nu = 2.0
-        g, Jx, blocks = self.linearise(x, linear)
+        g, Hgn, blocks = self.linearise(x, linear)
         g0 = np.linalg.norm(g)
         rep.iterations.append(LMIteration(0, F, es, ep, g0, lam, 0, True, 0.0))
         pc, pc_lam, moved = None, lam, 0.0
@@ -311,44 +330,38 @@ class VolumeProblem:
             # once omega has moved or the damping changed by a large factor
             diagH = self.damping_diagonal(blocks)
             if not direct and (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
-                pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Jx, self.omega(x)), lam, 0.0
+                pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Hgn, self.omega(x)), lam, 0.0
                 rep.preconditioner_builds += 1
-            # the products run by row blocks on all cores (parallel.py)
-            HW, JxT, Jp, a = parallel(self.HW), parallel(Jx.T.tocsr()), parallel(Jx), self.a
-
-            Kp = parallel(K) if newton else None
-
-            def hessian(v):
-                Hv = HW @ v + 2.0 * a * (JxT @ (Jp @ v))
-                return Hv + Kp @ v if Kp is not None else Hv
-
-            def matvec(v):
-                return hessian(v) + lam * diagH * v
-
+            # one assembled matrix per system (hessian.py), its products run
+            # by row blocks on all cores (parallel.py)
+            Hdata = Hgn + K if newton else Hgn
+            A = parallel(self.lm_matrix(Hdata, lam, diagH))
             if direct:
-                res = self._direct_step(g, Jx, lam, diagH)
+                res = self._direct_step(g, self.lm_matrix(Hdata, lam, diagH))
                 cg_steps = 0
             else:
-                pcd = self._deflated(pc, U, matvec)
+                pcd = self._deflated(pc, U, A.__matmul__)
                 rec = RitzRecorder(len(g), nev=deflate // 2) if recording and deflate >= 2 else None
-                res = pcg(matvec, -g, pcd, rtol=rtol, maxiter=5000, recorder=rec)
+                res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000, recorder=rec)
                 cg_steps = res.iterations
-                if res.negative_curvature and Kp is not None:
+                if res.negative_curvature and newton:
                     # the full Hessian is not positive definite here: take
                     # the Gauss-Newton step instead (the steps spent on the
                     # Newton attempt still count in the report)
-                    newton, Kp, rec = False, None, None
-                    pcd = self._deflated(pc, U, matvec)
-                    res = pcg(matvec, -g, pcd, rtol=rtol, maxiter=5000)
+                    newton, Hdata, rec = False, Hgn, None
+                    A = parallel(self.lm_matrix(Hdata, lam, diagH))
+                    pcd = self._deflated(pc, U, A.__matmul__)
+                    res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000)
                     cg_steps += res.iterations
                 if rec is not None and res.converged and res.iterations > rec.m:
                     U = _merge_vectors(rec.vectors()[1], U, deflate)
+            used_newton = newton
             dx = res.x
             xn = x + dx
             esn, epn = self.energy_terms(xn, linear)
             Fn = esn + epn
             # predicted reduction of the quadratic model
-            Hdx = hessian(dx)
+            Hdx = self.assembly.matrix(Hdata) @ dx
             pred = -(g @ dx) - 0.5 * (dx @ Hdx)
             rho = (F - Fn) / pred if pred > 0 else -1.0
             accepted = Fn < F
@@ -364,7 +377,7 @@ class VolumeProblem:
                 F, es, ep = Fn, esn, epn
                 lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if rho > 0 else 1.0
                 nu = 2.0
-                g, Jx, blocks = self.linearise(x, linear)
+                g, Hgn, blocks = self.linearise(x, linear)
                 newton = newton or (not linear and not direct and step < newton_step)
                 recording = recording or (not direct and step < deflate_step)
                 K = self.second_order(x) if newton else None
@@ -375,7 +388,7 @@ class VolumeProblem:
                 newton, K = False, None
             rep.iterations.append(
                 LMIteration(it, F, es, ep, float(np.linalg.norm(g)), lam, cg_steps, accepted,
-                            time.perf_counter() - ti, step, newton=Kp is not None)
+                            time.perf_counter() - ti, step, newton=used_newton)
             )
             if progress is not None:
                 progress(it, F)

@@ -1,0 +1,84 @@
+"""The assembled Levenberg-Marquardt matrices (solver/hessian.py) against
+their definitions: P^T (sum_f E_f^T Q_f E_f) P computed densely, and the
+Gauss-Newton and Newton terms of Eq. 23 from the sparse Jacobian."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from solver import FieldProblem, Options
+from solver.constraints import BOUNDARY, FIXED, FREE, TUBE
+from solver.examples import load_example
+from solver.hessian import FaceAssembly
+
+
+def _dense_reference(face_edges, P, Q, extra):
+    n_omega = P.shape[0]
+    A = np.zeros((n_omega, n_omega))
+    for f, edges in enumerate(face_edges):
+        dof = (3 * np.asarray(edges)[:, None] + np.arange(3)).ravel()
+        A[np.ix_(dof, dof)] += Q[f]
+    return P.T.toarray() @ A @ P.toarray() + extra.toarray()
+
+
+def test_face_assembly_matches_the_dense_sum_with_shared_unknowns():
+    """Rows of P with several unknowns (boundary edges: the alpha of both
+    ends), empty rows (fixed edges) and stored zeros all land where the
+    dense product puts them."""
+    rng = np.random.default_rng(3)
+    n_edges, n = 7, 12
+    face_edges = np.array([[0, 1, 2], [2, 3, 4], [4, 5, 6], [0, 3, 6]])
+    P = sp.random(3 * n_edges, n, density=0.25, random_state=4, format="lil")
+    P[3:6, :] = 0.0  # edge 1: fixed, no unknowns
+    P[9, 2] = 0.0  # a stored zero
+    P[:, n - 1] = 0.0  # an unknown no face sees: only its diagonal is in the pattern
+    P = P.tocsr()
+    assert np.any(np.diff(P.indptr) > 1) and np.any(np.diff(P.indptr) == 0)
+    Q = rng.normal(size=(4, 9, 9))
+    Q = Q + Q.transpose(0, 2, 1)
+    extra = sp.diags(rng.uniform(1.0, 2.0, n)).tocsr()
+    fa = FaceAssembly(face_edges, P, extra)
+    H = fa.matrix(fa.data(Q) + fa.extra_data).toarray()
+    assert np.allclose(H, _dense_reference(face_edges, P, Q, extra), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="outside the sparsity pattern"):
+        fa.positions(np.array([0]), np.array([n - 1]))
+
+
+@pytest.fixture(scope="module")
+def cylinder_problem():
+    V, F, net = load_example("cylinder")
+    return FieldProblem(V, F, net, Options(edge_length=0.3))
+
+
+def test_assembled_gauss_newton_and_newton_terms_match_the_jacobian(cylinder_problem):
+    """On a problem with every kind of edge (free, boundary, fixed sharp,
+    curve tube): the gradient, H = 2 P^T (W + a J^T J) P and the Newton term
+    2 a P^T (sum_f r_f . d^2 r_f) P agree with the sparse Jacobian's."""
+    p = cylinder_problem
+    vp = p.volume
+    kinds = set(np.unique(p.constraints.kind).tolist())
+    assert {FREE, BOUNDARY, FIXED, TUBE} <= kinds
+    x = np.random.default_rng(1).uniform(-0.3, 0.3, p.constraints.n_unknowns)
+    om = vp.omega(x)
+    g, data, (B, d) = vp.linearise(x)
+    Jx = (vp.se.jacobian(om) @ vp.P).tocsr()
+    r = vp.se.residual(om).reshape(-1)
+    g_ref = 2 * (vp.PT @ (vp.W3 * om.reshape(-1))) + 2 * vp.a * (Jx.T @ r)
+    H_ref = (vp.HW + 2 * vp.a * (Jx.T @ Jx)).toarray()
+    H = vp.lm_matrix(data).toarray()
+    scale = np.abs(H_ref).max()
+    assert np.linalg.norm(g - g_ref) <= 1e-12 * np.linalg.norm(g_ref)
+    assert np.abs(H - H_ref).max() <= 1e-12 * scale
+    # block Jacobi reads the free edges' diagonal blocks and the other diagonal entries
+    nfree = len(p.constraints.free_edges)
+    idx = 3 * np.arange(nfree)[:, None] + np.arange(3)
+    assert np.allclose(B, H_ref[idx[:, :, None], idx[:, None, :]], rtol=0, atol=1e-12 * scale)
+    assert np.allclose(d, np.diag(H_ref)[3 * nfree:], rtol=0, atol=1e-12 * scale)
+    K_ref = (2 * vp.a * (vp.PT @ vp.se.residual_hessian(vp.se.residual(om)) @ vp.P)).toarray()
+    K = vp.assembly.matrix(vp.second_order(x)).toarray()
+    assert np.abs(K - K_ref).max() <= 1e-12 * np.abs(K_ref).max()
+    # damping adds lambda diag(H) on the diagonal only
+    D = vp.lm_matrix(data, 0.5, vp.damping_diagonal((B, d))).toarray() - H
+    assert np.allclose(D, np.diag(0.5 * np.r_[np.einsum("nii->ni", B).ravel(), d]), atol=1e-12 * scale)
