@@ -408,6 +408,8 @@ class FieldProblem:
         # the volume problem's setup (assembly pattern, preconditioner
         # statics) and the initial guess count as part of the volume3d stage
         t_setup = time.perf_counter()
+        if progress is not None and self._volume is None:
+            progress("volume3d", st.done, "volume3d: assembling the LM matrix pattern...")
         vp = self.volume
         x0 = self.initial_guess(init, opts.seed)
         t_setup = time.perf_counter() - t_setup
