@@ -12,12 +12,12 @@ omega = c + P x (constraints.py).  P does not change during a solve, so
 every entry of H_x is a fixed linear combination of the entries of the Q_f:
 ``FaceAssembly`` finds those combinations once (a sparse matrix S from the
 stacked Q_f to the values of H_x in a fixed CSR pattern), and each LM
-iteration then costs one einsum for the Q_f and one sparse product.
+iteration then costs one batched matmul for the Q_f and one sparse product.
 
 Why assemble at all: PCG multiplies by H a few hundred times per LM
 iteration, and one product with the assembled H reads about as many bytes
 as the product with J alone, where the matrix-free form reads J, J^T, the
-Newton term and three vectors (bench/RESULTS.md: 5.6 ms against 10.8 ms
+Newton term and three vectors (bench/RESULTS.md: 5.5 ms against 10.8 ms
 per product at 78k tets).
 """
 
