@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .amg import AMG, block_diag_matrix
-from .constraints import FREE, AffineOmega
+from .constraints import AffineOmega
 from .errors import Cancelled
 from .hessian import FaceAssembly, gauss_newton_blocks
 from .linsolve import PCGResult, RitzRecorder, pcg
@@ -335,9 +335,10 @@ class VolumeProblem:
             # one assembled matrix per system (hessian.py), its products run
             # by row blocks on all cores (parallel.py)
             Hdata = Hgn + K if newton else Hgn
-            A = parallel(self.lm_matrix(Hdata, lam, diagH))
+            M = self.lm_matrix(Hdata, lam, diagH)
+            A = parallel(M)
             if direct:
-                res = self._direct_step(g, self.lm_matrix(Hdata, lam, diagH))
+                res = self._direct_step(g, M)
                 cg_steps = 0
             else:
                 pcd = self._deflated(pc, U, A.__matmul__)
