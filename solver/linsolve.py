@@ -29,6 +29,7 @@ class PCGResult:
     converged: bool
     relative_residual: float
     negative_curvature: bool = False  # stopped at a direction p with p^T A p <= 0
+    small_solution: bool = False  # stopped once the solution was known to be small (see pcg)
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -40,11 +41,24 @@ def dot(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.einsum("i,i->", a, b))
 
 
-def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None) -> PCGResult:
+def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, small=None) -> PCGResult:
     """Solve A x = b for SPD A given as a matvec, preconditioner as a function.
     Stops early, flagging negative_curvature, if A turns out not to be
     positive definite.  A RitzRecorder, if given, collects approximate
-    eigenvectors of the smallest eigenvalues on the way."""
+    eigenvectors of the smallest eigenvalues on the way.
+
+    small = (size, bound, steps), if given, also stops CG, flagging
+    small_solution, once size(x) <= bound after at least ``steps`` steps
+    and size(x) grew by less than 2% over the last ten (tested every tenth
+    step).  From x0 = 0 the iterates grow towards the solution (their norm
+    in the preconditioner's metric increases monotonically, Steihaug 1983),
+    and on the LM systems they come close to its size long before the
+    residual is small: ball, 98k tets, a Newton system whose solution is
+    2.3e-6 of omega: 2.16e-6 after 25 steps and 2.24e-6 after 100, while the
+    residual first reached 1e-5 after 1,378.  The LM uses this to confirm
+    convergence without solving a system whose solution it does not need.
+    It is a heuristic: with a weak preconditioner the iterates can stall
+    well below the solution's size."""
     # vectors are updated in place through one scratch array: a CG step on
     # these systems is memory-bound.  (Not with BLAS axpy: OpenBLAS threads
     # spin after each call and slow down the products on the other core.)
@@ -60,6 +74,7 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None) -> 
     if recorder is not None:
         recorder.start(z, rz)
     it = 0
+    size_before = 0.0
     res = np.sqrt(dot(r, r)) / nb
     while res > rtol and it < maxiter:
         Ap = matvec(p)
@@ -75,6 +90,11 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None) -> 
         res = np.sqrt(dot(r, r)) / nb
         if res <= rtol:
             break
+        if small is not None and it % 10 == 0:
+            size = small[0](x)
+            if it >= small[2] and size <= small[1] and size - size_before <= 0.02 * size:
+                return PCGResult(x, it, False, res, small_solution=True)
+            size_before = size
         z = precond(r)
         rz_new = dot(r, z)
         beta = rz_new / rz

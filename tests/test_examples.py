@@ -236,6 +236,33 @@ def test_initialisations_reach_the_same_field(cylinder_problem):
         assert np.degrees(cross_distance(r.frames, ref.frames)).max() <= 0.01, init
 
 
+def test_lm_stops_within_its_tolerance_of_the_minimiser(cylinder_problem):
+    """Wherever LM says it converged, the exact Newton step from there is
+    below its step tolerance (1e-6 of omega), and started at that point it
+    stops at once, although a step that small no longer changes the energy
+    beyond round-off."""
+    import scipy.sparse.linalg as spla
+
+    vp = cylinder_problem.volume
+    x, rep = vp.solve(np.zeros(cylinder_problem.constraints.n_unknowns))
+    assert rep.converged, rep.reason
+    assert rep.n_iterations <= 10
+
+    def newton_step(x):
+        g, Hgn, blocks = vp.linearise(x)
+        # the damping only removes the null mode of the boundary angles,
+        # which omega does not see
+        H = vp.lm_matrix(Hgn + vp.second_order(x), 1e-12, vp.damping_diagonal(blocks))
+        dx = spla.spsolve(H.tocsc(), -g)
+        return np.linalg.norm(vp.P @ dx) / np.linalg.norm(vp.omega(x))
+
+    assert newton_step(np.zeros_like(x)) > 0.5
+    assert newton_step(x) <= 1e-7
+    x2, rep2 = vp.solve(x)
+    assert rep2.converged and rep2.n_iterations <= 2, rep2.reason
+    np.testing.assert_allclose(vp.omega(x2), vp.omega(x), atol=1e-9 * np.abs(vp.omega(x)).max())
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_the_field_does_not_depend_on_the_model_units(cylinder_problem, scale):
     """The same solid, network and tet mesh in other units (millimetres

@@ -119,3 +119,26 @@ def test_row_split_products_work_in_a_forked_child(block_laplacian):
 
 def _product_in_child(A, x):
     return parallel.RowSplitMatrix(A, 2) @ x
+
+
+def test_pcg_stops_once_the_solution_is_known_to_be_small(block_laplacian):
+    """The LM's convergence check near the minimum (volume3d.solve): CG
+    stops as soon as its iterate is known to be below a bound, long before
+    the residual is small, and never stops early for a bound the solution
+    exceeds."""
+    A = block_laplacian
+    b = np.random.default_rng(2).normal(size=A.shape[0])
+    jacobi = 1.0 / A.diagonal()
+    full = pcg(lambda x: A @ x, b, lambda r: jacobi * r, rtol=1e-10, maxiter=5000)
+    assert full.converged and not full.small_solution
+    size = float(np.linalg.norm(full.x))
+    early = pcg(lambda x: A @ x, b, lambda r: jacobi * r, rtol=1e-10, maxiter=5000,
+                small=(np.linalg.norm, 2.0 * size, 20))
+    assert early.small_solution and not early.converged
+    assert 20 <= early.iterations < full.iterations
+    assert np.linalg.norm(early.x) <= 2.0 * size
+    for bound in (0.1 * size, 0.5 * size):
+        res = pcg(lambda x: A @ x, b, lambda r: jacobi * r, rtol=1e-10, maxiter=5000,
+                  small=(np.linalg.norm, bound, 20))
+        assert res.converged and not res.small_solution
+        assert res.iterations == full.iterations
