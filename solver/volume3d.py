@@ -15,7 +15,16 @@ the steps are small (< 1% of omega) H also gets the second-order term
 the minimiser, so Gauss-Newton alone converges only linearly there (ball,
 78k tets: 11 iterations; with the Newton term, 10 and a 100x smaller final
 gradient).  Where that Hessian is not positive definite, the step falls
-back to Gauss-Newton.  From the same point on, approximate eigenvectors of
+back to Gauss-Newton.  Marquardt's damping lambda diag(H) falls by up to
+10x per good step and by 100x more per good Newton step: damping comparable
+to H's smallest eigenvalues (modes around the node regions) slows LM to a
+linear rate.  On a 98k-tet ball lambda = 1.5e-8 still left Newton a rate
+of ~0.03, so those eigenvalues are near 5e-7 of the diagonal; with the
+faster decrease LM took 7 iterations and 1,638 CG steps there, not 10 and
+2,975.  Near the minimum CG stops as soon
+as its iterate is known to be below the step tolerance (linsolve.pcg's
+``small``), so confirming convergence costs ~50 CG steps, not a solve.
+Once the steps are below 10% of omega, approximate eigenvectors of
 the smallest eigenvalues, found while solving one system (eigCG,
 linsolve.RitzRecorder), deflate the next (ball, 78k tets: 4,320 -> 2,700 CG
 steps).
@@ -386,8 +395,8 @@ class VolumeProblem:
                 F, es, ep = Fn, esn, epn
                 # Nielsen's update, but down by up to 10x (not 3x) after a
                 # good step: lambda diag(H) soon exceeds H's smallest
-                # eigenvalues (modes near the node regions, ~1e-6 of the
-                # diagonal), and the steps then crawl along them (114k-tet
+                # eigenvalues (modes near the node regions, near 5e-7 of
+                # the diagonal), and the steps then crawl along them (114k-tet
                 # ball: steps of 5, 5, 3, 3, 3, 2, 1% of omega and 12 LM
                 # iterations with 3x; 9 iterations with 10x)
                 lam *= max(shrink, 1.0 - (2.0 * rho - 1.0) ** 3) if rho > 0 else 1.0
@@ -399,8 +408,8 @@ class VolumeProblem:
                     # lambda = 1e-8 still left a linear rate (ball, 98k
                     # tets: steps of 5e-4, 4e-5, 2e-6 of omega; with
                     # lambda 100x smaller per good Newton step, 5e-4 and
-                    # 6e-6, after which omega was within 2e-9 of the
-                    # minimiser)
+                    # 6e-6 to 9e-6, after which omega was within 3e-9 of
+                    # the minimiser)
                     lam *= newton_shrink
                 recording = recording or (not direct and step < deflate_step)
                 K = self.second_order(x) if newton else None
