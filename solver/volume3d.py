@@ -21,13 +21,12 @@ to H's smallest eigenvalues (modes around the node regions) slows LM to a
 linear rate.  On a 98k-tet ball lambda = 1.5e-8 still left Newton a rate
 of ~0.03, so those eigenvalues are near 5e-7 of the diagonal; with the
 faster decrease LM took 7 iterations and 1,638 CG steps there, not 10 and
-2,975.  Near the minimum CG stops as soon
-as its iterate is known to be below the step tolerance (linsolve.pcg's
-``small``), so confirming convergence costs ~50 CG steps, not a solve.
-Once the steps are below 10% of omega, approximate eigenvectors of
-the smallest eigenvalues, found while solving one system (eigCG,
-linsolve.RitzRecorder), deflate the next (ball, 78k tets: 4,320 -> 2,700 CG
-steps).
+2,975.  Near the minimum CG stops as soon as its iterate is known to be
+below the step tolerance (linsolve.pcg's ``small``), so confirming
+convergence costs ~50 CG steps, not a solve.  Once the steps are below 10%
+of omega, approximate eigenvectors of the smallest eigenvalues, found while
+solving one system (eigCG, linsolve.RitzRecorder), deflate the next (ball,
+78k tets: 4,320 -> 2,700 CG steps).
 """
 
 from __future__ import annotations
