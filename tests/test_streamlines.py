@@ -312,11 +312,11 @@ def cylinder():
     from solver.examples import load_example
 
     V, F, net = load_example("cylinder")
-    return solve(V, F, net, edge_length=0.3), net
+    return solve(V, F, net, edge_length=0.3)
 
 
 def test_streamlines_of_a_solved_cylinder_follow_the_field(cylinder):
-    result, net = cylinder
+    result = cylinder
     f = FrameField.from_result(result)
     seeds = seed_points(f, 30, seed=16)
     lines = trace_streamlines(result, seeds, family="all")
@@ -338,12 +338,16 @@ def test_streamlines_of_a_solved_cylinder_follow_the_field(cylinder):
     D /= np.linalg.norm(D, axis=1, keepdims=True)
     c = np.abs(np.einsum("kij,ki->kj", f.frames_at(M), D)).max(axis=1)
     angle = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
-    # the field turns by 90 degrees around each singular (axial) curve, so
-    # leave out segments within half an edge of one
-    axial = np.array([c.points[0, :2] for c in net.curves])
-    far = np.linalg.norm(M[:, None, :2] - axial[None], axis=2).min(axis=1) > 0.5 * f.mean_edge_length
-    assert far.mean() > 0.8
+    # the field is singular inside the tets a singular curve crosses: their
+    # vertex frames differ by the curve's quarter turn, and segments there
+    # deviate by up to ~45 degrees.  Leave out exactly those tets (a distance
+    # to the axis does not: a crossed tet reaches ~0.45 of the mean edge
+    # length from it, more on some meshes)
+    curves = result.problem.network.curves
+    crossed = np.concatenate([result.curve_tets(i) for i, cv in enumerate(curves) if cv.sigma != 0])
+    regular = ~np.isin(f.locate(M), crossed)
+    assert regular.mean() > 0.9
     assert np.median(angle) < 0.5
-    assert angle[far].max() < 3.0
+    assert angle[regular].max() < 3.0
     # many lines are long (they circle the axis or run end to end)
     assert np.median([polyline_length(L) for L in lines]) > 1.0
