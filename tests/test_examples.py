@@ -48,14 +48,21 @@ def solved():
 def network_neighbourhood(result) -> np.ndarray:
     """Faces belonging to the network's discretisation: those it passes
     through (pierced faces, node regions, curve-end triangles), the faces
-    around node regions, and faces with a vertex closer to a curve than the
-    tube radius allows for a tube vertex (where fTetWild moved one)."""
+    around node regions and around the tets a singular curve crosses, and
+    faces with a vertex closer to a curve than the tube radius allows for a
+    tube vertex (where fTetWild moved one).  Around a crossed tet the field
+    turns fast, and an edge there can turn by more than 45 degrees (49 seen
+    on a refined cylinder, 0.35 h from a curve's end on the boundary), which
+    closest-rotation matching reads as a jump."""
     mesh, emb = result.mesh, result.embedding
     out = np.zeros(mesh.n_faces, bool)
     out[emb.network_faces(mesh)] = True
     near = np.zeros(mesh.n_vertices, bool)
     if len(emb.node_region_tets):
         near[mesh.tets[emb.node_region_tets].ravel()] = True
+    for c, tr in zip(result.problem.network.curves, emb.traces):
+        if c.sigma != 0:
+            near[mesh.tets[tr.tets].ravel()] = True
     curves = [c.points for c in result.problem.network.curves]
     if curves:
         h = result.problem.edge_length

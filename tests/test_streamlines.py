@@ -334,18 +334,19 @@ def test_streamlines_of_a_solved_cylinder_follow_the_field(cylinder):
     M = np.vstack([0.5 * (L[1:] + L[:-1]) for L in lines])
     assert np.all(f.locate(M) >= 0)
     # each segment is aligned with the nearest axis of the field at its midpoint
-    D = np.vstack([np.diff(L, axis=0) for L in lines])
-    D /= np.linalg.norm(D, axis=1, keepdims=True)
+    A, B = np.vstack([L[:-1] for L in lines]), np.vstack([L[1:] for L in lines])
+    D = (B - A) / np.linalg.norm(B - A, axis=1, keepdims=True)
     c = np.abs(np.einsum("kij,ki->kj", f.frames_at(M), D)).max(axis=1)
     angle = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
     # the field is singular inside the tets a singular curve crosses: their
-    # vertex frames differ by the curve's quarter turn, and segments there
-    # deviate by up to ~45 degrees.  Leave out exactly those tets (a distance
-    # to the axis does not: a crossed tet reaches ~0.45 of the mean edge
-    # length from it, more on some meshes)
+    # vertex frames differ by the curve's quarter turn, and a segment that
+    # starts, ends or has its midpoint there deviates by up to ~45 degrees.
+    # Leave out exactly those segments (a distance to the axis does not: a
+    # crossed tet reaches ~0.45 of the mean edge length from it, more on
+    # some meshes).  Elsewhere, over 60 meshes: at most 0.74 degrees
     curves = result.problem.network.curves
     crossed = np.concatenate([result.curve_tets(i) for i, cv in enumerate(curves) if cv.sigma != 0])
-    regular = ~np.isin(f.locate(M), crossed)
+    regular = ~(np.isin(f.locate(M), crossed) | np.isin(f.locate(A), crossed) | np.isin(f.locate(B), crossed))
     assert regular.mean() > 0.9
     assert np.median(angle) < 0.5
     assert angle[regular].max() < 3.0
