@@ -85,7 +85,7 @@ def _aggregate(N: sp.csr_matrix, theta: float, rng) -> np.ndarray:
         has = np.diff(sub.indptr) > 0
         if not np.any(has):
             break
-        j = np.asarray(sub.argmax(axis=1)).ravel()
+        j = _row_argmax(sub)
         idx = np.nonzero(left)[0]
         agg[idx[has]] = agg[j[has]]
     left = agg < 0
@@ -105,7 +105,43 @@ def _block_diag_inv(A: sp.csr_matrix, b: int) -> np.ndarray:
     # constraints forbid) has a zero pivot: regularise so the smoother ignores it
     tr = np.einsum("nii->n", D)
     D += (1e-10 * max(tr.max(), 1e-300) + 1e-8 * tr[:, None, None] / b) * np.eye(b)
-    return np.linalg.inv(D)
+    return inv_blocks(D)
+
+
+def inv_blocks(D: np.ndarray) -> np.ndarray:
+    """Inverses of a stack of square blocks (n, b, b).  3 x 3 blocks by the
+    adjugate, vectorised (np.linalg.inv calls LAPACK once per block: 0.15 s
+    for the ~100k blocks of a 78k-tet preconditioner, against ~10 ms)."""
+    if D.shape[1:] != (3, 3):
+        return np.linalg.inv(D)
+    a, b, c = D[:, 0, 0], D[:, 0, 1], D[:, 0, 2]
+    d, e, f = D[:, 1, 0], D[:, 1, 1], D[:, 1, 2]
+    g, h, i = D[:, 2, 0], D[:, 2, 1], D[:, 2, 2]
+    adj = np.empty_like(D, dtype=float)
+    adj[:, 0, 0], adj[:, 0, 1], adj[:, 0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
+    adj[:, 1, 0], adj[:, 1, 1], adj[:, 1, 2] = f * g - d * i, a * i - c * g, c * d - a * f
+    adj[:, 2, 0], adj[:, 2, 1], adj[:, 2, 2] = d * h - e * g, b * g - a * h, a * e - b * d
+    det = a * adj[:, 0, 0] + b * adj[:, 1, 0] + c * adj[:, 2, 0]
+    if np.any(det == 0) or not np.all(np.isfinite(det)):
+        raise np.linalg.LinAlgError("Singular matrix")
+    adj /= det[:, None, None]
+    return adj
+
+
+def _row_argmax(M: sp.csr_matrix) -> np.ndarray:
+    """Column of the largest stored entry of every row (the first such
+    column on ties; 0 for an empty row), without SciPy's per-row Python
+    loop."""
+    n = M.shape[0]
+    cnt = np.diff(M.indptr)
+    out = np.zeros(n, dtype=np.int64)
+    if M.nnz == 0:
+        return out
+    rows = np.repeat(np.arange(n), cnt)
+    order = np.lexsort((M.indices, -M.data, rows))  # by row, largest first, lowest column first
+    has = cnt > 0
+    out[has] = M.indices[order[M.indptr[:-1][has]]]
+    return out
 
 
 def _apply_block(Dinv: np.ndarray, x: np.ndarray) -> np.ndarray:

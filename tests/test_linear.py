@@ -9,7 +9,7 @@ import pytest
 import scipy.sparse as sp
 
 from solver import parallel
-from solver.amg import AMG
+from solver.amg import AMG, _row_argmax, inv_blocks
 from solver.linsolve import RitzRecorder, pcg
 from tests.meshes import box_mesh
 
@@ -39,6 +39,27 @@ def test_amg_vcycle_is_symmetric_and_beats_jacobi(block_laplacian):
     assert mg.converged and jac.converged
     assert np.linalg.norm(A @ mg.x - b) <= 1e-8 * np.linalg.norm(b) * 1.0001
     assert mg.iterations * 4 < jac.iterations, (mg.iterations, jac.iterations)
+
+
+def test_block_inverses_match_lapack():
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(500, 3, 3))
+    D = A @ A.transpose(0, 2, 1) + np.geomspace(1e-6, 1.0, 500)[:, None, None] * np.eye(3)
+    ref = np.linalg.inv(D)
+    err = np.abs(inv_blocks(D) - ref).max(axis=(1, 2)) / np.abs(ref).max(axis=(1, 2))
+    assert err.max() < 1e-9
+    assert np.allclose(inv_blocks(D[:, :2, :2]), np.linalg.inv(D[:, :2, :2]))  # other sizes: LAPACK
+    with pytest.raises(np.linalg.LinAlgError):
+        inv_blocks(np.zeros((2, 3, 3)))
+
+
+def test_row_argmax_matches_scipy():
+    M = sp.random(300, 200, density=0.03, random_state=4, format="csr")
+    M.data = np.round(M.data * 4)  # ties, and stored zeros
+    M.data[M.data == 0] = 1.0
+    has = np.diff(M.indptr) > 0
+    assert has.sum() > 100 and (~has).any()
+    assert np.array_equal(_row_argmax(M)[has], np.asarray(M.argmax(axis=1)).ravel()[has])
 
 
 def test_pcg_reports_negative_curvature():
