@@ -294,7 +294,6 @@ class VolumeProblem:
         cg_rtol_max: float = 1e-3,
         step_tol: float = 1e-6,
         reuse_step: float = 0.05,
-        pc_damping_floor: float = 1e-8,
         direct: bool = False,
         newton_step: float = 0.01,
         deflate: int = 8,
@@ -338,14 +337,11 @@ class VolumeProblem:
             rtol = max(cg_rtol_floor, rtol)
             # the preconditioner (block Jacobi + AMG on the covariant
             # gradients) changes slowly with omega and lambda: rebuild it only
-            # once omega has moved or the damping changed by a large factor.
-            # Below pc_damping_floor the damping is far below H's smallest
-            # eigenvalues (~5e-7 of the diagonal, ball 98k tets) and does not
-            # change the preconditioner: Newton's lambda, which falls 1000x
-            # per step, no longer forces a rebuild every iteration
+            # once omega has moved or the damping changed by a large factor
+            # (also below 1e-8: a floor on lambda in this test saved builds
+            # but cost CG steps, +18% on a 36k-tet ball; bench/RESULTS.md)
             diagH = self.damping_diagonal(blocks)
-            ratio = max(lam, pc_damping_floor) / max(pc_lam, pc_damping_floor)
-            if not direct and (pc is None or moved > reuse_step or not 0.01 <= ratio <= 100.0):
+            if not direct and (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
                 pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Hgn, self.omega(x)), lam, 0.0
                 rep.preconditioner_builds += 1
             # one assembled matrix per system (hessian.py), its products run
