@@ -127,6 +127,12 @@ class RitzRecorder:
         self.cur = 0
 
     def start(self, z, rz):
+        # failed: the recurrence broke down (a non-finite coefficient or an
+        # eigensolver that did not converge); the recorder then stops and
+        # offers no vectors, since deflation only speeds CG up
+        self.failed = not (np.isfinite(rz) and rz > 0)
+        if self.failed:
+            return
         self.T[:] = 0.0
         self.V[0] = z / np.sqrt(rz)
         self.cur, self.sign = 1, 1.0
@@ -134,16 +140,30 @@ class RitzRecorder:
         self.complete = False
 
     def add_alpha(self, alpha):
+        if self.failed:
+            return
+        if not (np.isfinite(alpha) and alpha > 0):
+            self.failed = True
+            return
         j = self.cur - 1  # the diagonal of the newest vector is now complete
         self.T[j, j] += 1.0 / alpha + (self.beta_prev / self.alpha_prev if self.alpha_prev is not None else 0.0)
         self.alpha_prev = alpha
         self.complete = True
 
     def add_vector(self, beta, z, rz):
+        if self.failed:
+            return
+        if not (np.isfinite(beta) and beta >= 0 and np.isfinite(rz) and rz > 0):
+            self.failed = True
+            return
         t = np.sqrt(beta) / self.alpha_prev  # coupling of the newest and the next vector
         self.sign = -self.sign
         if self.cur == self.m:
-            W = self._restart()
+            try:
+                W = self._restart()
+            except np.linalg.LinAlgError:
+                self.failed = True
+                return
             k = self.cur
             self.T[:k, k] = self.T[k, :k] = t * W[-1]
         else:

@@ -375,7 +375,7 @@ class VolumeProblem:
                     pcd = self._deflated(pc, U, A.__matmul__)
                     res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000)
                     cg_steps += res.iterations
-                if rec is not None and res.converged and res.iterations > rec.m:
+                if rec is not None and not rec.failed and res.converged and res.iterations > rec.m:
                     U = _merge_vectors(rec.vectors()[1], U, deflate)
             used_newton = newton
             dx = res.x

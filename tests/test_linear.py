@@ -62,6 +62,24 @@ def test_row_argmax_matches_scipy():
     assert np.array_equal(_row_argmax(M)[has], np.asarray(M.argmax(axis=1)).ravel()[has])
 
 
+def test_ritz_recorder_stops_on_a_breakdown_and_cg_still_converges(block_laplacian):
+    A = block_laplacian
+    b = np.random.default_rng(5).normal(size=A.shape[0])
+    calls = []
+
+    def bad_precond(r):  # a preconditioner that once returns a non-finite vector
+        calls.append(1)
+        z = r / A.diagonal()
+        return np.full_like(z, np.nan) if len(calls) == 3 else z
+
+    rec = RitzRecorder(A.shape[0], nev=2, m=8)
+    pcg(lambda x: A @ x, b, bad_precond, rtol=1e-8, maxiter=50, recorder=rec)
+    assert rec.failed
+    rec = RitzRecorder(A.shape[0], nev=2, m=8)
+    res = pcg(lambda x: A @ x, b, lambda r: r / A.diagonal(), rtol=1e-8, maxiter=2000, recorder=rec)
+    assert res.converged and not rec.failed
+
+
 def test_pcg_reports_negative_curvature():
     A = sp.diags([1.0, 2.0, -1.0]).tocsr()
     res = pcg(lambda x: A @ x, np.ones(3), lambda r: r, rtol=1e-12)
