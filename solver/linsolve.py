@@ -125,6 +125,7 @@ class RitzRecorder:
         # plenty for a preconditioner and halves the restarts' memory traffic
         self.T = np.zeros((m, m))
         self.cur = 0
+        self.failed = False
 
     def start(self, z, rz):
         # failed: the recurrence broke down (a non-finite coefficient or an

@@ -337,9 +337,10 @@ class VolumeProblem:
             rtol = max(cg_rtol_floor, rtol)
             # the preconditioner (block Jacobi + AMG on the covariant
             # gradients) changes slowly with omega and lambda: rebuild it only
-            # once omega has moved or the damping changed by a large factor
-            # (also below 1e-8: a floor on lambda in this test saved builds
-            # but cost CG steps, +18% on a 36k-tet ball; bench/RESULTS.md)
+            # once omega has moved or the damping changed by a large factor,
+            # however small lambda is (ignoring changes below 1e-8 saved
+            # builds but cost 18% more CG steps on a 36k-tet ball;
+            # bench/RESULTS.md)
             diagH = self.damping_diagonal(blocks)
             if not direct and (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
                 pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Hgn, self.omega(x)), lam, 0.0

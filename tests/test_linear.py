@@ -55,14 +55,13 @@ def test_block_inverses_match_lapack():
 
 def test_row_argmax_matches_scipy():
     M = sp.random(300, 200, density=0.03, random_state=4, format="csr")
-    M.data = np.round(M.data * 4)  # ties, and stored zeros
-    M.data[M.data == 0] = 1.0
+    M.data = np.round(M.data * 4) + 1.0  # many ties within a row
     has = np.diff(M.indptr) > 0
     assert has.sum() > 100 and (~has).any()
     assert np.array_equal(_row_argmax(M)[has], np.asarray(M.argmax(axis=1)).ravel()[has])
 
 
-def test_ritz_recorder_stops_on_a_breakdown_and_cg_still_converges(block_laplacian):
+def test_ritz_recorder_stops_on_a_breakdown(block_laplacian):
     A = block_laplacian
     b = np.random.default_rng(5).normal(size=A.shape[0])
     calls = []
@@ -75,6 +74,7 @@ def test_ritz_recorder_stops_on_a_breakdown_and_cg_still_converges(block_laplaci
     rec = RitzRecorder(A.shape[0], nev=2, m=8)
     pcg(lambda x: A @ x, b, bad_precond, rtol=1e-8, maxiter=50, recorder=rec)
     assert rec.failed
+    # and a sound run is not flagged
     rec = RitzRecorder(A.shape[0], nev=2, m=8)
     res = pcg(lambda x: A @ x, b, lambda r: r / A.diagonal(), rtol=1e-8, maxiter=2000, recorder=rec)
     assert res.converged and not rec.failed
