@@ -324,6 +324,11 @@ class VolumeProblem:
         U, recording = None, False
         rejected = 0
         g_prev = g0
+        # steps are measured relative to |omega|, but not below an rms of
+        # 1e-6 rad per edge: a field without turning (a cube's, omega = 0)
+        # would otherwise never meet the step test (its steps stay at
+        # round-off, a fixed fraction of an omega that is round-off too)
+        om_floor = 1e-6 * np.sqrt(self.mesh.n_edges)
         for it in range(1, max_iterations + 1):
             if cancel is not None and cancel():
                 raise Cancelled()
@@ -363,7 +368,7 @@ class VolumeProblem:
                 # keeps a 2x margin; the partial step is still taken below)
                 small = None
                 if newton:
-                    om_norm = max(float(np.linalg.norm(self.omega(x))), 1e-300)
+                    om_norm = max(float(np.linalg.norm(self.omega(x))), om_floor)
                     small = (lambda v: np.linalg.norm(self.P @ v) / om_norm, 0.5 * step_tol, 50)
                 res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000, recorder=rec, small=small)
                 cg_steps = res.iterations
@@ -391,7 +396,7 @@ class VolumeProblem:
             # the step measured on omega, not on x: x also holds the
             # boundary angles alpha, whose common shift per boundary
             # component is a null mode of Eq. 23 that omega does not see
-            step = float(np.linalg.norm(self.P @ dx) / max(np.linalg.norm(self.omega(xn)), 1e-300))
+            step = float(np.linalg.norm(self.P @ dx) / max(np.linalg.norm(self.omega(xn)), om_floor))
             if accepted:
                 g_prev = gn
                 x = xn

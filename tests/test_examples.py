@@ -141,6 +141,19 @@ def test_cube_frames_are_axis_aligned(solved):
     assert r.report.lm.converged
 
 
+def test_lm_converges_on_a_field_without_turning():
+    """The cube's field does not turn (omega = 0): steps measured relative
+    to omega alone stay at a fixed fraction of round-off there, and LM ran
+    into its iteration cap from the linear start."""
+    V, F, net = load_example("cube")
+    p = FieldProblem(V, F, net, Options(edge_length=H["cube"]))
+    for init in ("zero", "linear", "random"):
+        r = p.solve(init=init)
+        lm = r.report.lm
+        assert lm.converged and lm.n_iterations <= 12, (init, lm.n_iterations, lm.reason)
+        assert np.abs(r.omega).max() <= 1e-9, init
+
+
 # ------------------------------------------------------------------- torus
 def test_torus_has_no_singularity_and_is_adapted(solved):
     """A smooth solid torus: the frames must twist once around each meridian
