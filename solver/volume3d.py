@@ -232,13 +232,16 @@ class VolumeProblem:
         w, S = np.linalg.eigh(0.5 * (E + E.T))
         keep = w > 1e-12 * max(w.max(), 1e-300)
         Einv = ((S[:, keep] / w[keep]) @ S[:, keep].T).astype(np.float32)
-        U32 = U.astype(np.float32)
-        U32T = np.ascontiguousarray(U32.T)
+        U32T = np.ascontiguousarray(U.T, dtype=np.float32)  # a vector per row
 
         def apply(r):
-            # einsum, not BLAS (see linsolve.dot)
+            # einsum, not BLAS (see linsolve.dot); both products read the
+            # vectors row by row (U y as "ij,j->i" on U's columns took 1.1
+            # ms per CG step at 78k tets, as "i,ij->j" on its rows 0.5 ms)
             y = Einv @ np.einsum("ij,j->i", U32T, r.astype(np.float32))
-            return pc(r) + np.einsum("ij,j->i", U32, y)
+            out = pc(r)
+            out += np.einsum("i,ij->j", y, U32T)
+            return out
 
         return apply
 
