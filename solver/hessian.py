@@ -123,11 +123,12 @@ def _expand(dof: np.ndarray, P: sp.csr_matrix):
     return tuple(np.concatenate(z) for z in zip(*out))
 
 
-def gauss_newton_blocks(Jb: np.ndarray, scale: float) -> np.ndarray:
+def gauss_newton_blocks(Jb: np.ndarray, scale: float, out: np.ndarray | None = None) -> np.ndarray:
     """(m, 9, 9) blocks scale * J_f^T J_f from the (m, 3, 3, 3) Jacobian
-    blocks d r_f / d omega_{e_k} (structure.jacobian_blocks)."""
+    blocks d r_f / d omega_{e_k} (structure.jacobian_blocks), written into
+    ``out`` if given."""
     m = len(Jb)
     B = Jb.transpose(0, 2, 1, 3).reshape(m, 3, 9)  # J_f: residual component x (edge slot, component)
-    Q = np.matmul(B.transpose(0, 2, 1), B)  # batched matmul: ~9x faster than the einsum here
+    Q = np.matmul(B.transpose(0, 2, 1), B, out=out)  # batched matmul: ~9x faster than the einsum here
     Q *= scale
     return Q

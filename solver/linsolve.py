@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .parallel import ranges, run
+
 
 @dataclass
 class PCGResult:
@@ -30,15 +32,6 @@ class PCGResult:
     relative_residual: float
     negative_curvature: bool = False  # stopped at a direction p with p^T A p <= 0
     small_solution: bool = False  # stopped once the solution was known to be small (see pcg)
-
-
-def dot(a: np.ndarray, b: np.ndarray) -> float:
-    """a . b without BLAS.  OpenBLAS runs long dot products on several
-    threads, which then spin for a while and slow down the sparse products
-    on the other cores (parallel.py): with BLAS dots the product with the LM
-    matrix took 6.5 ms per CG step at 78k tets, without them 5.5 ms
-    (bench/RESULTS.md)."""
-    return float(np.einsum("i,i->", a, b))
 
 
 def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, small=None) -> PCGResult:
@@ -59,35 +52,53 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, sma
     convergence without solving a system whose solution it does not need.
     It is a heuristic: with a weak preconditioner the iterates can stall
     well below the solution's size."""
-    # vectors are updated in place through one scratch array: a CG step on
-    # these systems is memory-bound.  (Not with BLAS axpy: OpenBLAS threads
-    # spin after each call and slow down the products on the other core.)
+    # vectors are updated in place through one scratch array, by index
+    # ranges on all cores (parallel.run): a CG step on these systems is
+    # memory-bound.  (Not with BLAS axpy: OpenBLAS threads spin after each
+    # call and slow down the products on the other core.)
     x = np.zeros_like(b) if x0 is None else x0.astype(float, copy=True)
     r = b - matvec(x) if x0 is not None else b.astype(float, copy=True)
-    nb = np.sqrt(dot(b, b))
+    parts = ranges(len(b))
+
+    def pdot(u, v):
+        # u . v by einsum, not BLAS: OpenBLAS runs long dot products on
+        # several threads, which then spin for a while and slow down the
+        # sparse products on the other cores (with BLAS dots the product
+        # with the LM matrix took 6.5 ms per CG step at 78k tets, without
+        # them 5.5 ms; bench/RESULTS.md)
+        return float(sum(run(lambda i, j: np.einsum("i,i->", u[i:j], v[i:j]), parts)))
+
+    nb = np.sqrt(pdot(b, b))
     if nb == 0:
         return PCGResult(np.zeros_like(b), 0, True, 0.0)
     z = precond(r)
     p = z.copy()
     tmp = np.empty_like(p)
-    rz = dot(r, z)
+    rz = pdot(r, z)
     if recorder is not None:
         recorder.start(z, rz)
     it = 0
     size_before = 0.0
-    res = np.sqrt(dot(r, r)) / nb
+    res = np.sqrt(pdot(r, r)) / nb
     while res > rtol and it < maxiter:
         Ap = matvec(p)
-        pAp = dot(p, Ap)
+        pAp = pdot(p, Ap)
         if pAp <= 0:
             return PCGResult(x, it, False, res, True)
         alpha = rz / pAp
         if recorder is not None:
             recorder.add_alpha(alpha)
-        x += np.multiply(p, alpha, out=tmp)
-        r -= np.multiply(Ap, alpha, out=tmp)
+
+        def update(i, j):
+            # x += alpha p, r -= alpha Ap; returns this range's r . r
+            xs, rs, ts = x[i:j], r[i:j], tmp[i:j]
+            xs += np.multiply(p[i:j], alpha, out=ts)
+            rs -= np.multiply(Ap[i:j], alpha, out=ts)
+            return np.einsum("i,i->", rs, rs)
+
+        rr = float(sum(run(update, parts)))
         it += 1
-        res = np.sqrt(dot(r, r)) / nb
+        res = np.sqrt(rr) / nb
         if res <= rtol:
             break
         if small is not None and it % 10 == 0:
@@ -96,12 +107,17 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, sma
                 return PCGResult(x, it, False, res, small_solution=True)
             size_before = size
         z = precond(r)
-        rz_new = dot(r, z)
+        rz_new = pdot(r, z)
         beta = rz_new / rz
         if recorder is not None:
             recorder.add_vector(beta, z, rz_new)
-        p *= beta
-        p += z
+
+        def direction(i, j):
+            ps = p[i:j]
+            ps *= beta
+            ps += z[i:j]
+
+        run(direction, parts)
         rz = rz_new
     return PCGResult(x, it, res <= rtol, res)
 

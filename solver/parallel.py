@@ -12,6 +12,7 @@ the environment variable SYMFRAMES_THREADS=1) turns the splitting off.
 
 from __future__ import annotations
 
+import itertools
 import os
 from concurrent.futures import ThreadPoolExecutor
 
@@ -74,15 +75,26 @@ def _get_pool() -> ThreadPoolExecutor:
     return _pool
 
 
+# the rows of one block give a result of at most this many bytes per
+# column: SciPy allocates each block's result anew, and results beyond
+# glibc's mmap threshold are fresh pages every time.  The assembly's
+# scatter product (hessian.py; 10 M rows at 98k tets) took 0.28 s in two
+# blocks and 0.025 s in 40.
+BLOCK_BYTES = 2 << 20
+
+
 class RowSplitMatrix:
     """A CSR matrix whose products with vectors (or blocks of vectors) run
-    by row blocks of about equal nonzero count on the thread pool."""
+    by row blocks of about equal nonzero count on the thread pool (at
+    least ``parts`` blocks, more for tall matrices; the threads take the
+    next block as they finish one)."""
 
     def __init__(self, A: sp.spmatrix, parts: int):
         A = sp.csr_matrix(A)
         self.shape = A.shape
         self.dtype = A.dtype
         self.nnz = A.nnz
+        parts = max(parts, -(-A.shape[0] * 8 // BLOCK_BYTES))
         # row boundaries that split the nonzeros evenly
         cuts = np.searchsorted(A.indptr, np.linspace(0, A.nnz, parts + 1)[1:-1])
         self.bounds = np.unique(np.r_[0, cuts, A.shape[0]])
@@ -95,15 +107,45 @@ class RowSplitMatrix:
     def __matmul__(self, x):
         out = np.empty((self.shape[0],) + np.shape(x)[1:], dtype=np.result_type(self.dtype, x))
         b = self.bounds
+        n = len(self.blocks)
+        claim = itertools.count()  # next() on it is atomic under the GIL
 
-        def work(i):
-            out[b[i]:b[i + 1]] = self.blocks[i] @ x
+        def work():
+            i = next(claim)
+            while i < n:
+                out[b[i]:b[i + 1]] = self.blocks[i] @ x
+                i = next(claim)
 
-        futures = [_get_pool().submit(work, i) for i in range(1, len(self.blocks))]
-        work(0)
+        futures = [_get_pool().submit(work) for _ in range(min(threads(), n) - 1)]
+        work()
         for f in futures:
             f.result()
         return out
+
+
+# below this length a vector operation takes well under 0.1 ms: run it whole
+MIN_LEN = 100_000
+
+
+def ranges(n: int) -> list:
+    """Index ranges [a, b) splitting 0..n for vector work on the thread
+    pool: one per thread, or a single range for short vectors."""
+    k = threads() if n >= MIN_LEN else 1
+    cuts = np.linspace(0, n, k + 1).astype(np.int64)
+    return list(zip(cuts[:-1], cuts[1:]))
+
+
+def run(work, parts: list) -> list:
+    """[work(a, b) for (a, b) in parts], the parts after the first on the
+    thread pool.  numpy releases the GIL in its element-wise loops and
+    reductions, so memory-bound vector work on separate ranges runs on
+    several cores at once."""
+    if len(parts) == 1:
+        return [work(*parts[0])]
+    futures = [_get_pool().submit(work, a, b) for a, b in parts[1:]]
+    out = [work(*parts[0])]
+    out.extend(f.result() for f in futures)
+    return out
 
 
 def parallel(A: sp.spmatrix):

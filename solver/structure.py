@@ -97,18 +97,22 @@ class StructureEquation:
         (assembled from residual_hessian_blocks)."""
         return self.assemble_blocks(self.residual_hessian_blocks(mu))
 
-    def residual_hessian_blocks(self, mu: np.ndarray) -> np.ndarray:
+    def residual_hessian_blocks(self, mu: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """(m, 9, 9) per-face blocks of residual_hessian (row/column 3k + i:
         component i of the face's k-th edge).  r is quadratic in omega (the
         wedge of Eq. 18), so they do not depend on omega.  With [mu] the
         cross-product matrix, the face term -1/2 w_b mu . (A x B) =
         1/2 w_b A^T [mu] B couples A and B by 1/2 w_b [mu] (and B, A by its
         transpose), likewise (B, C) with w_c and (C, A) with w_a; C = -omega_ac
-        flips the sign of the blocks that touch the third edge."""
+        flips the sign of the blocks that touch the third edge.  Written into
+        ``out`` (m, 9, 9) if given."""
         m = len(self.face_edges)
         wa, wb, wc = (self.weights[:, k, None, None] for k in range(3))
         M = 0.5 * _cross_mat(mu)
-        Q = np.zeros((m, 3, 3, 3, 3))  # (face, row slot, component, column slot, component)
+        # (face, row slot, component, column slot, component)
+        Q = np.zeros((m, 3, 3, 3, 3)) if out is None else out.reshape(m, 3, 3, 3, 3)
+        if out is not None:
+            Q[:, 0, :, 0, :] = Q[:, 1, :, 1, :] = Q[:, 2, :, 2, :] = 0.0  # the blocks set below cover the rest
         for p, q, blk in ((0, 1, wb * M), (1, 2, -wc * M), (2, 0, -wa * M)):
             Q[:, p, :, q, :] = blk
             Q[:, q, :, p, :] = np.swapaxes(blk, 1, 2)

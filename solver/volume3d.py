@@ -42,7 +42,7 @@ from .constraints import AffineOmega
 from .errors import Cancelled
 from .hessian import FaceAssembly, gauss_newton_blocks
 from .linsolve import PCGResult, RitzRecorder, pcg
-from .parallel import parallel
+from .parallel import parallel, ranges, run
 from .structure import StructureEquation, _cross_mat
 from .tetmesh import TetMesh
 
@@ -123,6 +123,7 @@ class VolumeProblem:
                                      pattern=sp.csr_matrix((np.ones(len(bi)), (bi, bj)), shape=(n, n)))
         self._block_pos = self.assembly.positions(bi, bj).reshape(nfree, 3, 3)
         self._setup_gradient_space()
+        self._blocks_scratch = None
         self.setup_seconds = time.perf_counter() - t
 
     # ------------------------------------------------------------------ energy
@@ -149,7 +150,8 @@ class VolumeProblem:
         Jb = self.se.jacobian_blocks(om, linear)
         JTr = self.se.jacobian_transpose_product(Jb, r)
         g = 2.0 * (self.PT @ (self.W3 * om.reshape(-1) + self.a * JTr.reshape(-1)))
-        data = self.assembly.data(gauss_newton_blocks(Jb, 2.0 * self.a)) + self.assembly.extra_data
+        data = self.assembly.data(gauss_newton_blocks(Jb, 2.0 * self.a, out=self._face_blocks()))
+        data += self.assembly.extra_data
         B = data[self._block_pos]
         d = data[self.assembly.diagonal_positions[3 * len(self.cons.free_edges):]]
         return g, data, (B, d)
@@ -159,8 +161,18 @@ class VolumeProblem:
         leaves out of the Hessian of Eq. 23.  None for the linear problem."""
         if linear:
             return None
-        Q = self.se.residual_hessian_blocks(self.se.residual(self.omega(x)))
-        return self.assembly.data(2.0 * self.a * Q)
+        Q = self.se.residual_hessian_blocks(self.se.residual(self.omega(x)), out=self._face_blocks())
+        Q *= 2.0 * self.a
+        return self.assembly.data(Q)
+
+    def _face_blocks(self) -> np.ndarray:
+        """Scratch space for the (m, 9, 9) face blocks, kept between LM
+        iterations: a fresh array this size (123 MB at 98k tets) costs
+        more to fault in than to fill (gauss_newton_blocks 0.07 s into a
+        kept array, 0.08-0.24 s into a new one)."""
+        if self._blocks_scratch is None:
+            self._blocks_scratch = np.empty((len(self.faces), 9, 9))
+        return self._blocks_scratch
 
     def lm_matrix(self, data, damping=0.0, diagH=None):
         """The assembled matrix with these values plus damping * diag(diagH)."""
@@ -233,14 +245,20 @@ class VolumeProblem:
         keep = w > 1e-12 * max(w.max(), 1e-300)
         Einv = ((S[:, keep] / w[keep]) @ S[:, keep].T).astype(np.float32)
         U32T = np.ascontiguousarray(U.T, dtype=np.float32)  # a vector per row
+        parts = ranges(U32T.shape[1])
 
         def apply(r):
-            # einsum, not BLAS (see linsolve.dot); both products read the
-            # vectors row by row (U y as "ij,j->i" on U's columns took 1.1
-            # ms per CG step at 78k tets, as "i,ij->j" on its rows 0.5 ms)
-            y = Einv @ np.einsum("ij,j->i", U32T, r.astype(np.float32))
+            # einsum, not BLAS (see linsolve.pcg), by index ranges on all
+            # cores; both products read the vectors row by row (U y as
+            # "ij,j->i" on U's columns took 1.1 ms per CG step at 78k tets,
+            # as "i,ij->j" on its rows 0.5 ms)
+            y = Einv @ sum(run(lambda i, j: np.einsum("ij,j->i", U32T[:, i:j], r[i:j].astype(np.float32)), parts))
             out = pc(r)
-            out += np.einsum("i,ij->j", y, U32T)
+
+            def add(i, j):
+                out[i:j] += np.einsum("i,ij->j", y, U32T[:, i:j])
+
+            run(add, parts)
             return out
 
         return apply

@@ -102,6 +102,44 @@ def test_row_split_products_match_serial(block_laplacian, cols):
         parallel.set_threads(old)
 
 
+def test_tall_matrices_split_into_small_blocks_that_the_threads_share(monkeypatch):
+    """A tall matrix gets more row blocks than threads (each block's result
+    stays below BLOCK_BYTES), and the threads share them out; the product is
+    still exactly the serial one."""
+    monkeypatch.setattr(parallel, "BLOCK_BYTES", 8 * 1000)
+    old = parallel.threads()
+    parallel.set_threads(2)
+    try:
+        A = sp.random(10_000, 300, density=0.02, format="csr", random_state=2)
+        P = parallel.RowSplitMatrix(A, 2)
+        assert len(P.blocks) >= 10
+        assert max(b.shape[0] for b in P.blocks) < 3000
+        x = np.random.default_rng(3).normal(size=300)
+        for _ in range(3):
+            assert np.array_equal(P @ x, A @ x)
+    finally:
+        parallel.set_threads(old)
+
+
+def test_vector_work_by_ranges_covers_every_index_once(monkeypatch):
+    old = parallel.threads()
+    parallel.set_threads(2)
+    try:
+        for n in (7, parallel.MIN_LEN + 3):
+            parts = parallel.ranges(n)
+            assert len(parts) == (2 if n >= parallel.MIN_LEN else 1)
+            hit = np.zeros(n, int)
+
+            def work(i, j):
+                hit[i:j] += 1
+                return j - i
+
+            assert sum(parallel.run(work, parts)) == n
+            assert np.all(hit == 1)
+    finally:
+        parallel.set_threads(old)
+
+
 def test_thread_setting_is_validated(monkeypatch):
     with pytest.raises(ValueError, match="at least 1"):
         parallel.set_threads(0)
