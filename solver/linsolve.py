@@ -79,6 +79,21 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, sma
         recorder.start(z, rz)
     it = 0
     size_before = 0.0
+
+    # the range workers read alpha, Ap, beta and z of the current step
+    def update(i, j):
+        # x += alpha p, r -= alpha Ap; returns this range's r . r
+        xs, rs, ts = x[i:j], r[i:j], tmp[i:j]
+        xs += np.multiply(p[i:j], alpha, out=ts)
+        rs -= np.multiply(Ap[i:j], alpha, out=ts)
+        return np.einsum("i,i->", rs, rs)
+
+    def direction(i, j):
+        # p = z + beta p
+        ps = p[i:j]
+        ps *= beta
+        ps += z[i:j]
+
     res = np.sqrt(pdot(r, r)) / nb
     while res > rtol and it < maxiter:
         Ap = matvec(p)
@@ -88,14 +103,6 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, sma
         alpha = rz / pAp
         if recorder is not None:
             recorder.add_alpha(alpha)
-
-        def update(i, j):
-            # x += alpha p, r -= alpha Ap; returns this range's r . r
-            xs, rs, ts = x[i:j], r[i:j], tmp[i:j]
-            xs += np.multiply(p[i:j], alpha, out=ts)
-            rs -= np.multiply(Ap[i:j], alpha, out=ts)
-            return np.einsum("i,i->", rs, rs)
-
         rr = float(sum(run(update, parts)))
         it += 1
         res = np.sqrt(rr) / nb
@@ -111,12 +118,6 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, sma
         beta = rz_new / rz
         if recorder is not None:
             recorder.add_vector(beta, z, rz_new)
-
-        def direction(i, j):
-            ps = p[i:j]
-            ps *= beta
-            ps += z[i:j]
-
         run(direction, parts)
         rz = rz_new
     return PCGResult(x, it, res <= rtol, res)

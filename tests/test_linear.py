@@ -121,7 +121,7 @@ def test_tall_matrices_split_into_small_blocks_that_the_threads_share(monkeypatc
         parallel.set_threads(old)
 
 
-def test_vector_work_by_ranges_covers_every_index_once(monkeypatch):
+def test_vector_work_by_ranges_covers_every_index_once():
     old = parallel.threads()
     parallel.set_threads(2)
     try:
