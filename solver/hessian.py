@@ -11,8 +11,9 @@ with E_f picking the face's edges from omega and P the constraint map
 omega = c + P x (constraints.py).  P does not change during a solve, so
 every entry of H_x is a fixed linear combination of the entries of the Q_f:
 ``FaceAssembly`` finds those combinations once (a sparse matrix S from the
-stacked Q_f to the values of H_x in a fixed CSR pattern), and each LM
-iteration then costs one batched matmul for the Q_f and one sparse product.
+stacked Q_f to the values of H_x's upper triangle in a fixed CSR pattern),
+and each LM iteration then costs one batched matmul for the Q_f, one sparse
+product and a gather that fills in the lower triangle.
 
 Why assemble at all: PCG multiplies by H a few hundred times per LM
 iteration, and one product with the assembled H reads about as many bytes
@@ -33,15 +34,25 @@ _CHUNK = 16384
 
 
 class FaceAssembly:
-    """Assembles P^T (sum_f E_f^T Q_f E_f) P + C for per-face (9, 9) blocks.
+    """Assembles P^T (sum_f E_f^T Q_f E_f) P + C for symmetric per-face
+    (9, 9) blocks.
 
     face_edges : (m, 3) edge ids; block row/column 3k + i is component i of
                  the face's k-th edge
     P          : (3 #E, n) constraint map, constant
-    extra      : a constant (n, n) matrix C added to every result (the
-                 smoothness term 2 P^T W P); its pattern joins H's
+    extra      : a constant symmetric (n, n) matrix C added to every result
+                 (the smoothness term 2 P^T W P); its pattern joins H's
     pattern    : further (n, n) entries to keep in the pattern (values
                  ignored), e.g. whole diagonal blocks that are read back
+
+    H is symmetric, so S holds only its upper triangle (i <= j), fed by the
+    block entries a <= b (45 of the 81 per face), and ``data`` copies each
+    value to its mirror entry (so H is exactly symmetric).  Building S is a
+    sort of these keys, and what that costs is mostly first touches of new
+    memory (this VM faults pages in at ~3 ms per MB): with half the keys, S
+    built as CSR straight from the sorted keys (no inverse index, no COO
+    conversion) and few other new arrays, the volume problem's setup at 98k
+    tets went from 5.6 to 2.8 s (bench/RESULTS.md).
     """
 
     def __init__(self, face_edges: np.ndarray, P: sp.spmatrix, extra: sp.spmatrix | None = None,
@@ -56,25 +67,63 @@ class FaceAssembly:
         dof = (3 * fe[:, :, None] + np.arange(3)).reshape(self.m, 9)
         keys, cols, vals = [], [], []
         for f0 in range(0, self.m, _CHUNK):
-            xr, xc, v, t = _expand(dof[f0:f0 + _CHUNK], P)
-            keys.append(xr.astype(np.int64) * n + xc)
-            cols.append(t + 81 * f0)
+            k, t, v = _upper_entries(dof[f0:f0 + _CHUNK], P)
+            keys.append(k)
+            cols.append((t + 81 * f0).astype(np.int32 if 81 * self.m < 2**31 else np.int64))
             vals.append(v)
-        n_face_keys = sum(len(k) for k in keys)
+        keys = np.concatenate(keys) if keys else np.zeros(0, np.int64)
+        # sorted by key, the face entries are S's rows in order: S is built
+        # as CSR directly (no inverse index, no COO conversion)
+        order = np.argsort(keys)
+        keys = keys[order]
+        first = np.r_[True, keys[1:] != keys[:-1]] if len(keys) else np.zeros(0, bool)
+        starts = np.flatnonzero(first)
+        ukeys = keys[starts]
+        counts = np.diff(np.r_[starts, len(keys)])
+        del keys, first
         # the pattern also holds the diagonal, the extra term and the
-        # requested entries
-        for M in (sp.eye(n), extra, pattern):
+        # requested entries (their upper-triangle keys), merged into the
+        # sorted face keys
+        more = [np.arange(n, dtype=np.int64) * (n + 1)]
+        for M in (extra, pattern):
             if M is not None:
                 C = sp.coo_matrix(M)
-                keys.append(C.row.astype(np.int64) * n + C.col)
-        self._keys, inv = np.unique(np.concatenate(keys), return_inverse=True)
-        self.nnz = len(self._keys)
-        rows = self._keys // n
-        self.indices = self._keys - rows * n
-        self.indptr = np.r_[0, np.cumsum(np.bincount(rows, minlength=n))]
-        self.S = parallel(sp.csr_matrix((np.concatenate(vals) if vals else np.zeros(0),
-                                         (inv[:n_face_keys], np.concatenate(cols) if cols else np.zeros(0, int))),
-                                        shape=(self.nnz, 81 * self.m)))
+                lo, hi = np.minimum(C.row, C.col).astype(np.int64), np.maximum(C.row, C.col).astype(np.int64)
+                more.append(lo * n + hi)
+        more = np.unique(np.concatenate(more))
+        pos = np.searchsorted(ukeys, more)
+        missing = (pos == len(ukeys)) | (ukeys[np.minimum(pos, max(len(ukeys) - 1, 0))] != more) \
+            if len(ukeys) else np.ones(len(more), bool)
+        if np.any(missing):
+            up_keys = np.insert(ukeys, pos[missing], more[missing])
+            # the row of S of every face key: shifted by the keys inserted before it
+            row_counts = np.zeros(len(up_keys), np.int64)
+            row_counts[np.arange(len(ukeys)) + np.searchsorted(pos[missing], np.arange(len(ukeys)), side="right")] = counts
+        else:
+            up_keys, row_counts = ukeys, counts
+        n_up = len(up_keys)
+        cols = np.concatenate(cols) if cols else np.zeros(0, np.int32)
+        vals = np.concatenate(vals) if vals else np.zeros(0)
+        self.S = parallel(sp.csr_matrix((vals[order], cols[order], np.r_[0, np.cumsum(row_counts)]),
+                                        shape=(n_up, 81 * self.m)))
+        del order, cols, vals
+        # the full pattern: the upper triangle and its mirror image, merged
+        # row by row by SciPy (the two strict triangles do not overlap); the
+        # values carry each entry's upper-triangle index + 1
+        # (fresh memory is what costs here, so few new arrays: int64
+        # values, offsets made in place)
+        ur = up_keys // n
+        U = sp.csr_matrix((np.arange(1, n_up + 1, dtype=np.int64), up_keys - ur * n,
+                           np.r_[0, np.cumsum(np.bincount(ur, minlength=n))]), shape=(n, n))
+        del ur, up_keys
+        H = (U + sp.triu(U, k=1).T.tocsr()).tocsr()
+        H.sort_indices()
+        self.indices, self.indptr = H.indices, H.indptr
+        self.nnz = H.nnz
+        self._mirror = H.data
+        self._mirror -= 1
+        self._keys = np.repeat(np.arange(n, dtype=np.int64) * n, np.diff(self.indptr))
+        self._keys += self.indices
         self.diagonal_positions = self.positions(np.arange(n), np.arange(n))
         self.extra_data = np.zeros(self.nnz)
         if extra is not None:
@@ -90,28 +139,47 @@ class FaceAssembly:
         return pos
 
     def data(self, Q: np.ndarray) -> np.ndarray:
-        """CSR values of P^T (sum_f E_f^T Q_f E_f) P (without the extra term)."""
-        return self.S @ np.ascontiguousarray(Q, dtype=float).reshape(-1)
+        """CSR values of P^T (sum_f E_f^T Q_f E_f) P (without the extra
+        term) for symmetric Q_f (their upper triangles are read)."""
+        up = self.S @ np.ascontiguousarray(Q, dtype=float).reshape(-1)
+        # (a plain gather: 0.03 s for 10 M values at 98k tets; by index
+        # ranges on the thread pool, or with int32 indices, it was slower)
+        return up[self._mirror]
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """A CSR matrix with the fixed pattern and these values (no copy)."""
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
-def _expand(dof: np.ndarray, P: sp.csr_matrix):
-    """The x-space entries that the face-block entries of these faces feed:
-    block entry (a, b) of a face (omega dofs R, C) adds Q[a, b] P[R, i] P[C, j]
-    to H[i, j] for every nonzero of P's rows R and C.  Returns (i, j, P[R, i]
-    P[C, j], index of the block entry among these faces' 81 per face)."""
-    R = np.repeat(dof, 9, axis=1).reshape(-1)
-    C = np.tile(dof, (1, 9)).reshape(-1)
+# the 45 entries a <= b of a symmetric 9 x 9 block, their flat index 9a + b,
+# and whether they lie on its diagonal
+_IA, _IB = np.triu_indices(9)
+_FLAT = 9 * _IA + _IB
+_ON_DIAG = _IA == _IB
+
+
+def _upper_entries(dof: np.ndarray, P: sp.csr_matrix):
+    """The upper-triangle x-space entries that these faces' blocks feed.
+
+    Block entry (a, b) of a face (omega dofs R, C) adds Q[a, b] P[R, i]
+    P[C, j] to H[i, j] for every nonzero of P's rows R and C; for a < b the
+    mirror entry (b, a) adds the same value to H[j, i].  So the upper
+    triangle takes, from each a < b, the one of (i, j), (j, i) with row <=
+    column (both when i = j: twice the value), and from each a = b the
+    entries with i <= j.  Returns the keys i n + j (i <= j), the index of
+    the block entry among these faces' 81 per face, and the factor
+    P[R, i] P[C, j] (doubled where due)."""
+    n = P.shape[1]
+    R = dof[:, _IA].reshape(-1)
+    C = dof[:, _IB].reshape(-1)
     nr = np.diff(P.indptr)
     nR, nC = nr[R], nr[C]
     # most omega dofs are one unknown each (free edges): one entry apiece
-    one = np.nonzero((nR == 1) & (nC == 1))[0]
+    single = (nR == 1) & (nC == 1)
+    one = np.flatnonzero(single)
     pi, qi = P.indptr[R[one]], P.indptr[C[one]]
-    out = [(P.indices[pi], P.indices[qi], P.data[pi] * P.data[qi], one)]
-    many = np.nonzero((nR * nC > 0) & ~((nR == 1) & (nC == 1)))[0]
+    parts = [(P.indices[pi], P.indices[qi], P.data[pi] * P.data[qi], one)]
+    many = np.flatnonzero((nR * nC > 0) & ~single)
     if len(many):
         cnt = nR[many] * nC[many]
         owner = np.repeat(many, cnt)
@@ -119,8 +187,15 @@ def _expand(dof: np.ndarray, P: sp.csr_matrix):
         ncol = nC[owner]
         pi = P.indptr[R[owner]] + o // ncol
         qi = P.indptr[C[owner]] + o % ncol
-        out.append((P.indices[pi], P.indices[qi], P.data[pi] * P.data[qi], owner))
-    return tuple(np.concatenate(z) for z in zip(*out))
+        parts.append((P.indices[pi], P.indices[qi], P.data[pi] * P.data[qi], owner))
+    i, j, v, src = (np.concatenate(z) for z in zip(*parts))
+    slot = src % 45
+    on_diag = _ON_DIAG[slot]
+    keep = ~on_diag | (i <= j)
+    i, j, v, src, slot, on_diag = i[keep], j[keep], v[keep], src[keep], slot[keep], on_diag[keep]
+    v = np.where(~on_diag & (i == j), 2.0 * v, v)
+    lo, hi = np.minimum(i, j).astype(np.int64), np.maximum(i, j).astype(np.int64)
+    return lo * n + hi, (src // 45) * 81 + _FLAT[slot], v
 
 
 def gauss_newton_blocks(Jb: np.ndarray, scale: float, out: np.ndarray | None = None) -> np.ndarray:

@@ -42,6 +42,7 @@ def test_face_assembly_matches_the_dense_sum_with_shared_unknowns():
     fa = FaceAssembly(face_edges, P, extra)
     H = fa.matrix(fa.data(Q) + fa.extra_data).toarray()
     assert np.allclose(H, _dense_reference(face_edges, P, Q, extra), rtol=0, atol=1e-12)
+    assert np.array_equal(H, H.T)  # built from one triangle: exactly symmetric, as CG assumes
     with pytest.raises(ValueError, match="outside the sparsity pattern"):
         fa.positions(np.array([0]), np.array([n - 1]))
 
