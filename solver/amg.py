@@ -159,6 +159,7 @@ class Level:
     PT: sp.csr_matrix | None = None
     Dinv: np.ndarray | None = None
     omega: float = 0.6
+    agg: np.ndarray | None = None  # the aggregate of every node
     S: sp.csr_matrix | None = None  # omega * block-diagonal inverse, as a sparse matrix
     ops: tuple = ()  # (A, P, PT, S) as applied in the V-cycle (row-split on several cores)
 
@@ -174,22 +175,34 @@ class AMG:
 
     @classmethod
     def build(cls, A: sp.spmatrix, block: int = 1, theta: float = 0.0, max_coarse: int = 600,
-              seed: int = 0) -> AMG:
+              seed: int = 0, like: AMG | None = None) -> AMG:
         """theta > 0 drops connections weaker than theta * sqrt(|a_ii a_jj|)
         before aggregating.  The default aggregates by the matrix graph
         alone: with a strength filter (theta = 0.08) the denser coarse
         Galerkin operators stopped coarsening (78k-tet ball: 4,590 -> 2,703
         rows holding 4.9 M nonzeros), which made one V-cycle cost 26 ms and
         the setup 7 s, against 5 ms and 0.6 s now, for a similar number of
-        CG steps (bench/RESULTS.md)."""
+        CG steps (bench/RESULTS.md).
+
+        like: an earlier hierarchy for a matrix with the same sparsity
+        pattern (new values): its aggregates are reused, so only the
+        smoothers, the prolongators and the Galerkin products are rebuilt.
+        With theta = 0 the aggregates depend on the values only where a
+        node left over by the independent set joins its strongest
+        neighbour's aggregate."""
         rng = np.random.default_rng(seed)
         A = sp.csr_matrix(A)
         b = block
         amg = cls(block=b)
+        reuse = like is not None and like.block == b and _same_pattern(like.levels[0].A, A)
         while A.shape[0] > max_coarse * b and len(amg.levels) < 12:
             n = A.shape[0] // b
             Dinv = _block_diag_inv(A, b)
-            agg = _aggregate(_node_matrix(A, b), theta, rng)
+            k = len(amg.levels)
+            if reuse and k < len(like.levels) - 1 and len(like.levels[k].agg) == n:
+                agg = like.levels[k].agg
+            else:
+                agg = _aggregate(_node_matrix(A, b), theta, rng)
             nagg = int(agg.max()) + 1
             if nagg >= 0.85 * n:
                 break
@@ -204,7 +217,7 @@ class AMG:
             P = (T - w * DAT).tocsr()
             P.eliminate_zeros()
             omega = 1.0 / rho
-            amg.levels.append(Level(A=A, P=P, PT=P.T.tocsr(), Dinv=Dinv, omega=omega,
+            amg.levels.append(Level(A=A, P=P, PT=P.T.tocsr(), Dinv=Dinv, omega=omega, agg=agg,
                                     S=(omega * block_diag_matrix(Dinv)).tocsr()))
             A = (P.T @ (A @ P)).tocsr()
         amg.levels.append(Level(A=A))
@@ -240,6 +253,11 @@ class AMG:
     @property
     def sizes(self) -> list:
         return [lv.A.shape[0] for lv in self.levels]
+
+
+def _same_pattern(A: sp.csr_matrix, B: sp.csr_matrix) -> bool:
+    return (A.shape == B.shape and A.nnz == B.nnz and np.array_equal(A.indptr, B.indptr)
+            and np.array_equal(A.indices, B.indices))
 
 
 def block_diag_matrix(D: np.ndarray) -> sp.csr_matrix:

@@ -124,6 +124,7 @@ class VolumeProblem:
         self._block_pos = self.assembly.positions(bi, bj).reshape(nfree, 3, 3)
         self._setup_gradient_space()
         self._blocks_scratch = None
+        self._amg = None
         self.setup_seconds = time.perf_counter() - t
 
     # ------------------------------------------------------------------ energy
@@ -282,7 +283,9 @@ class VolumeProblem:
         Dinv = parallel(sp.block_diag([block_diag_matrix(inv_blocks(B)), sp.diags(1.0 / d)], format="csr"))
         G = self.covariant_gradient(omega)
         Ac = (G.T @ (self.lm_matrix(Hdata, damping, diagH) @ G)).tocsr()
-        amg = AMG.build(Ac, block=3)
+        # the coarse operator's pattern is the same in every build: the
+        # aggregates of the last build are reused (amg.py)
+        amg = self._amg = AMG.build(Ac, block=3, like=self._amg)
         G, GT = parallel(G), parallel(G.T.tocsr())
 
         def apply(r):
