@@ -284,7 +284,7 @@ class VolumeProblem:
         G = self.covariant_gradient(omega)
         Ac = (G.T @ (self.lm_matrix(Hdata, damping, diagH) @ G)).tocsr()
         # the coarse operator's pattern is the same in every build: the
-        # aggregates of the last build are reused (amg.py)
+        # aggregates' roots of the last build are reused (amg.py)
         amg = self._amg = AMG.build(Ac, block=3, like=self._amg)
         G, GT = parallel(G), parallel(G.T.tocsr())
 
