@@ -177,6 +177,7 @@ class AMG:
     coarse_solver: object = None
     coarse_inverse: np.ndarray | None = None
     block: int = 1
+    seed: int = 0  # of the random weights that pick the aggregates' roots
 
     @classmethod
     def build(cls, A: sp.spmatrix, block: int = 1, theta: float = 0.0, max_coarse: int = 600,
@@ -189,7 +190,8 @@ class AMG:
         the setup 7 s, against 5 ms and 0.6 s now, for a similar number of
         CG steps (bench/RESULTS.md).
 
-        like: an earlier hierarchy built with the same seed.  With theta = 0
+        like: an earlier hierarchy (used if built with the same seed and
+        block size).  With theta = 0
         the aggregates' roots depend only on the matrix's sparsity pattern,
         so a level whose pattern is that of the same level of ``like``
         reuses its roots instead of searching the distance-2 graph again
@@ -202,12 +204,14 @@ class AMG:
         rng = np.random.default_rng(seed)
         A = sp.csr_matrix(A)
         b = block
-        amg = cls(block=b)
+        amg = cls(block=b, seed=seed)
+        if like is not None and (like.block, like.seed) != (b, seed):
+            like = None
         while A.shape[0] > max_coarse * b and len(amg.levels) < 12:
             n = A.shape[0] // b
             Dinv = _block_diag_inv(A, b)
             k = len(amg.levels)
-            prev = like.levels[k] if like is not None and like.block == b and k < len(like.levels) - 1 else None
+            prev = like.levels[k] if like is not None and k < len(like.levels) - 1 else None
             roots = prev.roots if theta == 0 and prev is not None and _same_pattern(prev.A, A) else None
             agg, roots = _aggregate(_node_matrix(A, b), theta, rng, roots)
             nagg = int(agg.max()) + 1

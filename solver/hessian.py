@@ -92,8 +92,9 @@ class FaceAssembly:
                 more.append(lo * n + hi)
         more = np.unique(np.concatenate(more))
         pos = np.searchsorted(ukeys, more)
-        missing = (pos == len(ukeys)) | (ukeys[np.minimum(pos, max(len(ukeys) - 1, 0))] != more) \
-            if len(ukeys) else np.ones(len(more), bool)
+        inside = pos < len(ukeys)
+        missing = np.ones(len(more), bool)
+        missing[inside] = ukeys[pos[inside]] != more[inside]
         if np.any(missing):
             up_keys = np.insert(ukeys, pos[missing], more[missing])
             # the row of S of every face key: shifted by the keys inserted before it

@@ -64,6 +64,8 @@ def test_amg_rebuilt_for_new_values_reuses_the_roots_and_equals_a_fresh_build(bl
     other = AMG.build(C, block=3, max_coarse=50, like=first)
     assert other.levels[0].roots is not first.levels[0].roots
     assert (other.levels[0].P != AMG.build(C, block=3, max_coarse=50).levels[0].P).nnz == 0
+    # roots picked with other random weights are not taken over
+    assert AMG.build(B, block=3, max_coarse=50, like=first, seed=1).levels[0].roots is not first.levels[0].roots
 
 
 def test_block_inverses_match_lapack():
