@@ -120,6 +120,8 @@ class SolveJob:
             "sizes": dict(rep.sizes),
             "metrics": dict(rep.metrics),
             "iterations": int(rep.lm.n_iterations) if rep.lm is not None else 0,
+            "converged": bool(rep.lm.converged) if rep.lm is not None else True,
+            "lm_reason": rep.lm.reason if rep.lm is not None else "",
             "seconds": float(rep.total_seconds),
             "wall_seconds": float(time.perf_counter() - t0),
             "edge_length": float(rep.edge_length),

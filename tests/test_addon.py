@@ -391,6 +391,11 @@ def test_threaded_solve_then_finish():
     assert level == "INFO" and "tets" in msg
     assert len(output("glyphs").data.vertices) == GLYPHS
     assert storage.stored_report(scene())["remeshed"] is True
+    # a solve that stopped without converging is written, but reported as a warning
+    assert j.outcome.report["converged"] is True
+    j.outcome.report.update(converged=False, lm_reason="stopped after 30 iterations")
+    level, msg = operators.finish_job(scene(), j)
+    assert level == "WARNING" and "did not converge (stopped after 30 iterations)" in msg
 
 
 # ------------------------------------------------------------------ results
