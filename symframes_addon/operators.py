@@ -103,14 +103,15 @@ def finish_job(scene, j: job.SolveJob) -> tuple[str, str]:
     msg = (f"SymFrames: {r['sizes'].get('tets', 0):,} tets, {r['iterations']} iterations, {r['seconds']:.1f} s; "
            f"monodromy {m.get('monodromy_mean_deg', 0):.3g} deg mean, "
            f"{m.get('spurious_singular_faces', 0)} spurious singular faces")
+    warnings = []
     if not r.get("converged", True):
         # written all the same (it may help to see where it fails), but said
         # plainly: an unconverged field can be far from the minimiser
-        return "WARNING", (msg + f"; the solve did not converge ({r.get('lm_reason', '')}): the field may be "
-                           "wrong there; try a smaller edge length or more iterations")
+        warnings.append(f"the solve did not converge ({r.get('lm_reason', '')}), so the field may be wrong: "
+                        "try a smaller edge length or more iterations")
     if j.outcome.streamlines is not None and not j.outcome.streamlines[0]:
-        return "WARNING", msg + "; no streamline could be traced"
-    return "INFO", msg
+        warnings.append("no streamline could be traced")
+    return ("WARNING", "; ".join([msg] + warnings)) if warnings else ("INFO", msg)
 
 
 def _tag_redraw(context) -> None:
