@@ -255,7 +255,10 @@ class FieldProblem:
         while True:
             H = h * 2.0**k
             r = self.options.tube_radius * H
-            tubes = build_tubes(self.network, self.checked.surface, r, r * np.sqrt(3.0), self._node_radius(H))
+            # caps stay on the surface only where it is flat: well inside
+            # fTetWild's envelope (tubes.py)
+            flat = 0.01 * self.options.epsilon * self.checked.surface.bbox_diagonal
+            tubes = build_tubes(self.network, self.checked.surface, r, r * np.sqrt(3.0), self._node_radius(H), flat)
             mesh = tetrahedralize(self.checked.surface, H, (tubes.V, tubes.F), self.options.epsilon, cancel)
             problem = self._topology_change(mesh)
             if problem is None or k == 0 or self.options.refine is not None:
