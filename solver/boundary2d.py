@@ -361,6 +361,19 @@ def solve_boundary_field(
     )
 
 
+def lift_mismatch(S: TriSurface, bf: BoundaryField) -> np.ndarray:
+    """(#F,) angle by which the lifted omega0 misses the holonomy the 2D
+    field prescribes around each triangle, (K + Omega) N to first order
+    (Eq. 4, 13).  It is a few hundredths of a radian on a sound mesh; a
+    quarter turn where closest-rotation matching in the lift picked the
+    wrong representative, as on folded boundary triangles.  Triangles at
+    sharp-feature vertices (fully fixed frames, large rotations) read 0."""
+    hol = np.einsum("fk,fkj->fj", S.face_edge_signs, bf.omega0[S.face_edges])
+    d = np.linalg.norm(hol - (bf.K + bf.Omega)[:, None] * S.face_normals, axis=1)
+    d[bf.is_feature_vertex[S.F].any(axis=1)] = 0.0
+    return d
+
+
 def _develop_angles(S, step, beta, reg, flab):
     """Breadth-first development of angles: phi_j = phi_i + step_ij."""
     E = S.edges

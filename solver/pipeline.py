@@ -17,7 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .boundary2d import BoundaryField, solve_boundary_field
+from .boundary2d import BoundaryField, lift_mismatch, solve_boundary_field
 from .constraints import TUBE, AffineOmega, build_constraints
 from .embed import Embedding, embed_network
 from .errors import Cancelled, MeshingError, TopologyError
@@ -329,7 +329,23 @@ class FieldProblem:
         extra = self._generator_parity(bf)
         if extra:
             bf = solve_boundary_field(B, G, fs, generator_turns=extra, normal_override=override)
+        self._check_lift(bf)
         return bf
+
+    def _check_lift(self, bf: BoundaryField) -> None:
+        """Refuse boundary data the volume solve cannot satisfy: triangles
+        where the 3D lift of the boundary field turns by a spurious quarter
+        turn (folded boundary triangles made them; LM then ends at its cap
+        with a penalty of 1e4 or more)."""
+        B = self.mesh.boundary
+        d = lift_mismatch(B, bf)
+        bad = np.nonzero(d > np.pi / 4)[0]
+        if len(bad):
+            c = B.V[B.F[bad[np.argmax(d[bad])]]].mean(axis=0)
+            raise MeshingError(
+                f"the boundary cross field could not be lifted to 3D on {len(bad)} boundary triangle(s) near "
+                f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}): the tet mesh's surface is probably folded there (a "
+                f"curve tube or feature close to the surface). Try another edge length (now {self.edge_length:.4g})")
 
     def _generator_parity(self, bf: BoundaryField) -> dict:
         """Full turns the boundary field needs around generators that bound in

@@ -340,3 +340,27 @@ def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(solved, monk
     assert any(c.negative_curvature for c in calls), "no Newton attempt fell back; the test needs one"
     assert sum(it.cg_iterations for it in rep.iterations) == sum(c.iterations for c in calls)
     assert rep.final.energy < rep.iterations[0].energy
+
+
+def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(solved):
+    """Folded boundary triangles made the lift of the boundary field pick a
+    wrong cross representative: a quarter turn no volume field can undo.
+    The pipeline refuses such data with a MeshingError naming where."""
+    import dataclasses
+
+    from solver.boundary2d import lift_mismatch
+    from solver.errors import MeshingError
+
+    p = solved("ball").problem
+    B, bf = p.mesh.boundary, p.boundary
+    assert lift_mismatch(B, bf).max() < 0.2
+    # an extra quarter turn about the normal on one edge of an ordinary triangle
+    e = int(B.face_edges[np.nonzero(~bf.is_feature_vertex[B.F].any(axis=1))[0][0], 0])
+    omega0 = bf.omega0.copy()
+    omega0[e] += 0.5 * np.pi * B.vertex_normals[B.edges[e, 0]]
+    bad = dataclasses.replace(bf, omega0=omega0)
+    d = lift_mismatch(B, bad)
+    assert set(np.nonzero(d > np.pi / 4)[0]) == set(np.nonzero((B.face_edges == e).any(axis=1))[0])
+    with pytest.raises(MeshingError, match=r"could not be lifted to 3D on 2 boundary triangle\(s\) near"):
+        p._check_lift(bad)
+    p._check_lift(bf)
