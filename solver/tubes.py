@@ -81,8 +81,7 @@ def build_tubes(
     # from it (one closest-point query for all of them)
     dense = np.linspace(0.0, 1.0, 400)
     samples = [g.point(*_locate(g, dense * g.arclength[-1])) for g in geos]
-    d_dense = np.split(surface.closest_points(np.vstack(samples))[0], np.cumsum([len(x) for x in samples])[:-1]) \
-        if samples else []
+    d_dense = _distances(surface, samples)
     layout = []
     for ci, (c, geo) in enumerate(zip(net.curves, geos)):
         L = geo.arclength[-1]
@@ -102,8 +101,7 @@ def build_tubes(
         s = np.linspace(0.0, L, m, endpoint=False) if c.closed else np.linspace(s0, s1, m + 1)
         layout.append((ci, s))
     centres = [geos[ci].point(*_locate(geos[ci], s)) for ci, s in layout]
-    d_st = np.split(surface.closest_points(np.vstack(centres))[0], np.cumsum([len(x) for x in centres])[:-1]) \
-        if centres else []
+    d_st = _distances(surface, centres)
     V: list[np.ndarray] = []
     F: list[np.ndarray] = []
     nv = 0
@@ -139,6 +137,14 @@ def build_tubes(
     # ball at h = 0.25, against 5k tets in 4 s once.)
     Fall = np.vstack(F).astype(np.int64) if F else np.zeros((0, 3), np.int64)
     return TubeSurfaces(Vall, Fall)
+
+
+def _distances(surface: TriSurface, groups: list[np.ndarray]) -> list[np.ndarray]:
+    """Distance to the surface of every point in each group, in one query."""
+    if not groups:
+        return []
+    d = surface.closest_points(np.vstack(groups))[0]
+    return np.split(d, np.cumsum([len(g) for g in groups])[:-1])
 
 
 def _rings(geo: CurveGeometry, s: np.ndarray, closed: bool, radius: float) -> np.ndarray:
@@ -210,4 +216,3 @@ def _arclength_at_distance(geo: CurveGeometry, d: float, from_start: bool) -> fl
         return float(s[k[0]]) if len(k) else float(s[-1])
     k = np.nonzero(dist >= d)[0]
     return float(s[k[-1]]) if len(k) else float(s[0])
-
