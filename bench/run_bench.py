@@ -66,21 +66,27 @@ def main(argv=None) -> int:
     if args.one:
         print("RESULT " + json.dumps(run_one(args.example, args.one), default=float))
         return 0
-    rows = []
+    rows, failed = [], []
     for n in args.tets:
         print(f"[bench] {args.example} ~{n:,} tets ...", file=sys.stderr, flush=True)
         out = subprocess.run([sys.executable, os.path.abspath(__file__), "--example", args.example, "--one", str(n)],
                              capture_output=True, text=True)
         line = [x for x in out.stdout.splitlines() if x.startswith("RESULT ")]
         if out.returncode != 0 or not line:
+            # one failed size does not lose the others: it is reported
+            # with the table (its last error line) and the run exits 1
             print(out.stderr[-2000:], file=sys.stderr)
-            return 1
+            err = [x for x in out.stderr.strip().splitlines() if x.strip()]
+            failed.append((n, err[-1] if err else f"exit status {out.returncode}"))
+            continue
         r = json.loads(line[0][7:])
         rows.append(r)
         print(f"[bench]   {r['tets']:,} tets in {r['wall']:.1f} s, {r['lm_iterations']} LM its ({r['lm_reason']})",
               file=sys.stderr, flush=True)
     import numpy as np
 
+    if not rows:
+        return 1
     text = table(rows)
     if len(rows) >= 2:
         k = np.polyfit(np.log([r["tets"] for r in rows]), np.log([r["wall"] for r in rows]), 1)[0]
@@ -88,6 +94,8 @@ def main(argv=None) -> int:
         k_lm = np.polyfit(np.log([r["tets"] for r in rows]),
                           np.log([r["stages"].get("volume3d", 0.0) for r in rows]), 1)[0]
         text += f" (LM alone: n^{k_lm:.2f})."
+    for n, err in failed:
+        text += f"\n\nFailed: the ~{n:,}-tet target ({err})."
     cpu = platform.processor() or platform.machine()
     from solver.parallel import threads
 
@@ -105,7 +113,7 @@ def main(argv=None) -> int:
             new = (old.rstrip() + "\n\n" if old else "# Benchmark results\n\n") + block + "\n"
         with open(path, "w") as fh:
             fh.write(new)
-    return 0
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

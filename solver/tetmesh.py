@@ -366,19 +366,40 @@ def tetrahedralize(
         Vi, Fi = internal
         V = np.vstack([V, Vi])
         F = np.vstack([F, Fi + len(surface.V)])
-    P, T = run_tetwild(V, F, edge_length, epsilon, cancel=cancel)
-    if len(T) == 0:
-        raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
-    full = TetMesh(np.asarray(P), np.asarray(T))
-    keep = _inside_tets(full, surface, epsilon * surface.bbox_diagonal)
-    if not np.any(keep):
-        raise MeshingError(
-            "no tetrahedra lie inside the surface; check that it is closed and its normals point outward"
-        )
-    used, Tn = np.unique(full.tets[keep], return_inverse=True)
-    mesh = TetMesh(full.vertices[used], Tn.reshape(-1, 4))
+    # fTetWild rarely returns a flat tet (seen once: volume 2.5e-34 in a
+    # 25k-tet ball mesh at h = 0.068), which nothing downstream can use
+    # (barycentric maps, cotan weights); it is not deterministic, so the
+    # mesh is made again at a slightly different edge length
+    for attempt, scale in enumerate(FLAT_RETRY_SCALES):
+        P, T = run_tetwild(V, F, edge_length * scale, epsilon, cancel=cancel)
+        if len(T) == 0:
+            raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
+        full = TetMesh(np.asarray(P), np.asarray(T))
+        keep = _inside_tets(full, surface, epsilon * surface.bbox_diagonal)
+        if not np.any(keep):
+            raise MeshingError(
+                "no tetrahedra lie inside the surface; check that it is closed and its normals point outward"
+            )
+        used, Tn = np.unique(full.tets[keep], return_inverse=True)
+        mesh = TetMesh(full.vertices[used], Tn.reshape(-1, 4))
+        n_flat = int(np.sum(flat_tets(mesh, edge_length)))
+        if n_flat == 0:
+            break
+    else:
+        raise MeshingError(f"fTetWild returned {n_flat} flat tetrahedra at edge length {edge_length:.4g} "
+                           f"(and at {len(FLAT_RETRY_SCALES) - 1} lengths near it); try another edge length")
     mesh.info["tetwild_seconds"] = time.perf_counter() - t0
+    mesh.info["tetwild_retries"] = attempt
     return mesh
+
+
+# edge-length factors tried in turn when fTetWild returns flat tets
+FLAT_RETRY_SCALES = (1.0, 1.005, 0.995)
+
+
+def flat_tets(mesh: TetMesh, edge_length: float) -> np.ndarray:
+    """Tets whose volume is below 1e-9 h^3 (a regular tet's is 0.118 h^3)."""
+    return np.abs(mesh.tet_volumes) <= 1e-9 * edge_length**3
 
 
 # fTetWild's optimisation passes (its default is 80).  Where a mesh reaches
