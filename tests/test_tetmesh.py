@@ -45,7 +45,7 @@ def test_a_flat_tet_from_ftetwild_is_meshed_again(sphere, monkeypatch):
     mesh = tm.tetrahedralize(sphere, 0.5)
     assert len(lengths) == 2 and lengths[1] != lengths[0]
     assert mesh.info["tetwild_retries"] == 1
-    assert not tm.flat_tets(mesh, 0.5).any()
+    assert not tm.flat_tets(mesh).any()
     assert mesh.tet_volumes.min() > 0
 
 
