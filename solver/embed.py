@@ -110,7 +110,15 @@ class TetLocator:
         self.tree = cKDTree(self.centroids)
         # inverse of the barycentric map per tet
         A = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=2)
-        self.Ainv = np.linalg.inv(A)
+        # a tet flat to round-off (fTetWild once returned one, volume
+        # 2.5e-34, in the coarse mesh of a ~270k-tet ball) has no inverse:
+        # it gets the pseudo-inverse, which locates nothing inside it
+        L = np.linalg.norm(A, axis=1).max(axis=1)
+        flat = np.abs(np.linalg.det(A)) <= 1e-14 * L**3
+        self.Ainv = np.empty_like(A)
+        self.Ainv[~flat] = np.linalg.inv(A[~flat])
+        if flat.any():
+            self.Ainv[flat] = np.linalg.pinv(A[flat])
         self.origin = X[:, 0]
 
     def barycentric(self, t, p) -> np.ndarray:

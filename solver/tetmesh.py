@@ -366,43 +366,19 @@ def tetrahedralize(
         Vi, Fi = internal
         V = np.vstack([V, Vi])
         F = np.vstack([F, Fi + len(surface.V)])
-    # fTetWild rarely returns a flat tet (seen once: volume 2.5e-34 in the
-    # coarse mesh of the ~270k-tet ball target), which nothing downstream
-    # can use (barycentric maps, cotan weights); it is not deterministic,
-    # so the mesh is made again at a slightly different edge length
-    for attempt, scale in enumerate(FLAT_RETRY_SCALES):
-        P, T = run_tetwild(V, F, edge_length * scale, epsilon, cancel=cancel)
-        if len(T) == 0:
-            raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
-        full = TetMesh(np.asarray(P), np.asarray(T))
-        keep = _inside_tets(full, surface, epsilon * surface.bbox_diagonal)
-        if not np.any(keep):
-            raise MeshingError(
-                "no tetrahedra lie inside the surface; check that it is closed and its normals point outward"
-            )
-        used, Tn = np.unique(full.tets[keep], return_inverse=True)
-        mesh = TetMesh(full.vertices[used], Tn.reshape(-1, 4))
-        n_flat = int(np.sum(flat_tets(mesh)))
-        if n_flat == 0:
-            break
-    else:
-        raise MeshingError(f"fTetWild returned {n_flat} flat tetrahedra at edge length {edge_length:.4g} "
-                           f"(and at {len(FLAT_RETRY_SCALES) - 1} lengths near it); try another edge length")
+    P, T = run_tetwild(V, F, edge_length, epsilon, cancel=cancel)
+    if len(T) == 0:
+        raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
+    full = TetMesh(np.asarray(P), np.asarray(T))
+    keep = _inside_tets(full, surface, epsilon * surface.bbox_diagonal)
+    if not np.any(keep):
+        raise MeshingError(
+            "no tetrahedra lie inside the surface; check that it is closed and its normals point outward"
+        )
+    used, Tn = np.unique(full.tets[keep], return_inverse=True)
+    mesh = TetMesh(full.vertices[used], Tn.reshape(-1, 4))
     mesh.info["tetwild_seconds"] = time.perf_counter() - t0
-    mesh.info["tetwild_retries"] = attempt
     return mesh
-
-
-# edge-length factors tried in turn when fTetWild returns flat tets
-FLAT_RETRY_SCALES = (1.0, 1.005, 0.995)
-
-
-def flat_tets(mesh: TetMesh) -> np.ndarray:
-    """Tets flat to round-off: volume below 1e-12 of their longest edge
-    cubed (a regular tet's is 0.118).  Small tets of fair shape, as fTetWild
-    makes along the curve tubes (at h = 0.11: 7 below 1e-9 h^3), pass."""
-    L = mesh.edge_lengths[mesh.tet_edges].max(axis=1)
-    return np.abs(mesh.tet_volumes) <= 1e-12 * L**3
 
 
 # fTetWild's optimisation passes (its default is 80).  Where a mesh reaches

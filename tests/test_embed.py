@@ -66,3 +66,21 @@ def test_tubes_on_a_flat_surface_end_in_caps():
     # plate: 4 curves through the thickness, a cap on both faces
     d, on, n_caps, cap_off, spacing = _tubes("plate", 0.1)
     assert n_caps == 8 and cap_off < 1e-12
+
+
+def test_point_location_survives_a_tet_flat_to_round_off():
+    """fTetWild once returned a tet of volume 2.5e-34; its barycentric map
+    has no inverse, and locating points must not fail on it."""
+    from solver.embed import TetLocator
+    from tests.meshes import box_mesh
+
+    mesh = box_mesh(2)
+    X = mesh.vertices.copy()
+    t = mesh.tets[0]
+    # the fourth corner on the first edge's midpoint: the tet is flat
+    # (numpy's inverse raises on it)
+    X[t[3]] = 0.5 * (X[t[0]] + X[t[1]])
+    flat = type(mesh)(X, mesh.tets)
+    loc = TetLocator(flat)
+    P = flat.vertices[flat.tets[1:]].mean(axis=1)
+    assert (loc.locate(P) >= 0).all()
