@@ -112,13 +112,14 @@ class TetLocator:
         A = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=2)
         # a tet flat to round-off (fTetWild once returned one, volume
         # 2.5e-34, in the coarse mesh of a ~270k-tet ball) has no inverse:
-        # it gets the pseudo-inverse, which locates nothing inside it
+        # it gets the pseudo-inverse (so a walk can still step through it),
+        # and locate prefers the neighbours, which hold all its points
         L = np.linalg.norm(A, axis=1).max(axis=1)
-        flat = np.abs(np.linalg.det(A)) <= 1e-14 * L**3
+        self.flat = np.abs(np.linalg.det(A)) <= 1e-14 * L**3
         self.Ainv = np.empty_like(A)
-        self.Ainv[~flat] = np.linalg.inv(A[~flat])
-        if flat.any():
-            self.Ainv[flat] = np.linalg.pinv(A[flat])
+        self.Ainv[~self.flat] = np.linalg.inv(A[~self.flat])
+        if self.flat.any():
+            self.Ainv[self.flat] = np.linalg.pinv(A[self.flat])
         self.origin = X[:, 0]
 
     def barycentric(self, t, p) -> np.ndarray:
@@ -135,7 +136,7 @@ class TetLocator:
         _, idx = self.tree.query(P, k=k)
         idx = idx.reshape(len(P), k)
         lam = self.barycentric(idx, P[:, None, :])  # (n, k, 4)
-        score = lam.min(axis=2)
+        score = np.where(self.flat[idx], -np.inf, lam.min(axis=2))
         best = np.argmax(score, axis=1)
         ok = score[np.arange(len(P)), best] > -1e-9
         out = np.where(ok, idx[np.arange(len(P)), best], -1)
