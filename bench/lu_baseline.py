@@ -27,6 +27,8 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
+from run_bench import machine  # noqa: E402  (bench/ is the script's directory, on sys.path)
+
 
 def _lu_child(vp, x0, conn):
     t = time.perf_counter()
@@ -98,8 +100,8 @@ def main(argv=None) -> int:
         if lu is None:
             break
     text = table(rows, args.limit)
-    text += (f"\n\nLM time only (same mesh, same LM loop; meshing excluded). Machine: {os.cpu_count()} cores "
-             f"({platform.processor() or platform.machine()}), Python {platform.python_version()}.")
+    text += (f"\n\nLM time only (same mesh, same LM loop; meshing excluded). Machine: {machine()}, "
+             f"Python {platform.python_version()}.")
     print(text)
     if args.write:
         path = os.path.join(ROOT, "bench", "RESULTS.md")

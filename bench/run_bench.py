@@ -45,6 +45,34 @@ def run_one(example: str, tets: int) -> dict:
             "metrics": rep.metrics}
 
 
+def machine() -> str:
+    """The cores, CPU model and last-level cache, for the tables: this VM's
+    host changes between sessions, and the same code ran a CG step at ~98k
+    tets in 22 ms on one host and 13 ms on another (bench/RESULTS.md)."""
+    model = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            model = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), model)
+    except OSError:
+        pass
+    cache = ""
+    base = "/sys/devices/system/cpu/cpu0/cache"
+    try:
+        levels = []
+        for d in os.listdir(base):
+            if d.startswith("index"):
+                with open(os.path.join(base, d, "level")) as f:
+                    lvl = int(f.read())
+                with open(os.path.join(base, d, "size")) as f:
+                    levels.append((lvl, f.read().strip()))
+        if levels:
+            lvl, size = max(levels)
+            cache = f", L{lvl} {size}"
+    except (OSError, ValueError):
+        pass
+    return f"{os.cpu_count()} cores ({model}{cache})"
+
+
 def table(rows: list[dict]) -> str:
     head = ("| tets | edges | " + " | ".join(STAGES) + " | total s | LM its | CG its | peak MB (solver / mesher) |")
     sep = "|" + "---:|" * (len(STAGES) + 6)
@@ -96,10 +124,9 @@ def main(argv=None) -> int:
         text += f" (LM alone: n^{k_lm:.2f})."
     for n, err in failed:
         text += f"\n\nFailed: the ~{n:,}-tet target ({err})."
-    cpu = platform.processor() or platform.machine()
     from solver.parallel import threads
 
-    text += (f"\n\nMachine: {os.cpu_count()} cores ({cpu}), Python {platform.python_version()}; "
+    text += (f"\n\nMachine: {machine()}, Python {platform.python_version()}; "
              f"{threads()} threads for sparse products.")
     print(text)
     if args.write:
