@@ -105,7 +105,16 @@ class RowSplitMatrix:
                        for a, b in zip(self.bounds[:-1], self.bounds[1:])]
 
     def __matmul__(self, x):
-        out = np.empty((self.shape[0],) + np.shape(x)[1:], dtype=np.result_type(self.dtype, x))
+        return self.matvec(x)
+
+    def matvec(self, x, out=None):
+        """A @ x, written into ``out`` if given (of the result's shape and
+        dtype): a kept array, unlike a fresh one, is not faulted in again."""
+        shape, dtype = (self.shape[0],) + np.shape(x)[1:], np.result_type(self.dtype, x)
+        if out is None:
+            out = np.empty(shape, dtype=dtype)
+        elif out.shape != shape or out.dtype != dtype:
+            raise ValueError(f"out must have shape {shape} and dtype {dtype}, got {out.shape} {out.dtype}")
         b = self.bounds
         n = len(self.blocks)
         claim = itertools.count()  # next() on it is atomic under the GIL

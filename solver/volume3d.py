@@ -143,28 +143,30 @@ class VolumeProblem:
         return es + ep
 
     # ------------------------------------------------------------ linearisation
-    def linearise(self, x, linear=False):
+    def linearise(self, x, linear=False, out=None):
         """Gradient, the values of the Gauss-Newton Hessian in x space
-        (FaceAssembly's pattern) and its diagonal blocks."""
+        (FaceAssembly's pattern; written into ``out`` if given) and its
+        diagonal blocks."""
         om = self.omega(x)
         r = self.se.residual(om, linear)
         Jb = self.se.jacobian_blocks(om, linear)
         JTr = self.se.jacobian_transpose_product(Jb, r)
         g = 2.0 * (self.PT @ (self.W3 * om.reshape(-1) + self.a * JTr.reshape(-1)))
-        data = self.assembly.data(gauss_newton_blocks(Jb, 2.0 * self.a, out=self._face_blocks()))
+        data = self.assembly.data(gauss_newton_blocks(Jb, 2.0 * self.a, out=self._face_blocks()), out=out)
         data += self.assembly.extra_data
         B = data[self._block_pos]
         d = data[self.assembly.diagonal_positions[3 * len(self.cons.free_edges):]]
         return g, data, (B, d)
 
-    def second_order(self, x, linear=False):
+    def second_order(self, x, linear=False, out=None):
         """Values of 2 a P^T (sum_f r_f . d^2 r_f) P: what Gauss-Newton
-        leaves out of the Hessian of Eq. 23.  None for the linear problem."""
+        leaves out of the Hessian of Eq. 23 (written into ``out`` if
+        given).  None for the linear problem."""
         if linear:
             return None
         Q = self.se.residual_hessian_blocks(self.se.residual(self.omega(x)), out=self._face_blocks())
         Q *= 2.0 * self.a
-        return self.assembly.data(Q)
+        return self.assembly.data(Q, out=out)
 
     def _face_blocks(self) -> np.ndarray:
         """Scratch space for the (m, 9, 9) face blocks, kept between LM
@@ -175,10 +177,15 @@ class VolumeProblem:
             self._blocks_scratch = np.empty((len(self.faces), 9, 9))
         return self._blocks_scratch
 
-    def lm_matrix(self, data, damping=0.0, diagH=None):
-        """The assembled matrix with these values plus damping * diag(diagH)."""
+    def lm_matrix(self, data, damping=0.0, diagH=None, out=None):
+        """The assembled matrix with these values plus damping * diag(diagH)
+        (the damped values written into ``out`` if given, else a copy)."""
         if damping:
-            data = data.copy()
+            if out is None:
+                data = data.copy()
+            else:
+                np.copyto(out, data)
+                data = out
             data[self.assembly.diagonal_positions] += damping * diagH
         return self.assembly.matrix(data)
 
@@ -270,10 +277,11 @@ class VolumeProblem:
         B, d = blocks
         return np.r_[np.einsum("nii->ni", B).reshape(-1), d]
 
-    def make_preconditioner(self, blocks, damping, Hdata, omega):
+    def make_preconditioner(self, blocks, damping, Hdata, omega, scratch=None):
         """Block Jacobi plus the covariant auxiliary-space correction
         G (G^T H G)^-1 G^T, whose coarse operator is inverted by one V-cycle
-        of a nodal AMG.  Hdata: the Gauss-Newton Hessian's values."""
+        of a nodal AMG.  Hdata: the Gauss-Newton Hessian's values; scratch:
+        space for the damped values (see lm_matrix)."""
         B, d = blocks
         diagH = self.damping_diagonal(blocks)
         B = B + damping * np.einsum("nii->ni", B)[:, :, None] * np.eye(3)
@@ -282,7 +290,7 @@ class VolumeProblem:
         # diagonal on the adaptation parameters
         Dinv = parallel(sp.block_diag([block_diag_matrix(inv_blocks(B)), sp.diags(1.0 / d)], format="csr"))
         G = self.covariant_gradient(omega)
-        Ac = (G.T @ (self.lm_matrix(Hdata, damping, diagH) @ G)).tocsr()
+        Ac = (G.T @ (self.lm_matrix(Hdata, damping, diagH, out=scratch) @ G)).tocsr()
         # the coarse operator's pattern is the same in every build: the
         # aggregates' roots of the last build are reused (amg.py)
         amg = self._amg = AMG.build(Ac, block=3, like=self._amg)
@@ -333,6 +341,12 @@ class VolumeProblem:
         lam = 1e-4
         nu = 2.0
         g, Hgn, blocks = self.linearise(x, linear)
+        # the matrices' values (~10 M at 98k tets) go into arrays kept for
+        # the whole solve: the damped matrix, the Newton term and the
+        # Hessian's sum; the Gauss-Newton values of an accepted step
+        # overwrite those of the last (fresh arrays this size are new pages
+        # each time, see hessian.FaceAssembly.data)
+        Mbuf, Kbuf, Hsum = np.empty_like(Hgn), None, None
         g0 = np.linalg.norm(g)
         rep.iterations.append(LMIteration(0, F, es, ep, g0, lam, 0, True, 0.0))
         pc, pc_lam, moved = None, lam, 0.0
@@ -380,12 +394,15 @@ class VolumeProblem:
             # bench/RESULTS.md)
             diagH = self.damping_diagonal(blocks)
             if not direct and (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
-                pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Hgn, self.omega(x)), lam, 0.0
+                pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Hgn, self.omega(x), Mbuf), lam, 0.0
                 rep.preconditioner_builds += 1
             # one assembled matrix per system (hessian.py), its products run
             # by row blocks on all cores (parallel.py)
-            Hdata = Hgn + K if newton else Hgn
-            M = self.lm_matrix(Hdata, lam, diagH)
+            if newton:
+                Hsum = Hdata = np.add(Hgn, K, out=Hsum)
+            else:
+                Hdata = Hgn
+            M = self.lm_matrix(Hdata, lam, diagH, out=Mbuf)
             A = parallel(M)
             if direct:
                 res = self._direct_step(g, M)
@@ -409,7 +426,7 @@ class VolumeProblem:
                     # the Gauss-Newton step instead (the steps spent on the
                     # Newton attempt still count in the report)
                     newton, Hdata, rec = False, Hgn, None
-                    A = parallel(self.lm_matrix(Hdata, lam, diagH))
+                    A = parallel(self.lm_matrix(Hdata, lam, diagH, out=Mbuf))
                     pcd = self._deflated(pc, U, A.__matmul__)
                     res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000)
                     cg_steps += res.iterations
@@ -444,7 +461,7 @@ class VolumeProblem:
                 # iterations with 3x; 9 iterations with 10x)
                 lam *= max(shrink, 1.0 - (2.0 * rho - 1.0) ** 3) if rho > 0 else 1.0
                 nu = 2.0
-                g, Hgn, blocks = self.linearise(x, linear)
+                g, Hgn, blocks = self.linearise(x, linear, out=Hgn)
                 newton = newton or (not linear and not direct and step < newton_step)
                 if used_newton and rho > 0.75:
                     # Newton converges quadratically only without damping:
@@ -455,7 +472,7 @@ class VolumeProblem:
                     # the minimiser)
                     lam *= newton_shrink
                 recording = recording or (not direct and step < deflate_step)
-                K = self.second_order(x) if newton else None
+                K = Kbuf = self.second_order(x, out=Kbuf) if newton else None
             else:
                 lam *= nu
                 nu *= 2.0

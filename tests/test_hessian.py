@@ -11,6 +11,7 @@ import scipy.sparse as sp
 from solver import FieldProblem, Options
 from solver.constraints import BOUNDARY, FIXED, FREE, TUBE
 from solver.examples import load_example
+from solver import parallel
 from solver.hessian import FaceAssembly
 
 
@@ -43,6 +44,19 @@ def test_face_assembly_matches_the_dense_sum_with_shared_unknowns():
     H = fa.matrix(fa.data(Q) + fa.extra_data).toarray()
     assert np.allclose(H, _dense_reference(face_edges, P, Q, extra), rtol=0, atol=1e-12)
     assert np.array_equal(H, H.T)  # built from one triangle: exactly symmetric, as CG assumes
+    # values into a kept array, with S's products split on the thread pool
+    # (where its upper triangle goes into kept space too): the same values
+    old = parallel.threads()
+    parallel.set_threads(2)
+    try:
+        fb = FaceAssembly(face_edges, P, extra)
+        fb.S = parallel.RowSplitMatrix(fb.S, 2)
+        out = np.full(fb.nnz, np.nan)
+        for scale in (1.0, 2.0):
+            assert fb.data(scale * Q, out=out) is out
+            assert np.array_equal(out, fa.data(scale * Q))
+    finally:
+        parallel.set_threads(old)
     with pytest.raises(ValueError, match="outside the sparsity pattern"):
         fa.positions(np.array([0]), np.array([n - 1]))
 

@@ -123,6 +123,11 @@ def test_row_split_products_match_serial(block_laplacian, cols):
         assert len(P.blocks) == 3 and P.shape == A.shape
         x = np.random.default_rng(1).normal(size=(A.shape[0],) if cols is None else (A.shape[0], cols))
         assert np.array_equal(P @ x, A @ x)
+        # into a kept array: the same values, in that array
+        out = np.full(x.shape, np.nan)
+        assert P.matvec(x, out=out) is out and np.array_equal(out, A @ x)
+        with pytest.raises(ValueError, match="out must have shape"):
+            P.matvec(x, out=np.empty(x.shape, dtype=np.float32))
         # small matrices are left alone
         assert parallel.parallel(sp.eye(10, format="csr")).__class__ is not parallel.RowSplitMatrix
     finally:
