@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from solver import FieldProblem, Options
+from solver import FieldProblem, Options, parallel
 from solver.constraints import BOUNDARY, FIXED, FREE, TUBE
 from solver.examples import load_example
-from solver import parallel
 from solver.hessian import FaceAssembly
 
 
