@@ -108,6 +108,11 @@ class Report:
         if self.sizes.get("refine_levels"):
             lines.append(f"  fTetWild meshed {self.sizes['mesher_tets']:,} tets, refined "
                          f"{self.sizes['refine_levels']}x (each tet into 8)")
+        if self.sizes.get("flat_tets"):
+            left = self.sizes.get("flat_tets_left", 0)
+            lines.append(f"  fTetWild left {self.sizes['flat_tets']} flat tet(s): "
+                         f"{self.sizes.get('flat_moved_vertices', 0)} vertices moved off their plane"
+                         + (f", {left} still flat (no move of an interior vertex improved them)" if left else ""))
         if self.sizes.get("snapped_vertices") is not None:
             kept = self.sizes.get("snap_kept_vertices", 0)
             lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "
@@ -218,6 +223,11 @@ class FieldProblem:
                              # kept in mesh.info, so a reused mesh still says how it was made
                              "refine_levels": int(mesh.info.get("refine_levels", 0)),
                              "mesher_tets": int(mesh.info.get("mesher_tets", mesh.n_tets))}
+        flat = mesh.info.get("flat_tets")
+        if flat is not None and flat["flat_tets"]:
+            self.report.sizes["flat_tets"] = flat["flat_tets"]
+            self.report.sizes["flat_tets_left"] = flat["flat_tets_left"]
+            self.report.sizes["flat_moved_vertices"] = flat["moved_vertices"]
         snap = mesh.info.get("snap")
         if snap is not None:
             self.report.sizes["snapped_vertices"] = snap.moved

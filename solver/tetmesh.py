@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshingError
+from .slivers import repair_flat_tets
 from .trisurface import TriSurface, unique_rows
 
 # local vertex pairs of the 6 tet edges, and the opposite pair for each
@@ -377,6 +378,12 @@ def tetrahedralize(
         )
     used, Tn = np.unique(full.tets[keep], return_inverse=True)
     mesh = TetMesh(full.vertices[used], Tn.reshape(-1, 4))
+    # tets that fTetWild's rounding left flat: moved off their plane (slivers.py)
+    P, T, flat = repair_flat_tets(mesh.vertices, mesh.tets, mesh.is_boundary_vertex, mesh.face_tets,
+                                  mesh.tet_faces)
+    if flat["moved_vertices"]:
+        mesh = TetMesh(P, T)
+    mesh.info["flat_tets"] = flat
     mesh.info["tetwild_seconds"] = time.perf_counter() - t0
     return mesh
 
