@@ -117,7 +117,8 @@ def repair_flat_tets(P: np.ndarray, T: np.ndarray, boundary: np.ndarray, face_te
         for t in flat:  # a handful of tets per mesh: the loop is not over the mesh
             if tet_quality(P, T[t:t + 1])[0] >= FLAT_QUALITY:
                 continue  # fixed by an earlier move this round
-            L = np.mean(np.linalg.norm(P[T[t]][:, None] - P[T[t]][None], axis=2)) * 4.0 / 3.0
+            # the tet's mean edge length (the 4 x 4 distances hold 12 edges and 4 zeros)
+            L = np.mean(np.linalg.norm(P[T[t]][:, None] - P[T[t]][None], axis=2)) * 16.0 / 12.0
             best = None
             for v in T[t]:
                 if boundary[v]:
