@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .tetmesh import TetMesh
+
 # a tet of quality below this is flat: the regular tet has quality 1, and
 # fTetWild's optimised meshes stay above ~1e-2 apart from rounding accidents
 FLAT_QUALITY = 1e-3
@@ -37,9 +39,8 @@ def tet_quality(P: np.ndarray, T: np.ndarray) -> np.ndarray:
     regular tet: 0 for a flat tet, negative for an inverted one."""
     X = P[T]
     E = X[:, [1, 2, 3, 2, 3, 3]] - X[:, [0, 0, 0, 1, 1, 2]]
-    vol = np.einsum("ij,ij->i", np.cross(E[:, 0], E[:, 1]), E[:, 2]) / 6.0
     rms = np.sqrt(np.einsum("ijk,ijk->i", E, E) / 6.0)
-    return 6.0 * np.sqrt(2.0) * vol / np.maximum(rms, 1e-300) ** 3
+    return 6.0 * np.sqrt(2.0) * TetMesh._signed_volumes(P, T) / np.maximum(rms, 1e-300) ** 3
 
 
 def orient_flat(P: np.ndarray, T: np.ndarray, flat: np.ndarray, face_tets: np.ndarray,
@@ -73,12 +74,8 @@ def orient_flat(P: np.ndarray, T: np.ndarray, flat: np.ndarray, face_tets: np.nd
         mine, theirs = T[t], T[u]
         q = theirs[~(theirs[:, :, None] == mine[:, None, :]).any(axis=2)]
         swapped = np.where((mine[:, :, None] == theirs[:, None, :]).any(axis=2), mine, q[:, None])
-        X = P[swapped]
-        s = np.einsum("ij,ij->i", np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), X[:, 3] - X[:, 0])
-        # the neighbour's volume has the sign of its orientation
-        Xu = P[T[u]]
-        su = np.einsum("ij,ij->i", np.cross(Xu[:, 1] - Xu[:, 0], Xu[:, 2] - Xu[:, 0]), Xu[:, 3] - Xu[:, 0])
-        flip = np.sign(s) == np.sign(su)
+        # (the neighbour's volume has the sign of its orientation)
+        flip = np.sign(TetMesh._signed_volumes(P, swapped)) == np.sign(TetMesh._signed_volumes(P, T[u]))
         T[t[flip]] = T[t[flip]][:, [1, 0, 2, 3]]
         todo[t] = False
     return T
@@ -154,15 +151,7 @@ def _volume_gradient(P: np.ndarray, tet: np.ndarray, v: int, L: float) -> np.nda
     """d volume / d P[v] of the (ordered) tet: the volume is linear in each
     vertex, so differences over a step L are exact up to rounding."""
     k = int(np.flatnonzero(tet == v)[0])
-    X = P[tet].copy()
-
-    def vol(X):
-        return np.dot(np.cross(X[1] - X[0], X[2] - X[0]), X[3] - X[0]) / 6.0
-
-    v0 = vol(X)
-    g = np.empty(3)
-    for i in range(3):
-        Y = X.copy()
-        Y[k, i] += L
-        g[i] = (vol(Y) - v0) / L
-    return g
+    X = np.repeat(P[tet][None], 4, axis=0)  # the tet, then with P[v] moved by L along x, y, z
+    X[np.arange(1, 4), k, np.arange(3)] += L
+    vol = TetMesh._signed_volumes(X.reshape(-1, 3), np.arange(16).reshape(4, 4))
+    return (vol[1:] - vol[0]) / L

@@ -14,7 +14,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshingError
-from .slivers import repair_flat_tets
 from .trisurface import TriSurface, unique_rows
 
 # local vertex pairs of the 6 tet edges, and the opposite pair for each
@@ -378,7 +377,9 @@ def tetrahedralize(
         )
     used, Tn = np.unique(full.tets[keep], return_inverse=True)
     mesh = TetMesh(full.vertices[used], Tn.reshape(-1, 4))
-    # tets that fTetWild's rounding left flat: moved off their plane (slivers.py)
+    # tets that fTetWild's rounding left flat: moved off their plane
+    from .slivers import repair_flat_tets
+
     P, T, flat = repair_flat_tets(mesh.vertices, mesh.tets, mesh.is_boundary_vertex, mesh.face_tets,
                                   mesh.tet_faces)
     if flat["moved_vertices"]:
