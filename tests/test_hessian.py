@@ -96,3 +96,52 @@ def test_assembled_gauss_newton_and_newton_terms_match_the_jacobian(cylinder_pro
     # damping adds lambda diag(H) on the diagonal only
     D = vp.lm_matrix(data, 0.5, vp.damping_diagonal((B, d))).toarray() - H
     assert np.allclose(D, np.diag(0.5 * np.r_[np.einsum("nii->ni", B).ravel(), d]), atol=1e-12 * scale)
+
+
+def test_energy_along_a_step_is_the_exact_quartic_and_its_minimum_is_found(cylinder_problem):
+    """E(x + t dx) of Eq. 23 is a quartic in t (the structure residual is
+    quadratic in omega): the coefficients of VolumeProblem.energy_along
+    reproduce the energy at any t, and line_minimum finds the smallest
+    value on (0, t_max] that a fine grid finds, or a smaller one."""
+    p = cylinder_problem
+    vp = p.volume
+    rng = np.random.default_rng(4)
+    n = p.constraints.n_unknowns
+    for scale in (0.05, 0.5):
+        x = rng.uniform(-scale, scale, n)
+        # a descent direction: the energy falls, then rises
+        g = vp.linearise(x)[0]
+        dx = -g * (scale * np.sqrt(n) / np.linalg.norm(g))
+        coef = vp.energy_along(x, dx)
+        for t in (-0.7, 0.0, 0.3, 1.0, 2.5):
+            E = vp.energy(x + t * dx)
+            assert abs(np.polyval(coef[::-1], t) - E) <= 1e-11 * max(E, 1.0), (scale, t)
+        for t_max in (0.5, 4.0):
+            t = vp.line_minimum(coef, t_max)
+            assert 0.0 < t <= t_max
+            grid = np.linspace(1e-3, t_max, 2001)
+            assert vp.energy(x + t * dx) <= min(np.polyval(coef[::-1], grid)) * (1 + 1e-12)
+    # (t - 1)^4: the full step is the minimum and is kept
+    assert vp.line_minimum(np.array([1.0, -4.0, 6.0, -4.0, 1.0]), 4.0) == pytest.approx(1.0)
+    # (t - 2)^2 (t^2 + 1): twice the step; capped at t_max
+    assert vp.line_minimum(np.array([4.0, -4.0, 5.0, -4.0, 1.0]), 4.0) == pytest.approx(2.0)
+    assert vp.line_minimum(np.array([4.0, -4.0, 5.0, -4.0, 1.0]), 1.5) == 1.5
+
+
+def test_lm_replaces_an_overshooting_step_by_the_line_minimum_and_ends_at_the_same_minimiser(cylinder_problem):
+    """From a random start the Gauss-Newton step overshoots: LM takes the
+    minimum along it (line_step < 1) instead of rejecting it, and ends where
+    LM without the line search ends."""
+    p = cylinder_problem
+    vp = p.volume
+    x0 = np.random.default_rng(0).uniform(-0.5, 0.5, p.constraints.n_unknowns)
+    x, rep = vp.solve(x0)
+    x_plain, rep_plain = vp.solve(x0, line_search=0.0)
+    assert rep.converged and rep_plain.converged
+    replaced = [it for it in rep.iterations[1:] if it.line_step != 1.0]
+    assert replaced and all(it.accepted and 0.0 < it.line_step <= 4.0 for it in replaced)
+    assert all(it.line_step == 1.0 for it in rep_plain.iterations)
+    energies = [it.energy for it in rep.iterations]
+    assert all(b <= a for a, b in zip(energies, energies[1:]))
+    om, om_plain = vp.omega(x), vp.omega(x_plain)
+    assert np.linalg.norm(om - om_plain) <= 1e-6 * np.linalg.norm(om_plain)
