@@ -62,7 +62,7 @@ class LMIteration:
     cg_iterations: int
     accepted: bool
     seconds: float
-    step: float = 0.0  # |d omega| / |omega| of the step tried
+    step: float = 0.0  # |d omega| / |omega| of the step tried (as taken: scaled by line_step)
     newton: bool = False  # the step used the full Hessian (not Gauss-Newton)
     line_step: float = 1.0  # the multiple of the LM step taken (the line search's t)
 
