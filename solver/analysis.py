@@ -113,6 +113,18 @@ def omega_matchings(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, pairs:
     return closest_symmetry(np.einsum("nji,njk->nik", carried, frames[pairs[:, 1]]))
 
 
+def omega_frame_mismatch(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Per edge ij (i < j), the angle (radians) between the cross at j and
+    the cross at i carried across the edge by omega (Eq. 8).  Zero on the
+    edges of the development tree; elsewhere the monodromy omega leaves
+    around the cycle the edge closes.  It bounds how far closest-rotation
+    matching can be from the omega-aware one: the two differ on an edge only
+    if |omega_ij| + mismatch_ij >= 45 degrees (distinct cube symmetries are at
+    least 90 degrees apart)."""
+    E = mesh.edges
+    return cross_distance(exp_so3(omega) @ frames[E[:, 0]], frames[E[:, 1]])
+
+
 def omega_singular_faces(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray,
                          faces: np.ndarray | None = None) -> np.ndarray:
     """Faces where the omega-aware matchings fail to close (mask over faces).

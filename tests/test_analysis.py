@@ -15,6 +15,7 @@ from solver.analysis import (
     curve_tangent_adaptation,
     darboux_derivative,
     dual_face_weights,
+    edge_matchings,
     face_frame_differences,
     face_monodromy,
     group_singular_faces,
@@ -24,6 +25,8 @@ from solver.analysis import (
     matched_singular_faces,
     monodromy_angles,
     normal_adaptation,
+    omega_frame_mismatch,
+    omega_matchings,
     omega_singular_faces,
     pick_roots,
     root_independence,
@@ -435,3 +438,34 @@ def test_omega_aware_matching_sees_through_fast_turns():
     want = pierced_faces(m8, P)
     got = np.nonzero(omega_singular_faces(m8, darboux_derivative(m8, E8), E8))[0]
     np.testing.assert_array_equal(got, want)
+
+
+def test_omega_frame_mismatch_measures_the_frames_off_omega(mesh6):
+    """Zero where omega carries each cross onto the next (whatever its
+    representative), the turn of a frame rotated off omega on its edges,
+    and a bound on where closest-rotation and omega-aware matching differ."""
+    m = mesh6
+    E = exp_so3(smooth_rotvec(m.vertices))
+    om = darboux_derivative(m, E)
+    g = CUBE_GROUP[np.random.default_rng(5).integers(0, 24, m.n_vertices)]
+    assert omega_frame_mismatch(m, om, E @ g).max() < 1e-7
+    v = m.n_vertices // 2
+    E2 = E.copy()
+    E2[v] = exp_so3(np.radians(10.0) * np.array([[0.6, 0.0, 0.8]]))[0] @ E[v]
+    mm = np.degrees(omega_frame_mismatch(m, om, E2))
+    at_v = np.any(m.edges == v, axis=1)
+    np.testing.assert_allclose(mm[at_v], 10.0, atol=1e-6)
+    assert mm[~at_v].max() < 1e-5
+    # a fast field (~47 degrees per edge along x) with frames nudged off
+    # omega: the edges the two matchings read differently all reach 45
+    # degrees in |omega| + mismatch
+    mj = box_mesh(6, jitter=0.2)
+    Ef = rz(4.7 * mj.vertices[:, 0])
+    i, j = mj.edges.T
+    omf = Rotation.from_matrix(Ef[j] @ np.transpose(Ef[i], (0, 2, 1))).as_rotvec()
+    En = exp_so3(0.05 * np.random.default_rng(6).standard_normal((mj.n_vertices, 3))) @ Ef
+    mm = omega_frame_mismatch(mj, omf, En)
+    pairs = mj.edges
+    differ = edge_matchings(En, pairs) != omega_matchings(mj, omf, En, pairs)
+    assert differ.any()
+    assert np.all(np.linalg.norm(omf, axis=1)[differ] + mm[differ] >= np.pi / 4)

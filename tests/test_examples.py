@@ -19,6 +19,7 @@ from solver.analysis import (
     matched_singular_faces,
     monodromy_angles,
     normal_adaptation,
+    omega_frame_mismatch,
     omega_singular_faces,
     subdomain_faces,
     tangent_adaptation,
@@ -164,14 +165,22 @@ def test_torus_has_no_singularity_and_is_adapted(solved):
     (SO(3) loop parity), and then need no singularity.  The twist turns the
     frames by ~3 rad per unit length, 20-55 degrees per edge at this
     resolution, so closest-rotation matching misreads some edges as quarter
-    turns: every face it flags must have an edge turning by more than 45
-    degrees, and the omega-aware matching must find no singular face."""
+    turns; the omega-aware matching must find no singular face.  Every face
+    the closest-rotation matching flags must have an edge where the two
+    matchings can differ: |omega| plus the edge's omega/frame mismatch
+    (the monodromy off the development tree, a few degrees) reaches 45
+    degrees.  (|omega| alone is not enough: an edge with |omega| = 44.99
+    degrees, frames 45.04 apart, was flagged on 1 of 40 fresh meshes.)"""
     r = solved("torus")
     mesh = r.mesh
     assert not omega_singular_faces(mesh, r.omega, r.frames).any()
+    mismatch = omega_frame_mismatch(mesh, r.omega, r.frames)
+    # (fresh meshes: median 0.12-0.13 degrees, largest 1.9-2.9)
+    assert np.degrees(np.median(mismatch)) < 0.5 and np.degrees(mismatch.max()) < 6.0
     sing, _ = matched_singular_faces(mesh, r.frames)
-    fast = np.linalg.norm(r.omega, axis=1)[mesh.face_edges].max(axis=1) > np.pi / 4
-    assert not np.any(sing & ~fast), int((sing & ~fast).sum())
+    reach = np.linalg.norm(r.omega, axis=1) + mismatch
+    fast = reach[mesh.face_edges].max(axis=1) >= np.pi / 4
+    assert sing.any() and not np.any(sing & ~fast), int((sing & ~fast).sum())
     na = np.degrees(normal_adaptation(mesh, r.frames))
     assert na.mean() <= 1.0, na.mean()
 
