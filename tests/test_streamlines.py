@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from solver.analysis import matched_singular_faces
 from solver.rotations import CUBE_GROUP, cross_distance, log_so3, match_to, rotation_angle
 from solver.streamlines import (
     FrameField,
@@ -343,10 +344,26 @@ def test_streamlines_of_a_solved_cylinder_follow_the_field(cylinder):
     # starts, ends or has its midpoint there deviates by up to ~45 degrees.
     # Leave out exactly those segments (a distance to the axis does not: a
     # crossed tet reaches ~0.45 of the mean edge length from it, more on
-    # some meshes).  Elsewhere, over 60 meshes: at most 0.74 degrees
+    # some meshes), and those in tets where the field's own singularity
+    # lies: tets with a face where closest-rotation matching does not close
+    # (analysis.matched_singular_faces).  §5.5's interpolant matches the
+    # crosses to one vertex, and no matching is consistent there, so it
+    # jumps inside them.  Usually those are exactly the crossed tets; 4 of
+    # 31 fresh meshes (h = 0.22-0.34) had 1-4 more, next to the crossed
+    # ones (the discrete singularity one tet off the traced curve).  A
+    # segment there deviated by 8.7 degrees on one mesh (the old test
+    # failed on 2 of 308 fresh meshes; the other, 25 degrees, was not
+    # kept).  Elsewhere, over 90 meshes: at most 0.86 degrees
     curves = result.problem.network.curves
     crossed = np.concatenate([result.curve_tets(i) for i, cv in enumerate(curves) if cv.sigma != 0])
-    regular = ~(np.isin(f.locate(M), crossed) | np.isin(f.locate(A), crossed) | np.isin(f.locate(B), crossed))
+    mesh = result.mesh
+    sing, _ = matched_singular_faces(mesh, result.frames)
+    off = np.setdiff1d(np.nonzero(sing[mesh.tet_faces].any(axis=1))[0], crossed)
+    near = np.zeros(mesh.n_vertices, bool)
+    near[mesh.tets[crossed].ravel()] = True
+    assert len(off) <= 0.1 * len(crossed) and np.all(near[mesh.tets[off]].sum(axis=1) >= 3)
+    singular = np.union1d(crossed, off)
+    regular = ~(np.isin(f.locate(M), singular) | np.isin(f.locate(A), singular) | np.isin(f.locate(B), singular))
     assert regular.mean() > 0.9
     assert np.median(angle) < 0.5
     assert angle[regular].max() < 3.0
