@@ -4,6 +4,7 @@ example at several sizes, each size in a fresh process.
     ./dev.sh bench                          # ball at ~25k, 50k, 100k tets
     ./dev.sh bench --tets 25000 50000 --example cylinder
     ./dev.sh bench --write                  # also (re)write bench/RESULTS.md's solver table
+    ./dev.sh bench --tets 130000 130000 130000   # the spread over fresh meshes of one size
 
 Sizes are targets: fTetWild's tet count lands within ~30% of them.
 """
@@ -116,7 +117,14 @@ def main(argv=None) -> int:
     if not rows:
         return 1
     text = table(rows)
-    if len(rows) >= 2:
+    sizes = [r["tets"] for r in rows]
+    if len(rows) >= 2 and max(sizes) < 1.5 * min(sizes):
+        # one size several times (fresh meshes): the spread, not a slope
+        w = sorted(r["wall"] for r in rows)
+        cg = sorted(r["cg_iterations"] for r in rows)
+        text += (f"\n\n{len(rows)} meshes of {min(sizes):,}-{max(sizes):,} tets: {w[0]:.1f}-{w[-1]:.1f} s "
+                 f"(median {np.median(w):.1f} s), {cg[0]}-{cg[-1]} CG steps.")
+    elif len(rows) >= 2:
         k = np.polyfit(np.log([r["tets"] for r in rows]), np.log([r["wall"] for r in rows]), 1)[0]
         text += f"\n\nFitted growth: time ~ n^{k:.2f} over {rows[0]['tets']:,}-{rows[-1]['tets']:,} tets"
         k_lm = np.polyfit(np.log([r["tets"] for r in rows]),
