@@ -175,7 +175,7 @@ def test_torus_has_no_singularity_and_is_adapted(solved):
     mesh = r.mesh
     assert not omega_singular_faces(mesh, r.omega, r.frames).any()
     mismatch = omega_frame_mismatch(mesh, r.omega, r.frames)
-    # (fresh meshes: median 0.12-0.13 degrees, largest 1.9-2.9)
+    # (8 fresh meshes: median 0.12-0.13 degrees, largest 1.9-2.9)
     assert np.degrees(np.median(mismatch)) < 0.5 and np.degrees(mismatch.max()) < 6.0
     sing, _ = matched_singular_faces(mesh, r.frames)
     reach = np.linalg.norm(r.omega, axis=1) + mismatch
