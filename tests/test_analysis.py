@@ -422,14 +422,20 @@ def test_matched_singular_faces_keeps_its_interface(mesh6):
     assert mask.shape == (10,) and rot.shape == (10, 3) and not mask.any()
 
 
+def fast_field():
+    """(mesh, frames, omega): a smooth field turning ~47 degrees per edge
+    along x on a jittered box, with its exact (unmatched) omega."""
+    m = box_mesh(6, jitter=0.2)
+    E = rz(4.7 * m.vertices[:, 0])
+    i, j = m.edges.T
+    return m, E, Rotation.from_matrix(E[j] @ np.transpose(E[i], (0, 2, 1))).as_rotvec()
+
+
 def test_omega_aware_matching_sees_through_fast_turns():
     """A smooth field turning ~45 degrees per edge: closest-rotation matching
     reads some edges as quarter-turn jumps and flags faces, the omega-aware
     matching flags none; on a real singular line both find the pierced faces."""
-    m = box_mesh(6, jitter=0.2)
-    E = rz(4.7 * m.vertices[:, 0])
-    i, j = m.edges.T
-    om = Rotation.from_matrix(E[j] @ np.transpose(E[i], (0, 2, 1))).as_rotvec()  # exact, unmatched
+    m, E, om = fast_field()
     assert np.degrees(np.linalg.norm(om, axis=1)).max() > 45.0
     assert matched_singular_faces(m, E)[0].sum() > 0
     assert not omega_singular_faces(m, om, E).any()
@@ -459,10 +465,7 @@ def test_omega_frame_mismatch_measures_the_frames_off_omega(mesh6):
     # a fast field (~47 degrees per edge along x) with frames nudged off
     # omega: the edges the two matchings read differently all reach 45
     # degrees in |omega| + mismatch
-    mj = box_mesh(6, jitter=0.2)
-    Ef = rz(4.7 * mj.vertices[:, 0])
-    i, j = mj.edges.T
-    omf = Rotation.from_matrix(Ef[j] @ np.transpose(Ef[i], (0, 2, 1))).as_rotvec()
+    mj, Ef, omf = fast_field()
     En = exp_so3(0.05 * np.random.default_rng(6).standard_normal((mj.n_vertices, 3))) @ Ef
     mm = omega_frame_mismatch(mj, omf, En)
     pairs = mj.edges
