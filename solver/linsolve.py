@@ -31,13 +31,15 @@ class PCGResult:
     converged: bool
     relative_residual: float
     negative_curvature: bool = False  # stopped at a direction p with p^T A p <= 0
+    direction: np.ndarray | None = None  # that direction p (when negative_curvature)
     small_solution: bool = False  # stopped once the solution was known to be small (see pcg)
 
 
 def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, small=None) -> PCGResult:
     """Solve A x = b for SPD A given as a matvec, preconditioner as a function.
     Stops early, flagging negative_curvature, if A turns out not to be
-    positive definite.  A RitzRecorder, if given, collects approximate
+    positive definite, and returns the direction p with p^T A p <= 0 that
+    showed it.  A RitzRecorder, if given, collects approximate
     eigenvectors of the smallest eigenvalues on the way.
 
     small = (size, bound, steps), if given, also stops CG, flagging
@@ -99,7 +101,7 @@ def pcg(matvec, b, precond, x0=None, rtol=1e-8, maxiter=2000, recorder=None, sma
         Ap = matvec(p)
         pAp = pdot(p, Ap)
         if pAp <= 0:
-            return PCGResult(x, it, False, res, True)
+            return PCGResult(x, it, False, res, True, direction=p)
         alpha = rz / pAp
         if recorder is not None:
             recorder.add_alpha(alpha)

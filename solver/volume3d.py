@@ -26,11 +26,14 @@ below the step tolerance (linsolve.pcg's ``small``), so confirming
 convergence costs ~50 CG steps, not a solve.  Once the steps are below 10%
 of omega, approximate eigenvectors of the smallest eigenvalues, found while
 solving one system (eigCG, linsolve.RitzRecorder), deflate the next (ball,
-78k tets: 4,320 -> 2,700 CG steps).  Along a Gauss-Newton step the energy
-is exactly a quartic (Eq. 19 is quadratic in omega), so a step that would
-raise the energy, or one that stops far short of the minimum along its
-line, is replaced by that minimum instead of being rejected and solved
-again (energy_along, line_minimum).
+78k tets: 4,320 -> 2,700 CG steps).  Along any line the energy is
+exactly a quartic (Eq. 19 is quadratic in omega), so a step that would
+raise the energy, or a Gauss-Newton step that stops far short of the
+minimum along its line, is replaced by that minimum instead of being
+rejected and solved again (energy_along, line_minimum).  Where the full
+Hessian is indefinite (twisted fields, e.g. a torus), Newton's CG stops on
+a direction of negative curvature; LM then takes the Gauss-Newton step and
+moves on from it to the energy's minimum along that direction.
 """
 
 from __future__ import annotations
@@ -65,6 +68,7 @@ class LMIteration:
     step: float = 0.0  # |d omega| / |omega| of the step tried (as taken: scaled by line_step)
     newton: bool = False  # the step used the full Hessian (not Gauss-Newton)
     line_step: float = 1.0  # the multiple of the LM step taken (the line search's t)
+    curvature_move: bool = False  # the step also moved along a direction of negative curvature
 
 
 @dataclass
@@ -351,6 +355,38 @@ class VolumeProblem:
         rel = float(np.linalg.norm(H @ dx + g) / max(np.linalg.norm(g), 1e-300))
         return PCGResult(dx, 0, True, rel)
 
+    def _curvature_move(self, x, dx, terms, p, t_max):
+        """From the trial point x + dx (whose energy_terms are ``terms``),
+        the exact minimum of E along a direction p of negative curvature
+        (scaled to the step's size, oriented downhill, at most t_max steps
+        long), if it lowers E.  Returns (dx, x + dx, smoothness, penalty,
+        E) of the move (those of the trial point if none lowers E).
+
+        Where the full Hessian is indefinite (a twisted field's saddle
+        region; the torus at h = 0.3), Newton's attempts stop on negative
+        curvature within a few CG steps, and the Gauss-Newton steps taken
+        instead crawl: its model is convex and sees no descent along p.  E
+        along p is a quartic (energy_along) and falls first like its
+        negative curvature, so its minimum there is a cheap and large
+        decrease (Nocedal & Wright, §7.1)."""
+        xn = x + dx
+        es, ep = terms
+        Fn = es + ep
+        size, psize = np.linalg.norm(self.P @ dx), np.linalg.norm(self.P @ p)
+        if not (psize > 0 and size > 0):
+            return dx, xn, es, ep, Fn
+        p = p * (size / psize)
+        coef = self.energy_along(xn, p)
+        if coef[1] > 0:
+            p = -p
+            coef = coef * np.array([1.0, -1.0, 1.0, -1.0, 1.0])
+        t = self.line_minimum(coef, t_max)
+        es_t, ep_t = self.energy_terms(xn + t * p)
+        if es_t + ep_t < Fn:
+            dx = dx + t * p
+            return dx, x + dx, es_t, ep_t, es_t + ep_t
+        return dx, xn, es, ep, Fn
+
     # --------------------------------------------------------------------- LM
     def solve(
         self,
@@ -445,6 +481,7 @@ class VolumeProblem:
                 Hdata = Hgn
             M = self.lm_matrix(Hdata, lam, diagH, out=Mbuf)
             A = parallel(M)
+            curved = None  # a direction of negative curvature of the full Hessian
             if direct:
                 res = self._direct_step(g, M)
                 cg_steps = 0
@@ -465,8 +502,9 @@ class VolumeProblem:
                 if res.negative_curvature and newton:
                     # the full Hessian is not positive definite here: take
                     # the Gauss-Newton step instead (the steps spent on the
-                    # Newton attempt still count in the report)
-                    newton, Hdata, rec = False, Hgn, None
+                    # Newton attempt still count in the report), and keep
+                    # the direction of negative curvature that CG found
+                    newton, Hdata, rec, curved = False, Hgn, None, res.direction
                     A = parallel(self.lm_matrix(Hdata, lam, diagH, out=Mbuf))
                     pcd = self._deflated(pc, U, A.__matmul__)
                     res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000)
@@ -483,9 +521,14 @@ class VolumeProblem:
             pred = -(g @ dx) - 0.5 * (dx @ Hdx)
             rho = (F - Fn) / pred if pred > 0 else -1.0
             t_line = 1.0
-            if line_search and not used_newton and not linear:
+            if line_search and not linear and (not used_newton or Fn >= F):
                 # E along the Gauss-Newton step is a quartic (energy_along),
                 # so its exact minimum there costs a few residual evaluations.
+                # (Along a Newton step too: one that would raise the energy
+                # is replaced by that minimum rather than rejected.  Torus,
+                # 10 fresh meshes at h = 0.3: 9 had 2-9 rejected Newton
+                # steps, each a full solve, and 6 stopped at the 30-iteration
+                # cap; with this and _curvature_move none did.)
                 # Far from the minimiser the full step can overshoot (the
                 # wedge term bends the energy) or fall far short (the
                 # damping holds it back).  Taken then: when the full step
@@ -508,6 +551,13 @@ class VolumeProblem:
                         xn, esn, epn, Fn = x + dx, es_t, ep_t, es_t + ep_t
                     else:
                         t_line = 1.0
+            moved_along = False
+            if curved is not None and line_search and not linear:
+                # Newton found the Hessian indefinite: the Gauss-Newton step,
+                # then the minimum along the direction of negative curvature
+                Fgn = Fn
+                dx, xn, esn, epn, Fn = self._curvature_move(x, dx, (esn, epn), curved, line_search)
+                moved_along = Fn < Fgn
             accepted = Fn < F
             # the step measured on omega, not on x: x also holds the
             # boundary angles alpha, whose common shift per boundary
@@ -547,7 +597,8 @@ class VolumeProblem:
                 newton, K = False, None
             rep.iterations.append(
                 LMIteration(it, F, es, ep, float(np.linalg.norm(g)), lam, cg_steps, accepted,
-                            time.perf_counter() - ti, step, newton=used_newton, line_step=t_line)
+                            time.perf_counter() - ti, step, newton=used_newton, line_step=t_line,
+                            curvature_move=moved_along)
             )
             if progress is not None:
                 progress(it, F)

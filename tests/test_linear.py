@@ -111,6 +111,8 @@ def test_pcg_reports_negative_curvature():
     A = sp.diags([1.0, 2.0, -1.0]).tocsr()
     res = pcg(lambda x: A @ x, np.ones(3), lambda r: r, rtol=1e-12)
     assert res.negative_curvature and not res.converged
+    d = res.direction  # the direction that showed it, for the LM to use
+    assert d is not None and d @ (A @ d) <= 0
 
 
 @pytest.mark.parametrize("cols", [None, 3])
