@@ -228,9 +228,12 @@ class AMG:
             P = (T - w * DAT).tocsr()
             P.eliminate_zeros()
             omega = 1.0 / rho
-            amg.levels.append(Level(A=A, P=P, PT=P.T.tocsr(), Dinv=Dinv, omega=omega, roots=roots,
+            PT = P.T.tocsr()
+            amg.levels.append(Level(A=A, P=P, PT=PT, Dinv=Dinv, omega=omega, roots=roots,
                                     S=(omega * block_diag_matrix(Dinv)).tocsr()))
-            A = (P.T @ (A @ P)).tocsr()
+            # CSR times CSR (P.T is CSC: SciPy would convert A P to CSC first
+            # and the product back to CSR)
+            A = PT @ (A @ P)
         amg.levels.append(Level(A=A))
         for lv in amg.levels[:-1]:
             lv.ops = tuple(parallel(M) for M in (lv.A, lv.P, lv.PT, lv.S))

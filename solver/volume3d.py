@@ -333,11 +333,14 @@ class VolumeProblem:
         # diagonal on the adaptation parameters
         Dinv = parallel(sp.block_diag([block_diag_matrix(inv_blocks(B)), sp.diags(1.0 / d)], format="csr"))
         G = self.covariant_gradient(omega)
-        Ac = (G.T @ (self.lm_matrix(Hdata, damping, diagH, out=scratch) @ G)).tocsr()
+        GT = G.T.tocsr()
+        # both products CSR times CSR: with G.T (CSC) SciPy converts M G
+        # (7.1 M nonzeros at 98k tets) to CSC and the product back to CSR
+        Ac = GT @ (self.lm_matrix(Hdata, damping, diagH, out=scratch) @ G)
         # the coarse operator's pattern is the same in every build: the
         # aggregates' roots of the last build are reused (amg.py)
         amg = self._amg = AMG.build(Ac, block=3, like=self._amg)
-        G, GT = parallel(G), parallel(G.T.tocsr())
+        G, GT = parallel(G), parallel(GT)
 
         def apply(r):
             return Dinv @ r + G @ amg.vcycle(GT @ r)
