@@ -2,7 +2,8 @@
 # SymFrames developer entry point.  Creates .venv with the pinned
 # requirements on first use (Python 3.11), then:
 #   ./dev.sh demo [ARGS]   build the default example, compute it, write out/*.blend and a PNG
-#   ./dev.sh test [ARGS]   run the test suite (pytest ARGS)
+#   ./dev.sh test [ARGS]   lint (ruff), then run the test suite (pytest ARGS)
+#   ./dev.sh lint [ARGS]   ruff check (ARGS e.g. --fix)
 #   ./dev.sh bench [ARGS]  run the benchmarks
 #   ./dev.sh python ...    run the venv's python
 set -euo pipefail
@@ -22,8 +23,10 @@ shift || true
 cd "$ROOT"
 case "$cmd" in
     demo)   exec "$VENV/bin/python" scripts/symframes_run.py "$@" ;;
-    test)   exec "$VENV/bin/python" -m pytest -q "$@" ;;
+    test)   "$VENV/bin/ruff" check --quiet "$ROOT"
+            exec "$VENV/bin/python" -m pytest -q "$@" ;;
+    lint)   exec "$VENV/bin/ruff" check "$ROOT" "$@" ;;
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
     python) exec "$VENV/bin/python" "$@" ;;
-    *) sed -n '2,9p' "$0"; exit 1 ;;
+    *) sed -n '2,10p' "$0"; exit 1 ;;
 esac

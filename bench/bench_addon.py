@@ -5,7 +5,7 @@ streamlines (target: under 2 s each).  Prints a markdown table; writes nothing.
     ./dev.sh python bench/bench_addon.py --example ball --edge-length 0.2
 
 The field is solved once; glyph samples and streamlines are computed once
-by solver.streamlines (timed separately, as "sampling"), then written into
+by solver.analysis.streamlines (timed separately, as "sampling"), then written into
 the scene --repeat times (best time kept).  "write" is the add-on's bpy
 work alone: building the datablocks and linking them into the scene.
 "evaluate" is Blender building the 100k instances or the bevelled curves
@@ -55,7 +55,7 @@ def main():
 
     addon = load_addon()
     addon.register()
-    from symframes.solver.streamlines import FrameField, sample_glyphs, seed_points, trace_streamlines
+    from symframes.solver.analysis.streamlines import FrameField, sample_glyphs, seed_points, trace_streamlines
     from symframes.symframes_addon import glyphs, job, scene_io, storage, streamline_curves
 
     bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -1,4 +1,4 @@
-"""Benchmark of solver/streamlines.py on a solved example: glyph sampling and
+"""Benchmark of solver/analysis/streamlines.py on a solved example: glyph sampling and
 streamline tracing.  Prints a table; writes nothing.
 
     ./dev.sh python bench/bench_streamlines.py                  # ball, h = 0.12
@@ -19,8 +19,8 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from solver import solve  # noqa: E402
+from solver.analysis.streamlines import FrameField, sample_glyphs, seed_points, trace_streamlines  # noqa: E402
 from solver.examples import load_example  # noqa: E402
-from solver.streamlines import FrameField, sample_glyphs, seed_points, trace_streamlines  # noqa: E402
 
 
 def best_of(repeat, fn):

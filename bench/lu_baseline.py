@@ -4,7 +4,7 @@ normal-equation system with SciPy's sparse LU (issue 5), on the same mesh.
     ./dev.sh python bench/lu_baseline.py                    # ball at ~10k, 20k, 40k tets
     ./dev.sh python bench/lu_baseline.py --tets 10000 20000 --write
 
-Both runs use the same LM loop (solver/volume3d.py: acceptance, damping,
+Both runs use the same LM loop (solver/field/volume3d.py: acceptance, damping,
 stopping) and differ in the step: the solver's (preconditioned CG with the
 block-Jacobi + auxiliary-space AMG preconditioner, Newton steps and eigCG
 deflation near the minimum), or ``splu`` of the assembled damped
@@ -77,8 +77,8 @@ def table(rows: list[dict], limit: float) -> str:
             diff = abs(lu["energy"] - cg["energy"]) / abs(lu["energy"])
             lu_cells = (f"{lu['seconds']:.1f} ({lu['iterations']}) | {lu['seconds'] / cg['seconds']:.1f}x | "
                         f"{diff:.1e} | {lu['peak_mb']:.0f}")
-        lines.append(f"| {r['tets']:,} | {r['edges']:,} | {r['unknowns']:,} | {cg['seconds']:.1f} ({cg['iterations']}) | "
-                     + lu_cells + " |")
+        lines.append(f"| {r['tets']:,} | {r['edges']:,} | {r['unknowns']:,} | "
+                     f"{cg['seconds']:.1f} ({cg['iterations']}) | " + lu_cells + " |")
     return "\n".join(lines)
 
 
@@ -107,7 +107,7 @@ def main(argv=None) -> int:
         path = os.path.join(ROOT, "bench", "RESULTS.md")
         old = open(path).read()
         start, end = "<!-- lu-baseline -->", "<!-- /lu-baseline -->"
-        block = f"{start}\n{args.example}, {time.strftime('%Y-%m-%d')}:\n\n{text}\n{end}"
+        block = f"{start}\n{args.example} (`./dev.sh python bench/lu_baseline.py --write`):\n\n{text}\n{end}"
         if start in old:
             new = old[:old.index(start)] + block + old[old.index(end) + len(end):]
         else:

@@ -132,7 +132,7 @@ def main(argv=None) -> int:
         text += f" (LM alone: n^{k_lm:.2f})."
     for n, err in failed:
         text += f"\n\nFailed: the ~{n:,}-tet target ({err})."
-    from solver.parallel import threads
+    from solver.linalg.parallel import threads
 
     text += (f"\n\nMachine: {machine()}, Python {platform.python_version()}; "
              f"{threads()} threads for sparse products.")
@@ -141,7 +141,7 @@ def main(argv=None) -> int:
         path = os.path.join(ROOT, "bench", "RESULTS.md")
         old = open(path).read() if os.path.exists(path) else ""
         start, end = "<!-- solver-bench -->", "<!-- /solver-bench -->"
-        block = f"{start}\n{args.example}, {time.strftime('%Y-%m-%d')}:\n\n{text}\n{end}"
+        block = f"{start}\n{args.example} (`./dev.sh bench --write`):\n\n{text}\n{end}"
         if start in old:
             new = old[:old.index(start)] + block + old[old.index(end) + len(end):]
         else:

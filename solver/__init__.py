@@ -12,7 +12,7 @@ See README.md for the sign convention of the index sigma and the file formats.
 """
 
 from .errors import Cancelled, MeshingError, NetworkError, SurfaceError, SymFramesError, TopologyError
-from .network import Curve, Network, Role, Torsion
+from .network.network import Curve, Network, Role, Torsion
 from .pipeline import FieldProblem, Options, Report, Result, solve
 
 __all__ = [

@@ -1,7 +1,7 @@
 """Command line: ``python -m solver NETWORK.json [SURFACE.obj] [options]``.
 
 Reads a closed triangle surface (OBJ) and a curve network (JSON, format in
-solver/io.py), solves, prints the report and writes the result (.npz).
+solver/io/formats.py), solves, prints the report and writes the result (.npz).
 
     python -m solver part.json -o part.npz
     python -m solver --example ball --edge-length 0.1 --profile
@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         opts = _options(args, file_opts)
         if args.check:
-            from .validation import check_input
+            from .network.validation import check_input
 
             checked = check_input(V, F, net, opts.check_intersections)
             print(f"input is valid: {len(checked.network.curves)} interior curves, {len(checked.network.nodes)} "

@@ -20,7 +20,7 @@ import itertools
 
 import numpy as np
 
-from .network import Curve, Network
+from .network.network import Curve, Network
 
 
 def icosphere(subdivisions: int = 3, radius: float = 1.0):

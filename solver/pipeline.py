@@ -17,20 +17,21 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .boundary2d import BoundaryField, lift_mismatch, solve_boundary_field
-from .constraints import TUBE, AffineOmega, build_constraints
-from .embed import Embedding, embed_network
 from .errors import Cancelled, MeshingError, TopologyError
-from .features import FeatureGraph, check_poincare_hopf, transfer_features
-from .integrate import develop, symmetric_turn
-from .network import Network, PreparedNetwork
-from .refine import red_refine
-from .rotations import exp_so3
-from .snapping import snap_to_features
-from .tetmesh import TetMesh, tetrahedralize
-from .tubes import build_tubes
-from .validation import CheckedInput, check_input
-from .volume3d import LMReport, VolumeProblem
+from .field.boundary2d import BoundaryField, lift_mismatch, solve_boundary_field
+from .field.constraints import TUBE, AffineOmega, build_constraints
+from .field.develop import develop, symmetric_turn
+from .field.volume3d import LMReport, VolumeProblem
+from .linalg.rotations import exp_so3
+from .mesh.embed import Embedding, embed_network
+from .mesh.refine import red_refine
+from .mesh.snapping import snap_to_features
+from .mesh.tetmesh import TetMesh
+from .mesh.tetwild import tetrahedralize
+from .mesh.tubes import build_tubes
+from .network.network import Network, PreparedNetwork
+from .network.validation import CheckedInput, check_input
+from .surface.features import FeatureGraph, check_poincare_hopf, transfer_features
 
 INITS = ("zero", "constant", "random", "linear")
 
@@ -327,7 +328,7 @@ class FieldProblem:
         # the vertex normals it would differ by ~ tube radius / curvature
         # radius, like a kink of the singular curve at the surface)
         override = {}
-        for c, tr in zip(self.network.curves, self.embedding.traces):
+        for tr in self.embedding.traces:
             P = tr.polyline
             for f, t in ((tr.start_face, P[0] - P[1]), (tr.end_face, P[-1] - P[-2])):
                 if f < 0:
@@ -477,7 +478,7 @@ class FieldProblem:
         """A boundary vertex and its frame: a sharp-feature vertex (frame
         fixed) if any, else a boundary vertex rotated by its solved alpha
         about its normal (Eq. 20) and, for the solved x, by the turn that
-        makes the developed field consistent (integrate.symmetric_turn)."""
+        makes the developed field consistent (develop.symmetric_turn)."""
         mesh, cons, bf = self.mesh, self.constraints, self.boundary
         bv = mesh.boundary_vertices
         if len(cons.fixed_frame_vertices):
@@ -491,7 +492,7 @@ class FieldProblem:
 
     def _symmetric_root(self, x):
         """The root frame turned about its normal so that the field is a
-        consistent cross field (integrate.symmetric_turn)."""
+        consistent cross field (develop.symmetric_turn)."""
         r, E = self._normal_root(x)
         omega = self.constraints.omega(x)
         frames = develop(self.mesh, omega, r, E, self.avoid_edges)
@@ -577,7 +578,7 @@ class Result:
         return np.unique(self.mesh.edges[e])
 
     def quick_metrics(self) -> dict:
-        from .analysis import quick_metrics
+        from .analysis.measures import quick_metrics
 
         return quick_metrics(self)
 

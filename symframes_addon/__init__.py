@@ -6,7 +6,7 @@ Modules, in the order data flows through them:
 * scene_io          -- domain mesh + network curves -> solver arrays
 * job               -- the solve, off the main thread, cancellable
 * display           -- glyph samples, streamlines and the diagnostics' slice
-                       faces and edges from a field (solver.streamlines, .analysis)
+                       faces and edges from a field (solver.analysis.streamlines, .analysis)
 * storage           -- the solved field (frames, omega) in the .blend; the output objects
 * glyphs            -- instanced cross glyphs via Geometry Nodes
 * streamline_curves -- streamlines as a bevelled curve object

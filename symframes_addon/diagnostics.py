@@ -1,7 +1,7 @@
 """Diagnostics of a stored field: its singular faces as a mesh object.
 
 A tet-mesh face is singular where the closest-rotation matchings of its
-three vertex frames fail to close (solver.analysis.matched_singular_faces,
+three vertex frames fail to close (solver.analysis.measures.matched_singular_faces,
 §5.2).  Singular faces the network passes through are expected; the others
 are spurious singularities, which a good field does not have.  The mesh
 object has one triangle per singular face, material 0 (orange) for network
@@ -14,7 +14,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..solver.analysis import matched_singular_faces
+from ..solver.analysis.measures import matched_singular_faces
 from . import storage
 
 MATERIALS = (("SymFrames Network Singularity", (0.95, 0.55, 0.05)),
@@ -26,7 +26,7 @@ COUNTS_KEY = "symframes_counts"
 def singular_faces(field, network_faces: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """(vertex triples (k, 3) of the singular faces, spurious (k,) bool).
 
-    field : solver.streamlines.FrameField of the stored result
+    field : solver.analysis.streamlines.FrameField of the stored result
     network_faces : (j, 3) vertex triples of the faces the network passes through
     """
     if network_faces is None:

@@ -4,7 +4,7 @@ diagnostics' selections -- omega arrows, slice faces (no bpy).
 A snapshot of the scene's display settings (``DisplaySettings``) is taken on
 the main thread; sampling and tracing then run anywhere -- in the solve
 thread right after a solve, or directly when refreshing from the stored
-field.  The numerics are solver.streamlines' and solver.analysis'.
+field.  The numerics are solver.analysis.streamlines' and solver.analysis.measures'.
 
 The slice plane cuts the tet mesh along tet faces: the tets whose centroid
 lies on the kept side (the cutaway's) against the others.  The faces
@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..solver.analysis import monodromy_angles
-from ..solver.streamlines import sample_glyphs, seed_points, trace_streamlines
+from ..solver.analysis.measures import monodromy_angles
+from ..solver.analysis.streamlines import sample_glyphs, seed_points, trace_streamlines
 
 ERROR_ATTRIBUTES = {"ADAPTATION": "adaptation", "MONODROMY": "monodromy"}
 """Glyph colouring -> name of the glyph points' error attribute (radians)."""
@@ -78,7 +78,7 @@ def glyph_samples(field, ds: DisplaySettings, adaptation: np.ndarray | None = No
                   monodromy: np.ndarray | None = None):
     """Glyph points, their frames and (in the error colourings) errors.
 
-    field : solver.streamlines.FrameField
+    field : solver.analysis.streamlines.FrameField
     adaptation : (#V,) float array, the normal adaptation error (radians) of
         each field vertex, negative where not measured (interior and sharp
         feature vertices); needed for ds.colour == 'ADAPTATION'.
@@ -191,7 +191,7 @@ def kept_boundary_faces(field, ds: DisplaySettings) -> tuple[np.ndarray, np.ndar
 
 def regular_faces(mesh, network_faces: np.ndarray | None) -> np.ndarray:
     """(#F,) bool: interior faces the network does not pass through -- the
-    faces whose monodromy should vanish (as in solver.analysis.quick_metrics)."""
+    faces whose monodromy should vanish (as in solver.analysis.measures.quick_metrics)."""
     ok = ~mesh.is_boundary_face
     if network_faces is not None and len(network_faces):
         ids = mesh.face_index(network_faces)

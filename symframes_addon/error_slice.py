@@ -4,7 +4,7 @@ Two quantities (the scene's Slice Quantity):
 
 * ``MONODROMY`` -- the slice faces (display.slice_faces: the tet faces
   separating the two sides of the slice plane), with the monodromy angle of
-  each face (Eq. 9, solver.analysis.monodromy_angles on the stored omega):
+  each face (Eq. 9, solver.analysis.measures.monodromy_angles on the stored omega):
   how far omega fails to be integrable around it.  The network's faces turn
   by their prescribed quarter turns, so they are flagged (``network``) and
   drawn grey; elsewhere a good field has a small fraction of a degree.
@@ -25,7 +25,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..solver.analysis import monodromy_angles
+from ..solver.analysis.measures import monodromy_angles
 from . import diagnostics, display, glyphs, storage
 
 ROLE = "error_slice"

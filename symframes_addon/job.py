@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..solver import Cancelled, FieldProblem
-from ..solver.analysis import normal_adaptation
-from ..solver.streamlines import FrameField
+from ..solver.analysis.measures import normal_adaptation
+from ..solver.analysis.streamlines import FrameField
 from . import display
 
 _MESH_CACHE: dict = {}
@@ -152,7 +152,7 @@ def diagnostic_data(result) -> tuple[np.ndarray, np.ndarray]:
     """What the Diagnostics panel needs beyond the frames, which only the
     solve knows: the normal adaptation error per vertex (radians; -1 inside
     and at sharp feature vertices, whose frames are fixed, as in
-    solver.analysis.quick_metrics) and the network's faces as (k, 3) vertex
+    solver.analysis.measures.quick_metrics) and the network's faces as (k, 3) vertex
     triples."""
     mesh = result.mesh
     adaptation = np.full(mesh.n_vertices, -1.0)

@@ -13,7 +13,7 @@ from bpy.props import BoolProperty, EnumProperty
 
 from ..solver import SymFramesError, TopologyError
 from ..solver.examples import EXAMPLES
-from ..solver.validation import check_input
+from ..solver.network.validation import check_input
 from . import (
     diagnostics,
     display,
@@ -402,7 +402,13 @@ class SYMFRAMES_OT_clear(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        if not storage.clear_results(context.scene):
+        removed = storage.clear_results(context.scene)
+        # shared helpers (the glyph node groups, the materials), once nothing uses them
+        glyphs.remove_unused_helpers()
+        omega_arrows.remove_unused_helpers()
+        diagnostics.remove_unused_materials()
+        error_slice.remove_unused_material()
+        if not removed:
             self.report({"INFO"}, "SymFrames: nothing to clear")
             return {"CANCELLED"}
         self.report({"INFO"}, "SymFrames: results cleared")

@@ -207,9 +207,9 @@ _FIELD_CACHE: dict = {}
 
 
 def frame_field(scene):
-    """solver.streamlines.FrameField of the stored field (cached per field
+    """solver.analysis.streamlines.FrameField of the stored field (cached per field
     datablock and content), or None if there is no result."""
-    from ..solver.streamlines import FrameField
+    from ..solver.analysis.streamlines import FrameField
 
     me = stored_field(scene)
     if me is None:
@@ -229,11 +229,11 @@ def field_omega(scene) -> tuple[np.ndarray, bool] | None:
     stored field, or None if there is no result.
 
     stored is False for results saved before omega was kept: omega is then
-    the Darboux derivative of the stored frames (solver.analysis
+    the Darboux derivative of the stored frames (solver.analysis.measures
     .darboux_derivative), which is integrable by construction -- its
     monodromy is zero except on singular faces.
     """
-    from ..solver.analysis import darboux_derivative
+    from ..solver.analysis.measures import darboux_derivative
 
     f = frame_field(scene)
     if f is None:
@@ -325,11 +325,9 @@ def _remove_data(data) -> bool:
 def clear_results(scene) -> bool:
     """Remove the stored field and the output objects of the scene.
 
-    Returns whether anything was removed.  Shared helpers (the glyph node
-    group, the materials) are removed when nothing else uses them.
+    Returns whether anything was removed.  The shared helpers of the display
+    modules (node groups, materials) are theirs to remove (operators.py).
     """
-    from . import diagnostics, error_slice, glyphs, omega_arrows
-
     removed = False
     for role in OUTPUT_ROLES:
         removed |= remove_output(scene, role)
@@ -343,8 +341,4 @@ def clear_results(scene) -> bool:
     for c in list(scene.collection.children):
         if c.get(ROLE_KEY) == "results" and not c.all_objects:
             bpy.data.collections.remove(c)
-    glyphs.remove_unused_helpers()
-    omega_arrows.remove_unused_helpers()
-    diagnostics.remove_unused_materials()
-    error_slice.remove_unused_material()
     return removed

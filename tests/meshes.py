@@ -6,7 +6,7 @@ import itertools
 
 import numpy as np
 
-from solver.tetmesh import TetMesh
+from solver.mesh.tetmesh import TetMesh
 
 
 def box_grid(n, lo=(0.0, 0.0, 0.0), hi=(1.0, 1.0, 1.0), jitter: float = 0.0, seed: int = 0):

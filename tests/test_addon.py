@@ -44,13 +44,13 @@ def load_addon():
 
 addon = load_addon()
 from symframes.solver import FieldProblem  # noqa: E402
-from symframes.solver.analysis import (  # noqa: E402
+from symframes.solver.analysis.measures import (  # noqa: E402
     darboux_derivative,
     matched_singular_faces,
     monodromy_angles,
     normal_adaptation,
 )
-from symframes.solver.streamlines import FrameField  # noqa: E402
+from symframes.solver.analysis.streamlines import FrameField  # noqa: E402
 from symframes.symframes_addon import (  # noqa: E402
     diagnostics,
     display,
@@ -133,7 +133,7 @@ def input_fingerprint() -> str:
 
 
 def singular_mask(mesh, frames) -> np.ndarray:
-    """solver.analysis.matched_singular_faces' mask (it may also return the failures)."""
+    """solver.analysis.measures.matched_singular_faces' mask (it may also return the failures)."""
     found = matched_singular_faces(mesh, frames)
     return np.asarray(found[0] if isinstance(found, tuple) else found, bool)
 
@@ -237,7 +237,7 @@ def test_read_network_curves_settings_and_nodes():
     assert len(inp.network.curves) == 20
     assert all(c.sigma == 0.25 and c.role.value == "singular" for c in inp.network.curves)
     assert "20 curve(s)" in inp.network_note
-    from symframes.solver.validation import check_input
+    from symframes.solver.network.validation import check_input
 
     assert len(check_input(inp.V, inp.F, inp.network).network.nodes) == 8
     # per-curve settings: role feature -> sigma 0 whatever the index; torsion passed on

@@ -1,16 +1,15 @@
-"""Tests of solver/analysis.py on fields with a known answer: a constant
+"""Tests of solver/analysis/measures.py on fields with a known answer: a constant
 field, fields built from a known rotation per vertex, and fields with one
 known singular line or loop, on structured tet meshes built here.  The
-measurements are checked before they judge the solver (solver/report.py)."""
+measurements are checked before they judge the solver (solver/validation_report.py)."""
 
 from __future__ import annotations
-
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from solver.analysis import (
+from solver.analysis.measures import (
     axis_alignment,
     curve_tangent_adaptation,
     darboux_derivative,
@@ -37,8 +36,8 @@ from solver.analysis import (
     tet_frames,
     vertices_near_polylines,
 )
-from solver.rotations import CUBE_GROUP, cross_distance, exp_so3, rotation_angle
-from solver.tetmesh import TetMesh
+from solver.linalg.rotations import CUBE_GROUP, cross_distance, exp_so3, rotation_angle
+from solver.mesh.tetmesh import TetMesh
 from tests.meshes import box_mesh
 
 
@@ -323,7 +322,7 @@ def test_root_independence_of_a_nonintegrable_field_scales_linearly(mesh6):
     eta = (0.5 * (X[a, 0] + X[b, 0]) * (X[b, 1] - X[a, 1]))[:, None] * np.array([0, 0, 1.0])
     E = np.broadcast_to(np.eye(3), (m.n_vertices, 3, 3)).copy()
     roots = pick_roots(m, 2, 2)
-    from solver.integrate import develop
+    from solver.field.develop import develop
 
     out = []
     for c in (0.01, 0.02):

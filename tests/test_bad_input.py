@@ -8,11 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from solver import Curve, Network, NetworkError, SurfaceError, SymFramesError, TopologyError, solve
-from solver import io
+from solver import Curve, Network, NetworkError, SurfaceError, SymFramesError, TopologyError, io, solve
 from solver.__main__ import main as cli_main
 from solver.examples import box, cylinder_example, merge_vertices
-from solver.validation import check_input
+from solver.network.validation import check_input
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver.embed import TetLocator, _Degenerate, trace_curve
+from solver.mesh.embed import TetLocator, _Degenerate, trace_curve
 from tests.meshes import box_mesh
 
 
@@ -28,8 +28,8 @@ def test_a_curve_through_a_mesh_edge_is_retried_or_walked_face_to_face():
 
 def _tubes(name, h):
     from solver.examples import load_example
-    from solver.tubes import build_tubes
-    from solver.validation import check_input
+    from solver.mesh.tubes import build_tubes
+    from solver.network.validation import check_input
 
     V, F, net = load_example(name)
     ch = check_input(V, F, net, False)
@@ -71,7 +71,7 @@ def test_tubes_on_a_flat_surface_end_in_caps():
 def test_point_location_survives_a_tet_flat_to_round_off():
     """fTetWild once returned a tet of volume 2.5e-34; its barycentric map
     has no inverse, and locating points must not fail on it."""
-    from solver.embed import TetLocator
+    from solver.mesh.embed import TetLocator
     from tests.meshes import box_mesh
 
     mesh = box_mesh(2)

@@ -14,7 +14,7 @@ import pytest
 import scipy.sparse as sp
 
 from solver import FieldProblem, Options, solve
-from solver.analysis import (
+from solver.analysis.measures import (
     loglog_slope,
     matched_singular_faces,
     monodromy_angles,
@@ -26,7 +26,7 @@ from solver.analysis import (
     vertices_near_polylines,
 )
 from solver.examples import load_example
-from solver.rotations import cross_distance, exp_so3
+from solver.linalg.rotations import cross_distance, exp_so3
 
 H = {"cube": 0.3, "cylinder": 0.2, "ball": 0.18, "torus": 0.15}
 
@@ -308,7 +308,7 @@ def test_the_field_does_not_depend_on_the_model_units(cylinder_problem, scale):
     the solver measures lengths in the solid's own size."""
     from dataclasses import replace
 
-    from solver.tetmesh import TetMesh
+    from solver.mesh.tetmesh import TetMesh
 
     p = cylinder_problem
     ref = p.solve()
@@ -340,7 +340,7 @@ def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(solved, monk
     """Far from the minimum the full Hessian is indefinite: PCG stops on
     negative curvature and LM re-solves with Gauss-Newton.  Both solves'
     steps belong in the report."""
-    import solver.volume3d as v3
+    import solver.field.volume3d as v3
 
     p = solved("ball").problem
     calls = []
@@ -365,7 +365,7 @@ def test_a_direction_of_negative_curvature_lowers_the_energy_past_gauss_newton(s
     Gauss-Newton trial point to the energy's minimum along that direction
     must lower the energy further, and report the energy of the point it
     returns."""
-    from solver.linsolve import pcg
+    from solver.linalg.pcg import pcg
 
     vp = solved("ball").problem.volume
     x = np.zeros(vp.P.shape[1])
@@ -410,8 +410,8 @@ def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(solved)
     The pipeline refuses such data with a MeshingError naming where."""
     import dataclasses
 
-    from solver.boundary2d import lift_mismatch
     from solver.errors import MeshingError
+    from solver.field.boundary2d import lift_mismatch
 
     p = solved("ball").problem
     B, bf = p.mesh.boundary, p.boundary

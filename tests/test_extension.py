@@ -71,7 +71,7 @@ def test_manifest_is_honest():
     with open(os.path.join(ROOT, "blender_manifest.toml"), "rb") as fh:
         m = tomllib.load(fh)
     assert m["schema_version"] == "1.0.0" and m["type"] == "add-on" and m["id"] == "symframes"
-    assert tuple(int(x) for x in m["blender_version_min"].split(".")) >= (4, 2, 0)
+    assert tuple(int(x) for x in m["blender_version_min"].split(".")) >= (4, 5, 0)  # 4.2-4.4: numpy 1.24 (README)
     assert all(lic.startswith("SPDX:") for lic in m["license"])
     assert "permissions" not in m  # reads and writes only the open .blend
     assert len(m["tagline"]) <= 64

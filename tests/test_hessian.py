@@ -1,4 +1,4 @@
-"""The assembled Levenberg-Marquardt matrices (solver/hessian.py) against
+"""The assembled Levenberg-Marquardt matrices (solver/field/hessian.py) against
 their definitions: P^T (sum_f E_f^T Q_f E_f) P computed densely, and the
 Gauss-Newton and Newton terms of Eq. 23 from the sparse Jacobian."""
 
@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from solver import FieldProblem, Options, parallel
-from solver.constraints import BOUNDARY, FIXED, FREE, TUBE
+from solver import FieldProblem, Options
 from solver.examples import load_example
-from solver.hessian import FaceAssembly
+from solver.field.constraints import BOUNDARY, FIXED, FREE, TUBE
+from solver.field.hessian import FaceAssembly
+from solver.linalg import parallel
 
 
 def _dense_reference(face_edges, P, Q, extra):

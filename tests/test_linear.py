@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from solver import parallel
-from solver.amg import AMG, _row_argmax, inv_blocks
-from solver.linsolve import RitzRecorder, pcg
+from solver.linalg import parallel
+from solver.linalg.amg import AMG, _row_argmax, inv_blocks
+from solver.linalg.pcg import RitzRecorder, pcg
 from tests.meshes import box_mesh
 
 

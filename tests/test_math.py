@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from solver.analysis import darboux_derivative
-from solver.boundary2d import solve_boundary_field, wrap
+from solver.analysis.measures import darboux_derivative
 from solver.examples import icosphere
-from solver.features import FeatureGraph
-from solver.integrate import develop, symmetric_turn
-from solver.rotations import CUBE_GROUP, cross_distance, exp_so3, hat, log_so3, rotation_angle, unwrap_rotvec
-from solver.structure import StructureEquation
-from solver.tetmesh import TetMesh
-from solver.trisurface import TriSurface
+from solver.field.boundary2d import solve_boundary_field, wrap
+from solver.field.develop import develop, symmetric_turn
+from solver.field.structure import StructureEquation
+from solver.linalg.rotations import CUBE_GROUP, cross_distance, exp_so3, hat, log_so3, rotation_angle, unwrap_rotvec
+from solver.mesh.tetmesh import TetMesh
+from solver.surface.features import FeatureGraph
+from solver.surface.trisurface import TriSurface
 from tests.meshes import box_mesh
 
 
@@ -223,7 +223,7 @@ def test_boundary_field_meets_every_triangle_condition_with_turns_added_around_g
     d_omega = np.sum(S.face_edge_signs * bf.omega2d[S.face_edges], axis=1)
     assert np.abs(d_omega + bf.K).max() < 1e-10
     assert len(bf.generators) == 2
-    for key, ids, signs in bf.generators:
+    for _key, ids, signs in bf.generators:
         hol = np.sum(signs * (bf.rho[ids] + bf.omega2d[ids]))
         q = hol / (np.pi / 2)
         assert abs(q - round(q)) < 1e-10

@@ -1,4 +1,4 @@
-"""Red refinement (solver/refine.py) and solves on refined meshes."""
+"""Red refinement (solver/mesh/refine.py) and solves on refined meshes."""
 
 from __future__ import annotations
 
@@ -6,13 +6,12 @@ import numpy as np
 import pytest
 
 from solver import FieldProblem, Options
-from solver.analysis import matched_singular_faces
+from solver.analysis.measures import matched_singular_faces
 from solver.examples import icosphere, load_example
-from solver.refine import red_refine
-from solver.slivers import tet_quality
-from solver.tetmesh import tetrahedralize
-from solver.trisurface import TriSurface
-
+from solver.mesh.refine import red_refine
+from solver.mesh.slivers import tet_quality
+from solver.mesh.tetwild import tetrahedralize
+from solver.surface.trisurface import TriSurface
 from tests.meshes import box_mesh
 from tests.test_examples import check_axis_aligned
 
@@ -100,8 +99,7 @@ def test_cylinder_on_a_refined_mesh_has_the_network_as_its_singular_set():
     """The O-grid cylinder solved on a refined mesh (fTetWild at 0.23, one
     level of red refinement): the same singular-structure and adaptation
     checks as on a direct mesh."""
-    from solver.analysis import tangent_adaptation
-
+    from solver.analysis.measures import tangent_adaptation
     from tests.test_examples import check_omega_singular_set, check_singular_structure
 
     V, F, net = load_example("cylinder")

@@ -1,14 +1,13 @@
-"""Repair of flat tets in the mesher's output (solver/slivers.py)."""
+"""Repair of flat tets in the mesher's output (solver/mesh/slivers.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from solver.refine import red_refine
-from solver.slivers import FLAT_QUALITY, repair_flat_tets, tet_quality
-from solver.tetmesh import TetMesh
-
+from solver.mesh.refine import red_refine
+from solver.mesh.slivers import FLAT_QUALITY, repair_flat_tets, tet_quality
+from solver.mesh.tetmesh import TetMesh
 from tests.meshes import box_grid
 
 

@@ -1,4 +1,4 @@
-"""solver/snapping.py: the tet mesh's boundary moved back onto the input's
+"""solver/mesh/snapping.py: the tet mesh's boundary moved back onto the input's
 sharp edges, corners and patches."""
 
 from __future__ import annotations
@@ -8,13 +8,12 @@ from scipy.spatial import cKDTree
 
 from solver import FieldProblem, Options
 from solver.examples import box
-from solver.features import FeatureGraph, sharp_edges_by_angle, transfer_features
-from solver.network import Network
-from solver.rotations import cross_distance
-from solver.snapping import closest_on_features, snap_to_features
-from solver.tetmesh import TetMesh
-from solver.trisurface import TriSurface
-
+from solver.linalg.rotations import cross_distance
+from solver.mesh.snapping import closest_on_features, snap_to_features
+from solver.mesh.tetmesh import TetMesh
+from solver.network.network import Network
+from solver.surface.features import FeatureGraph, sharp_edges_by_angle, transfer_features
+from solver.surface.trisurface import TriSurface
 from tests.meshes import box_mesh, l_prism_surface
 from tests.test_examples import check_axis_aligned
 
@@ -66,7 +65,7 @@ def test_a_shaken_box_is_put_back_on_its_faces_edges_and_corners():
 
 
 def test_a_move_that_would_flatten_a_tet_is_undone(monkeypatch):
-    import solver.snapping as snapping
+    import solver.mesh.snapping as snapping
 
     _, shaken = shaken_box(seed=1)
     G = cube_features()
@@ -126,7 +125,7 @@ def test_l_prism_field_is_the_identity():
 def test_features_that_cannot_be_mapped_leave_the_mesh_alone(monkeypatch):
     """The boundary stage reports unmappable features with its hint; the
     snapping step must not fail first or move anything."""
-    import solver.snapping as snapping
+    import solver.mesh.snapping as snapping
     from solver.errors import TopologyError
 
     def fail(src, dst):

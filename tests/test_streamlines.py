@@ -1,23 +1,22 @@
-"""Tests of solver/streamlines.py: interpolation (§5.5), integral curves,
+"""Tests of solver/analysis/streamlines.py: interpolation (§5.5), integral curves,
 seeds and glyph samples.  Synthetic fields on a structured tet grid, plus one
 solved cylinder."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from solver.analysis import matched_singular_faces
-from solver.rotations import CUBE_GROUP, cross_distance, log_so3, match_to, rotation_angle
-from solver.streamlines import (
+from solver.analysis.measures import matched_singular_faces
+from solver.analysis.streamlines import (
     FrameField,
     barycentric_karcher_mean,
     sample_glyphs,
     seed_points,
     trace_streamlines,
 )
+from solver.linalg.rotations import CUBE_GROUP, cross_distance, log_so3, match_to, rotation_angle
 from tests.meshes import box_grid
 
 
@@ -346,7 +345,7 @@ def test_streamlines_of_a_solved_cylinder_follow_the_field(cylinder):
     # crossed tet reaches ~0.45 of the mean edge length from it, more on
     # some meshes), and those in tets where the field's own singularity
     # lies: tets with a face where closest-rotation matching does not close
-    # (analysis.matched_singular_faces).  §5.5's interpolant matches the
+    # (analysis.measures.matched_singular_faces).  §5.5's interpolant matches the
     # crosses to one vertex, and no matching is consistent there, so it
     # jumps inside them.  Usually those are exactly the crossed tets; 4 of
     # 31 fresh meshes (h = 0.22-0.34) had 1-4 more, next to the crossed

@@ -16,10 +16,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
-from .errors import TopologyError
-from .integrate import accumulate_along_tree
-from .features import FeatureGraph, corner_fan_links
-from .rotations import (
+from ..errors import TopologyError
+from ..linalg.rotations import (
     CUBE_GROUP,
     best_adapted_frame,
     exp_so3,
@@ -28,7 +26,9 @@ from .rotations import (
     minimal_rotation,
     unwrap_rotvec,
 )
-from .trisurface import TriSurface
+from ..surface.features import FeatureGraph, corner_fan_links
+from ..surface.trisurface import TriSurface
+from .develop import accumulate_along_tree
 
 
 def wrap(x, period=2 * np.pi):
@@ -417,7 +417,6 @@ def _adapt_feature_frames(S: TriSurface, G: FeatureGraph, E0: np.ndarray) -> Non
     if len(feat) == 0:
         return
     ns, slab = G.sectors
-    F = S.F
     fn = S.face_normals_raw  # area weighted
     sec_normal = np.zeros((ns, 3))
     np.add.at(sec_normal, slab, np.repeat(fn, 3, axis=0))

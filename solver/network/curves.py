@@ -8,8 +8,8 @@ from functools import cached_property
 
 import numpy as np
 
+from ..linalg.rotations import any_perpendicular, exp_so3, frame_from_axes, log_so3, minimal_rotation
 from .network import polyline_tangents
-from .rotations import any_perpendicular, exp_so3, frame_from_axes, log_so3, minimal_rotation
 
 
 @dataclass

@@ -22,14 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse import csgraph
 
+from ..linalg.rotations import log_so3
+from ..mesh.embed import Embedding
+from ..mesh.tetmesh import TetMesh
+from ..network.curves import CurveGeometry
+from ..network.network import PreparedNetwork, Torsion
 from .boundary2d import BoundaryField, wrap
-from .curves import CurveGeometry
-from .embed import Embedding
-from .network import PreparedNetwork, Torsion
-from .rotations import log_so3
-from .tetmesh import TetMesh
 
 FREE, BOUNDARY, FIXED, TUBE = 0, 1, 2, 3
 
@@ -90,7 +89,7 @@ def build_constraints(
     emb: Embedding,
     bfield: BoundaryField,
 ) -> AffineOmega:
-    nE, nV = mesh.n_edges, mesh.n_vertices
+    nE = mesh.n_edges
     E = mesh.edges
     kind = np.full(nE, FREE, dtype=np.int8)
     c = np.zeros((nE, 3))

@@ -17,7 +17,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from .errors import TopologyError
+from ..errors import TopologyError
 from .trisurface import TriSurface
 
 

@@ -33,8 +33,8 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
+from ..surface.trisurface import TriSurface
 from .tetmesh import TET_EDGES, TetMesh
-from .trisurface import TriSurface
 
 # the three diagonals of the inner octahedron, given by the local edge ids of
 # their end midpoints (TET_EDGES order 01 02 03 12 13 23), each with the

@@ -22,7 +22,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .errors import NetworkError
+from ..errors import NetworkError
 
 
 class Role(str, Enum):

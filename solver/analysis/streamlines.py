@@ -34,9 +34,9 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .embed import TetLocator
-from .rotations import CUBE_GROUP
-from .tetmesh import TetMesh
+from ..linalg.rotations import CUBE_GROUP
+from ..mesh.embed import TetLocator
+from ..mesh.tetmesh import TetMesh
 
 _INSIDE_TOL = 1e-10
 """A point is inside a tet when no barycentric coordinate is below -tol."""

@@ -7,7 +7,7 @@ Each LM step solves the damped Gauss-Newton system
 
     (H + lambda diag H) dx = -g,   H = 2 P^T (W + a J^T J) P,  g = 2 P^T (W omega + a J^T r)
 
-by PCG (linsolve.py).  H is assembled per LM iteration in a sparsity
+by PCG (linalg/pcg.py).  H is assembled per LM iteration in a sparsity
 pattern fixed once per problem (hessian.py: one 9x9 block per face), so a
 CG step costs one sparse product, run on all cores (parallel.py).  Once
 the steps are small (< 1% of omega) H also gets the second-order term
@@ -22,10 +22,10 @@ linear rate.  On a 98k-tet ball lambda = 1.5e-8 still left Newton a rate
 of ~0.03, so those eigenvalues are near 5e-7 of the diagonal; with the
 faster decrease LM took 7 iterations and 1,638 CG steps there, not 10 and
 2,975.  Near the minimum CG stops as soon as its iterate is known to be
-below the step tolerance (linsolve.pcg's ``small``), so confirming
+below the step tolerance (pcg.pcg's ``small``), so confirming
 convergence costs ~50 CG steps, not a solve.  Once the steps are below 10%
 of omega, approximate eigenvectors of the smallest eigenvalues, found while
-solving one system (eigCG, linsolve.RitzRecorder), deflate the next (ball,
+solving one system (eigCG, pcg.RitzRecorder), deflate the next (ball,
 78k tets: 4,320 -> 2,700 CG steps).  Along any line the energy is
 exactly a quartic (Eq. 19 is quadratic in omega), so a step that would
 raise the energy, or a Gauss-Newton step that stops far short of the
@@ -44,14 +44,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .amg import AMG, block_diag_matrix, inv_blocks
+from ..errors import Cancelled
+from ..linalg.amg import AMG, block_diag_matrix, inv_blocks
+from ..linalg.parallel import parallel, ranges, run
+from ..linalg.pcg import PCGResult, RitzRecorder, pcg
+from ..mesh.tetmesh import TetMesh
 from .constraints import AffineOmega
-from .errors import Cancelled
 from .hessian import FaceAssembly, gauss_newton_blocks
-from .linsolve import PCGResult, RitzRecorder, pcg
-from .parallel import parallel, ranges, run
 from .structure import StructureEquation, _cross_mat
-from .tetmesh import TetMesh
 
 
 @dataclass
@@ -250,8 +250,8 @@ class VolumeProblem:
         bn = np.zeros((nV, 3))
         bn[mesh.boundary_vertices] = self.boundary_normals
         N = bn[av]
-        self._Sa = sp.csr_matrix((N.ravel(), (np.repeat(np.arange(len(av)), 3), (3 * av[:, None] + np.arange(3)).ravel())),
-                                 shape=(len(av), 3 * nV))
+        cols = (3 * av[:, None] + np.arange(3)).ravel()
+        self._Sa = sp.csr_matrix((N.ravel(), (np.repeat(np.arange(len(av)), 3), cols)), shape=(len(av), 3 * nV))
         # vertices whose frame may rotate (sharp-feature frames are fixed)
         keep = np.ones(nV, bool)
         keep[cons.fixed_frame_vertices] = False
@@ -299,7 +299,7 @@ class VolumeProblem:
         parts = ranges(U32T.shape[1])
 
         def apply(r):
-            # einsum, not BLAS (see linsolve.pcg), by index ranges on all
+            # einsum, not BLAS (see pcg.pcg), by index ranges on all
             # cores; both products read the vectors row by row (U y as
             # "ij,j->i" on U's columns took 1.1 ms per CG step at 78k tets,
             # as "i,ij->j" on its rows 0.5 ms)
@@ -350,7 +350,7 @@ class VolumeProblem:
     def _direct_step(self, g, H):
         """The damped Gauss-Newton step by SciPy's sparse LU of the assembled
         normal equations: the straightforward baseline of bench/lu_baseline.py
-        (its fill-in grows far faster than the mesh; see linsolve.py)."""
+        (its fill-in grows far faster than the mesh; see linalg/pcg.py)."""
         import scipy.sparse.linalg as spla
 
         H = H.tocsc()
@@ -436,7 +436,7 @@ class VolumeProblem:
         # (the residual r of Eq. 19 does not vanish at the minimiser), so
         # once the steps are small the Hessian gets its second-order term
         newton, K = False, None
-        # deflation (linsolve.RitzRecorder): once the steps are small, the
+        # deflation (pcg.RitzRecorder): once the steps are small, the
         # systems change little from one iteration to the next and keep the
         # same few very small eigenvalues (modes around node regions and
         # curves that the preconditioner misses); eigenvectors found while
@@ -494,7 +494,7 @@ class VolumeProblem:
                 pcd = self._deflated(pc, U, A.__matmul__)
                 rec = RitzRecorder(len(g), nev=deflate // 2) if recording and deflate >= 2 else None
                 # near the minimum a Newton step may be known to be below
-                # the tolerance long before it is solved for (linsolve.pcg)
+                # the tolerance long before it is solved for (pcg.pcg)
                 # (stalled CG iterates have been seen at 0.66 and 0.96-0.99
                 # of the solution's size, ball 78k and 98k tets, so the bound
                 # keeps a 2x margin; the partial step is still taken below)

@@ -4,7 +4,7 @@ adaptation, root and initialisation independence, smoothness.
 Arrays in, arrays out: every function takes a TetMesh and plain arrays (or a
 solved Result where it needs the network), so each can be checked on fields
 with a known answer (``tests/test_analysis.py``) before it judges the solver.
-``quick_metrics`` summarises a Result; ``solver/report.py`` runs them all.
+``quick_metrics`` summarises a Result; ``solver/validation_report.py`` runs them all.
 
 Conventions
 -----------
@@ -28,11 +28,11 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial.transform import Rotation
 
-from .constraints import TUBE
-from .curves import CurveGeometry
-from .integrate import develop
-from .rotations import CUBE_GROUP, closest_symmetry, cross_distance, exp_so3, log_so3, match_to, rotation_angle
-from .tetmesh import TetMesh
+from ..field.constraints import TUBE
+from ..field.develop import develop
+from ..linalg.rotations import CUBE_GROUP, closest_symmetry, cross_distance, exp_so3, log_so3, match_to, rotation_angle
+from ..mesh.tetmesh import TetMesh
+from ..network.curves import CurveGeometry
 
 # ============================================================ integrability
 
@@ -62,7 +62,7 @@ def structure_residual(mesh: TetMesh, omega: np.ndarray, Omega: np.ndarray | Non
                        faces: np.ndarray | None = None) -> np.ndarray:
     """|d omega - omega ^ omega - Omega| per face (Eq. 17), in the BCH-consistent
     form of structure.py.  Omega : (#F, 3) or None for zero."""
-    from .structure import StructureEquation
+    from ..field.structure import StructureEquation
 
     faces = np.arange(mesh.n_faces) if faces is None else np.asarray(faces)
     Om = np.zeros((len(faces), 3)) if Omega is None else np.asarray(Omega)[faces]

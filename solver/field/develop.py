@@ -11,8 +11,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from .rotations import CUBE_GROUP, exp_so3, rotation_angle
-from .tetmesh import TetMesh
+from ..linalg.rotations import CUBE_GROUP, exp_so3, rotation_angle
+from ..mesh.tetmesh import TetMesh
 
 
 def _ancestors(order: np.ndarray, pred: np.ndarray):

@@ -16,7 +16,7 @@ Network JSON (all keys but ``curves`` optional)::
     }
 
 ``sigma`` is in turns (a multiple of 1/4; see the sign convention in
-solver/network.py); ``role`` is ``singular``, ``feature`` or ``sharp``;
+solver/network/network.py); ``role`` is ``singular``, ``feature`` or ``sharp``;
 ``torsion`` is ``free`` (Eq. 21) or ``fixed`` (Eq. 22).
 
 Result NPZ: ``vertices`` (#V,3), ``tets`` (#T,4), ``edges`` (#E,2),
@@ -35,8 +35,8 @@ from dataclasses import asdict, fields
 
 import numpy as np
 
-from .errors import NetworkError, SurfaceError
-from .network import Curve, Network
+from ..errors import NetworkError, SurfaceError
+from ..network.network import Curve, Network
 
 
 def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
@@ -150,7 +150,7 @@ def write_network(path: str, net: Network, surface: str | None = None, options: 
 
 
 def options_from_dict(d: dict):
-    from .pipeline import Options
+    from ..pipeline import Options
 
     allowed = {f.name for f in fields(Options)}
     bad = set(d) - allowed

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from .errors import SurfaceError
+from ..errors import SurfaceError
 
 
 def unique_rows(a: np.ndarray):

@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import MeshingError, NetworkError
-from .network import PreparedNetwork
+from ..errors import MeshingError, NetworkError
+from ..network.network import PreparedNetwork
 from .tetmesh import TetMesh
 
 
@@ -185,7 +185,6 @@ def trace_curve(mesh: TetMesh, loc: TetLocator, P: np.ndarray, start_tet: int, s
              Either face continues a chain of face-adjacent tets, which is
              all the discretisation needs (the curve is moved by < tol).
     """
-    T = mesh.tets
     tet_faces = mesh.tet_faces
     face_tets = mesh.face_tets
     t = int(start_tet)

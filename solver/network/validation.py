@@ -11,10 +11,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import NetworkError
-from .features import FeatureGraph, check_poincare_hopf, polyline_to_edges, sharp_edges_by_angle, sharp_edges_from_pairs
-from .network import Network, PreparedNetwork, Role, _fmt, prepare_network
-from .trisurface import TriSurface, segment_crosses_triangle, validate_surface
+from ..errors import NetworkError
+from ..surface.features import (
+    FeatureGraph,
+    check_poincare_hopf,
+    polyline_to_edges,
+    sharp_edges_by_angle,
+    sharp_edges_from_pairs,
+)
+from ..surface.trisurface import TriSurface, segment_crosses_triangle, validate_surface
+from .network import Network, PreparedNetwork, _fmt, prepare_network
 
 MAX_END_ANGLE = 30.0  # degrees between a curve's end tangent and the surface normal
 MAX_KINK = 45.0  # degrees a singular curve may turn at one polyline vertex

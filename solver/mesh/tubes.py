@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .curves import CurveGeometry
-from .network import PreparedNetwork
-from .trisurface import TriSurface
+from ..network.curves import CurveGeometry
+from ..network.network import PreparedNetwork
+from ..surface.trisurface import TriSurface
 
 _ANG = np.array([0.0, 2 * np.pi / 3, 4 * np.pi / 3])
 

@@ -28,11 +28,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .curves import CurveGeometry
-from .errors import TopologyError
-from .features import FeatureGraph, feature_polylines, transfer_features
+from ..errors import TopologyError
+from ..network.curves import CurveGeometry
+from ..surface.features import FeatureGraph, feature_polylines, transfer_features
+from ..surface.trisurface import TriSurface
 from .tetmesh import TetMesh
-from .trisurface import TriSurface
 
 
 @dataclass

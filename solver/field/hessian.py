@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .parallel import RowSplitMatrix, parallel
+from ..linalg.parallel import RowSplitMatrix, parallel
 
 # faces per chunk while S is built: bounds the temporary index arrays
 _CHUNK = 16384
@@ -99,7 +99,8 @@ class FaceAssembly:
             up_keys = np.insert(ukeys, pos[missing], more[missing])
             # the row of S of every face key: shifted by the keys inserted before it
             row_counts = np.zeros(len(up_keys), np.int64)
-            row_counts[np.arange(len(ukeys)) + np.searchsorted(pos[missing], np.arange(len(ukeys)), side="right")] = counts
+            k = np.arange(len(ukeys))
+            row_counts[k + np.searchsorted(pos[missing], k, side="right")] = counts
         else:
             up_keys, row_counts = ukeys, counts
         n_up = len(up_keys)

@@ -1,0 +1,4 @@
+"""Numerical building blocks with no knowledge of meshes or networks:
+rotations and the cube group (rotations.py), sparse products on several
+cores (parallel.py), preconditioned conjugate gradients (pcg.py) and
+smoothed-aggregation algebraic multigrid (amg.py)."""

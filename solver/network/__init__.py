@@ -1,0 +1,8 @@
+"""The singularity network (§1.2): curves with an index, a role and a
+torsion mode (network.py), their geometry along the curve (curves.py), and
+the checks of a network against the solid before any heavy work
+(validation.py)."""
+
+from .network import Curve, Network, PreparedNetwork, Role, Torsion
+
+__all__ = ["Curve", "Network", "PreparedNetwork", "Role", "Torsion"]

@@ -1,0 +1,124 @@
+"""The house's imports run one way, downward (CONTRIBUTING.md).
+
+Every import of the solver and the add-on, module-level or inside a
+function, is read from the source: no module may import itself through a
+circle, and no module may import a stage above its own.
+"""
+
+import ast
+import subprocess
+import sys
+from graphlib import CycleError, TopologicalSorter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Rank of each part of the house: a module may import its own part or a
+# lower one.  Top-level solver modules not listed take the rank of pipeline.
+RANKS = {
+    "solver.errors": 0,
+    "solver.linalg": 1,
+    "solver.surface": 2,
+    "solver.network": 3,
+    "solver.mesh": 4,
+    "solver.field": 5,
+    "solver.analysis": 6,
+    "solver.examples": 7,
+    "solver.pipeline": 7,
+    "solver.io": 8,
+    "solver.validation_report": 8,
+    "solver": 8,
+    "solver.__main__": 9,
+    "symframes_addon": 10,
+}
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def sources() -> dict[str, Path]:
+    files = [*ROOT.glob("solver/**/*.py"), *ROOT.glob("symframes_addon/**/*.py")]
+    return {module_name(p): p for p in files}
+
+
+def imports_of(name: str, path: Path, known: set[str]) -> set[str]:
+    """The project modules that the module imports (absolute or relative)."""
+    is_pkg = path.name == "__init__.py"
+    package = name if is_pkg else name.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            # 'from pkg import mod' names a module when pkg.mod exists
+            targets = [f"{mod}.{a.name}" if f"{mod}.{a.name}" in known else mod for a in node.names]
+        else:
+            continue
+        for t in targets:
+            while t and t not in known:
+                t = t.rpartition(".")[0]
+            if t and t != name:
+                out.add(t)
+    return out
+
+
+def rank(name: str) -> int:
+    best = None
+    for prefix in RANKS:
+        if name == prefix or name.startswith(prefix + "."):
+            if best is None or len(prefix) > len(best):
+                best = prefix
+    return RANKS[best] if best is not None else RANKS["solver.pipeline"]
+
+
+def graph() -> dict[str, set[str]]:
+    src = sources()
+    known = set(src)
+    return {name: imports_of(name, path, known) for name, path in src.items()}
+
+
+def test_the_reader_sees_the_imports():
+    g = graph()
+    assert "solver.field.volume3d" in g["solver.pipeline"]
+    assert "solver.linalg.pcg" in g["solver.field.volume3d"]
+    assert "solver.pipeline" in g["solver"]
+    assert "solver.network.validation" in g["symframes_addon.operators"]
+
+
+def test_no_import_circles():
+    g = graph()
+    try:
+        list(TopologicalSorter(g).static_order())
+    except CycleError as e:
+        raise AssertionError(f"import circle: {' -> '.join(e.args[1])}") from None
+
+
+def test_imports_run_downward():
+    g = graph()
+    upward = sorted(f"{a} (rank {rank(a)}) imports {b} (rank {rank(b)})"
+                    for a, deps in g.items() for b in deps if rank(b) > rank(a))
+    assert not upward, "imports that run upward:\n" + "\n".join(upward)
+
+
+def test_the_solver_never_imports_bpy():
+    g = sources()
+    for name, path in g.items():
+        if not name.startswith("solver"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            mods = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                    [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            assert not any(m.split(".")[0] in ("bpy", "mathutils", "symframes_addon") for m in mods), name
+    out = subprocess.run([sys.executable, "-c", "import sys, solver, solver.io, solver.__main__; "
+                          "print('bpy' in sys.modules)"], cwd=ROOT, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
