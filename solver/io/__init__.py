@@ -1,5 +1,7 @@
 """File formats: a surface as OBJ, a network as JSON, a result as NPZ
-(formats.py)."""
+(formats.py); a solved field for hex meshers -- VTU, MEDIT + .fra + .perm,
+OpenVolumeMesh, AlgoHex .qtn (interchange.py); a network read from a tet mesh
+with tagged edges (tetnetwork.py)."""
 
 from .formats import (
     load_result,
@@ -12,6 +14,19 @@ from .formats import (
     write_network,
     write_obj,
 )
+from .interchange import export_field
+from .tetnetwork import read_tet_network
 
-__all__ = ["load_result", "network_from_dict", "network_to_dict", "options_from_dict", "read_network", "read_obj",
-           "save_result", "write_network", "write_obj"]
+__all__ = [
+    "export_field",
+    "load_result",
+    "network_from_dict",
+    "network_to_dict",
+    "options_from_dict",
+    "read_network",
+    "read_obj",
+    "read_tet_network",
+    "save_result",
+    "write_network",
+    "write_obj",
+]

@@ -1,0 +1,829 @@
+"""Hex-meshing interchange: a solved field written for other tools, and read back.
+
+``export_field(result, path)`` picks the format from the extension:
+
+``.vtu``   VTK XML UnstructuredGrid (ParaView, meshio): tets, vertex frames,
+           tet frames, singular-tet markers and per-tet error measures.
+``.mesh``  MEDIT mesh + ``.fra`` tet frames + ``.perm`` face matchings next to
+           it: the three files CubeCover (Nieser et al. 2011) reads.
+``.ovm``   OpenVolumeMesh ASCII with per-cell and per-vertex frame properties
+           (AlgoHex, HexHex and OVM tools read it).
+``.qtn``   one quaternion per tet in cell order (AlgoHex ``--cell-quaternion-in-path``).
+
+The formats are written by hand with numpy (no dependency beyond the solver's);
+each writer's docstring states the format and the source it was checked
+against.  Readers for ``.ovm``, ``.fra``, ``.perm`` and ``.qtn`` are here too;
+VTU and MEDIT are read by meshio in the tests.
+
+Frames per tet and face matchings (paper §5.5)
+----------------------------------------------
+CubeCover and AlgoHex want one frame per tet; the solver has one per vertex.
+The paper took "the Karcher mean of frames at vertices" and matched tets by
+the closest rotation, noting that "in principle we should be able to make
+this step even more robust near singularities by using angle information
+from omega" (§5.5).  Here both steps use omega:
+
+* in tet t with reference vertex r (its first vertex) every other vertex k is
+  matched to r along the tet edge rk by the cube symmetry h_k that omega's
+  transport says: ``E_k G[h_k]`` is the representative of k's cross closest
+  to ``exp(omega_rk) E_r`` (Eq. 8 with R_ij = I); h_r = identity;
+* the tet frame is the chordal mean of the four matched frames projected back
+  to SO(3): ``F_t = polar(sum_k E_k G[h_k])``, the rotation nearest (in the
+  Frobenius norm) to their sum, i.e. the minimiser of
+  ``sum_k ||F - E_k G[h_k]||_F^2`` over SO(3) (via an SVD);
+* across an interior face shared by tets A and B, each face vertex p appears
+  in both means, as ``E_p G[h_A(p)]`` and ``E_p G[h_B(p)]``, so
+  ``F_A ~ F_B g`` with ``g = G[h_B(p)]^T G[h_A(p)]``: an exact cube symmetry
+  taken from omega, not from comparing F_A with F_B.  The three face vertices
+  vote (they agree unless a singular curve runs through the tets).
+
+G is ``rotations.CUBE_GROUP`` (identity first), frames have the cross axes as
+columns (rotations.py).
+"""
+
+from __future__ import annotations
+
+import base64
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..analysis.measures import matched_singular_faces, monodromy_angles, omega_matchings, omega_singular_faces
+from ..linalg.rotations import CUBE_GROUP, rotation_angle
+from ..mesh.tetmesh import TetMesh
+
+# ============================================================ cube group tables
+
+
+def _group_tables():
+    G = CUBE_GROUP
+    prod = np.einsum("aij,bjk->abik", G, G).reshape(-1, 9)
+    idx = np.argmax(prod @ G.reshape(24, 9).T, axis=1).reshape(24, 24)  # exact: entries are 0, +-1
+    inv = np.argmax(np.einsum("aij,bji->ab", G, G), axis=1)  # trace(G[a] G[b]) = 3 iff G[b] = G[a]^T
+    return idx, inv
+
+
+GROUP_PRODUCT, GROUP_INVERSE = _group_tables()
+"""(24, 24) index of G[a] @ G[b], and (24,) index of G[a]^T, into CUBE_GROUP."""
+
+
+def symmetry_index(M: np.ndarray) -> np.ndarray:
+    """Index into CUBE_GROUP of (n, 3, 3) signed permutation matrices; -1 for
+    matrices that are not rotations of the cube (e.g. reflections)."""
+    M = np.asarray(M, dtype=float).reshape(-1, 9)
+    score = M @ CUBE_GROUP.reshape(24, 9).T
+    k = np.argmax(score, axis=1)
+    return np.where(np.isclose(score[np.arange(len(k)), k], 3.0), k, -1)
+
+
+def signed_permutation(g: np.ndarray) -> np.ndarray:
+    """CubeCover's encoding of cube symmetries: (n,) CUBE_GROUP indices ->
+    (n, 3) int, entry i = s * (j + 1) when axis i of the first frame maps to
+    s times axis j of the second (the column i of G[g] has s in row j)."""
+    M = CUBE_GROUP[np.asarray(g)]
+    j = np.argmax(np.abs(M), axis=1)  # (n, 3): row of the nonzero per column
+    s = np.take_along_axis(M, j[:, None, :], axis=1)[:, 0, :]
+    return (s * (j + 1)).astype(np.int64)
+
+
+def permutation_matrix(p: np.ndarray) -> np.ndarray:
+    """Inverse of ``signed_permutation``: (n, 3) entries +-(1..3) -> (n, 3, 3)."""
+    p = np.asarray(p, dtype=np.int64).reshape(-1, 3)
+    if np.any((np.abs(p) < 1) | (np.abs(p) > 3)) or np.any(np.sort(np.abs(p), axis=1) != [1, 2, 3]):
+        raise ValueError("a permutation row must hold +-1, +-2, +-3, each magnitude once")
+    M = np.zeros((len(p), 3, 3))
+    n = np.arange(len(p))[:, None]
+    M[n, np.abs(p) - 1, np.arange(3)[None, :]] = np.sign(p)
+    return M
+
+
+# ================================================================ frames per tet
+
+
+@dataclass
+class TetFrames:
+    """One frame per tet from the vertex frames and omega (module docs, §5.5).
+
+    frames   : (#T, 3, 3) rotations, columns are the cross axes
+    matching : (#T, 4) CUBE_GROUP index h_k per local vertex k:
+               E_{tets[t, k]} @ G[h_k] is the representative averaged
+               (identity, 0, at the reference vertex k = 0)
+    spread   : (#T,) largest angle (radians) between F_t and a matched
+               vertex frame
+    """
+
+    frames: np.ndarray
+    matching: np.ndarray
+    spread: np.ndarray
+
+
+def polar_rotation(M: np.ndarray) -> np.ndarray:
+    """The rotation nearest each (n, 3, 3) matrix in the Frobenius norm (the
+    orthogonal polar factor with its determinant forced to +1)."""
+    U, _, Vt = np.linalg.svd(M)
+    d = np.sign(np.linalg.det(U @ Vt))
+    d[d == 0] = 1.0
+    U[:, :, 2] *= d[:, None]
+    return U @ Vt
+
+
+def omega_tet_frames(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> TetFrames:
+    """Per-tet frames: the chordal mean, projected to SO(3), of the four vertex
+    frames matched to the tet's first vertex by omega's transport (§5.5 remark,
+    Eq. 8).  (``analysis.tet_frames`` is the Karcher mean with closest-rotation
+    matching, as the paper did; the two agree wherever no tet edge turns by
+    45 degrees or more.)
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    omega : (#E, 3) float array, E_j = exp(omega_ij) E_i on edges i < j
+    frames : (#V, 3, 3) float array, columns are the cross axes
+
+    Returns
+    -------
+    TetFrames
+    """
+    T = mesh.tets
+    nT = len(T)
+    pairs = np.stack([np.repeat(T[:, 0], 3), T[:, 1:].reshape(-1)], axis=1)  # r -> k, k = 1..3
+    h = np.zeros((nT, 4), dtype=np.int64)
+    h[:, 1:] = omega_matchings(mesh, omega, frames, pairs).reshape(nT, 3)
+    matched = frames[T] @ CUBE_GROUP[h]  # (#T, 4, 3, 3)
+    F = polar_rotation(matched.sum(axis=1))
+    rel = np.swapaxes(F, 1, 2)[:, None] @ matched
+    spread = rotation_angle(rel).max(axis=1)
+    return TetFrames(F, h, spread)
+
+
+@dataclass
+class FaceMatchings:
+    """Cube symmetries across the interior faces (module docs, §5.5).
+
+    faces    : (k,) interior face ids
+    tets     : (k, 2) tets (A, B) on either side (mesh.face_tets)
+    symmetry : (k,) CUBE_GROUP index g with F_A ~ F_B @ G[g], from omega
+    agree    : (k,) bool, the three face vertices gave the same g
+    closest  : (k,) CUBE_GROUP index of the closest-rotation matching of the
+               two tet frames (what §5.5 used), for comparison
+    """
+
+    faces: np.ndarray
+    tets: np.ndarray
+    symmetry: np.ndarray
+    agree: np.ndarray
+    closest: np.ndarray
+
+    def signed_permutations(self) -> np.ndarray:
+        """(k, 3) CubeCover encoding of the matchings taking A's frame to B's."""
+        return signed_permutation(self.symmetry)
+
+
+def _local_index(tets: np.ndarray, verts: np.ndarray) -> np.ndarray:
+    """Position of each of verts (k, m) in its tet (k, 4)."""
+    return np.argmax(tets[:, None, :] == verts[:, :, None], axis=2)
+
+
+def face_matchings(mesh: TetMesh, tf: TetFrames) -> FaceMatchings:
+    """Omega-derived matchings across every interior face.
+
+    For face f between tets A and B and each face vertex p,
+    g_p = G[h_B(p)]^T G[h_A(p)] (module docs); the majority of the three is
+    kept, and where all three differ the one whose F_B G[g] is nearest F_A.
+    """
+    faces = np.nonzero(~mesh.is_boundary_face)[0]
+    ft = mesh.face_tets[faces]
+    A, B = ft[:, 0], ft[:, 1]
+    Fv = mesh.faces[faces]
+    hA = np.take_along_axis(tf.matching[A], _local_index(mesh.tets[A], Fv), axis=1)
+    hB = np.take_along_axis(tf.matching[B], _local_index(mesh.tets[B], Fv), axis=1)
+    cand = GROUP_PRODUCT[GROUP_INVERSE[hB], hA]  # (k, 3)
+    FA, FB = tf.frames[A], tf.frames[B]
+    M = np.swapaxes(FB, 1, 2) @ FA  # F_B^T F_A, ~ G[g]
+    # trace(G[c]^T M) = <G[c], M>: larger is nearer
+    score = M.reshape(-1, 9) @ CUBE_GROUP.reshape(24, 9).T  # (k, 24)
+    fit = np.take_along_axis(score, cand, axis=1)
+    c0, c1, c2 = cand.T
+    best = cand[np.arange(len(cand)), np.argmax(fit, axis=1)]
+    g = np.where((c0 == c1) | (c0 == c2), c0, np.where(c1 == c2, c1, best))
+    agree = (c0 == c1) & (c1 == c2)
+    closest = np.argmax(score, axis=1)
+    return FaceMatchings(faces, ft, g, agree, closest)
+
+
+# ============================================================ per-tet measures
+
+
+@dataclass
+class FieldExport:
+    """Everything the writers need from a Result, computed once.
+
+    mesh, vertex_frames (#V, 3, 3), tet : TetFrames, matchings : FaceMatchings
+    curve       : (#T,) index of the prepared curve crossing each tet, -1 if none
+    node_region : (#T,) bool, tets of node regions (no structure equation)
+    measures    : per-tet float/int arrays (see ``field_export``)
+    """
+
+    mesh: TetMesh
+    vertex_frames: np.ndarray
+    tet: TetFrames
+    matchings: FaceMatchings
+    curve: np.ndarray
+    node_region: np.ndarray
+    measures: dict = field(default_factory=dict)
+
+    @property
+    def tet_quaternions(self) -> np.ndarray:
+        """(#T, 4) unit quaternions w, x, y, z of the tet frames, w >= 0."""
+        return _quaternions(self.tet.frames)
+
+    @property
+    def vertex_quaternions(self) -> np.ndarray:
+        return _quaternions(self.vertex_frames)
+
+
+def _quaternions(R: np.ndarray) -> np.ndarray:
+    q = Rotation.from_matrix(R).as_quat(scalar_first=True)
+    return np.where(q[:, :1] < 0, -q, q)
+
+
+def _per_tet_max(mesh: TetMesh, face_values: np.ndarray) -> np.ndarray:
+    return face_values[mesh.tet_faces].max(axis=1)
+
+
+def field_export(result) -> FieldExport:
+    """Tet frames, face matchings, markers and per-tet measures of a Result.
+
+    measures (all (#T,)):
+      ``monodromy_deg``       largest failure to close (Eq. 9) over the tet's
+                              faces, against the prescribed exp(Omega) on
+                              pierced faces (meaningless in node regions)
+      ``omega_singular``      faces of the tet where omega-aware matchings do
+                              not close (normally 2 where a curve passes
+                              through the tet, 0 off the network)
+      ``closest_singular``    the same with closest-rotation matchings
+      ``spread_deg``          tet.spread in degrees
+      ``matching_disagree``   faces of the tet where the omega matching and
+                              the closest-rotation matching of tet frames differ
+      ``matching_ambiguous``  faces of the tet whose three vertices disagreed
+    """
+    mesh, emb = result.mesh, result.embedding
+    tf = omega_tet_frames(mesh, result.omega, result.frames)
+    fm = face_matchings(mesh, tf)
+    nT = mesh.n_tets
+    curve = np.full(nT, -1, dtype=np.int64)
+    for i in range(len(emb.traces)):
+        curve[result.curve_tets(i)] = i
+    node = np.zeros(nT, bool)
+    node[emb.node_region_tets] = True
+    mono = np.degrees(monodromy_angles(mesh, result.omega, None, emb.face_omega))
+    osing = omega_singular_faces(mesh, result.omega, result.frames).astype(np.int64)
+    csing = matched_singular_faces(mesh, result.frames)[0].astype(np.int64)
+    dis = np.zeros(mesh.n_faces, np.int64)
+    dis[fm.faces] = fm.symmetry != fm.closest
+    amb = np.zeros(mesh.n_faces, np.int64)
+    amb[fm.faces] = ~fm.agree
+    tfc = mesh.tet_faces
+    measures = {
+        "monodromy_deg": _per_tet_max(mesh, mono),
+        "omega_singular": osing[tfc].sum(axis=1),
+        "closest_singular": csing[tfc].sum(axis=1),
+        "spread_deg": np.degrees(tf.spread),
+        "matching_disagree": dis[tfc].sum(axis=1),
+        "matching_ambiguous": amb[tfc].sum(axis=1),
+    }
+    return FieldExport(mesh, np.asarray(result.frames), tf, fm, curve, node, measures)
+
+
+# ======================================================================= VTU
+
+_VTK_TETRA = 10
+
+
+def _vtu_array(name: str, a: np.ndarray, binary: bool) -> str:
+    a = np.asarray(a)
+    if a.dtype.kind == "b" or a.dtype == np.uint8:
+        a, vtk = a.astype(np.uint8), "UInt8"
+    elif a.dtype.kind in "iu":
+        a, vtk = a.astype("<i8"), "Int64"
+    elif a.dtype.kind == "f":
+        a, vtk = a.astype("<f8"), "Float64"
+    else:
+        raise TypeError(f"VTU array {name!r}: unsupported dtype {a.dtype}")
+    ncomp = 1 if a.ndim == 1 else int(np.prod(a.shape[1:]))
+    attrs = f'type="{vtk}" Name="{name}"' + (f' NumberOfComponents="{ncomp}"' if ncomp > 1 else "")
+    if binary:
+        raw = np.ascontiguousarray(a).tobytes()
+        # inline binary: an UInt64 byte count, then the data, base64-encoded together
+        payload = base64.b64encode(np.array(len(raw), "<u8").tobytes() + raw).decode("ascii")
+        return f'<DataArray {attrs} format="binary">{payload}</DataArray>\n'
+    body = _fmt_rows(a.reshape(len(a), -1), "%.17g" if vtk == "Float64" else "%d")
+    return f'<DataArray {attrs} format="ascii">\n{body}</DataArray>\n'
+
+
+def _fmt_rows(a: np.ndarray, fmt: str) -> str:
+    """Rows of a 2D array as text lines (C-level formatting, no Python loop per row)."""
+    a = np.asarray(a).reshape(len(a), -1)
+    if len(a) == 0:
+        return ""
+    line = " ".join([fmt] * a.shape[1]) + "\n"
+    return (line * len(a)) % tuple(a.reshape(-1).tolist())
+
+
+def write_vtu(path: str, points: np.ndarray, tets: np.ndarray, point_data: dict | None = None,
+              cell_data: dict | None = None, binary: bool = True) -> None:
+    """Write a tet mesh as a VTK XML UnstructuredGrid (.vtu).
+
+    Parameters
+    ----------
+    points : (n, 3) float array
+    tets : (m, 4) int array, positively oriented (VTK_TETRA, type 10: the
+        first three points seen from the fourth are counter-clockwise)
+    point_data, cell_data : dict name -> (n,) or (n, k) array (k > 1 becomes
+        a vector with NumberOfComponents = k); bool arrays are written as UInt8
+    binary : inline base64 data (an UInt64 byte count followed by the raw
+        little-endian values, encoded together; ``header_type="UInt64"``), else
+        ASCII
+
+    Format checked against VTK's "VTK File Formats" (XML UnstructuredGrid:
+    Piece/Points/Cells with connectivity, offsets, types) and meshio 5.3.5's
+    reader, which the tests use to read it back.
+    """
+    points = np.asarray(points, float)
+    tets = np.asarray(tets, np.int64)
+    m = len(tets)
+    out = ['<?xml version="1.0"?>\n',
+           '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
+           "<UnstructuredGrid>\n", f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{m}">\n',
+           "<Points>\n", _vtu_array("Points", points, binary), "</Points>\n", "<Cells>\n",
+           _vtu_array("connectivity", tets.reshape(-1), binary),
+           _vtu_array("offsets", 4 * np.arange(1, m + 1, dtype=np.int64), binary),
+           _vtu_array("types", np.full(m, _VTK_TETRA, np.uint8), binary),
+           "</Cells>\n"]
+    for tag, data in (("PointData", point_data), ("CellData", cell_data)):
+        if data:
+            out.append(f"<{tag}>\n")
+            out.extend(_vtu_array(k, v, binary) for k, v in data.items())
+            out.append(f"</{tag}>\n")
+    out += ["</Piece>\n", "</UnstructuredGrid>\n", "</VTKFile>\n"]
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write("".join(out))
+
+
+def vtu_field_data(fe: FieldExport) -> tuple[dict, dict]:
+    """(point_data, cell_data) of a FieldExport as written to VTU.
+
+    point data: ``axis0``, ``axis1``, ``axis2`` (#V, 3) the vertex frame's
+    columns; ``boundary`` (#V,) UInt8.
+    cell data: ``tet_axis0..2`` (#T, 3) the tet frame's columns; ``curve``
+    (#T,) crossing curve or -1; ``singular`` (#T,) UInt8, crossed by a curve;
+    ``node_region`` UInt8; and the measures of ``field_export``.
+    """
+    pd = {f"axis{k}": fe.vertex_frames[:, :, k] for k in range(3)}
+    pd["boundary"] = fe.mesh.is_boundary_vertex
+    cd = {f"tet_axis{k}": fe.tet.frames[:, :, k] for k in range(3)}
+    cd["curve"] = fe.curve
+    cd["singular"] = fe.curve >= 0
+    cd["node_region"] = fe.node_region
+    cd.update(fe.measures)
+    return pd, cd
+
+
+# ===================================================================== MEDIT
+
+
+def write_medit(path: str, vertices: np.ndarray, tets: np.ndarray, triangles: np.ndarray | None = None,
+                edges: np.ndarray | None = None, tet_refs=None, triangle_refs=None, edge_refs=None,
+                vertex_refs=None) -> None:
+    """Write a MEDIT ASCII mesh (.mesh), 1-based indices::
+
+        MeshVersionFormatted 2
+        Dimension 3
+        Vertices
+        n
+        x y z ref            (n lines)
+        Edges                (if given)
+        k
+        i j ref
+        Triangles            (if given)
+        k
+        i j k ref
+        Tetrahedra
+        m
+        i j k l ref
+        End
+
+    Checked against CubeCover's reader (evouga/CubeCover src/readMeshFixed.h:
+    version 1 or 2, ``Dimension 3``, a count after each keyword, a reference
+    number closing every entity line, ``End``) and meshio's MEDIT reader.
+    Refs default to 0.
+    """
+    def refs(r, n):
+        return np.zeros(n, np.int64) if r is None else np.broadcast_to(np.asarray(r, np.int64), (n,))
+
+    V = np.asarray(vertices, float)
+    out = ["MeshVersionFormatted 2\n", "Dimension 3\n", f"Vertices\n{len(V)}\n",
+           _fmt_rows(np.c_[V, refs(vertex_refs, len(V))], "%.17g")]
+    for name, X, r in (("Edges", edges, edge_refs), ("Triangles", triangles, triangle_refs),
+                       ("Tetrahedra", tets, tet_refs)):
+        if X is None:
+            continue
+        X = np.asarray(X, np.int64)
+        out.append(f"{name}\n{len(X)}\n")
+        out.append(_fmt_rows(np.c_[X + 1, refs(r, len(X))], "%d"))
+    out.append("End\n")
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write("".join(out))
+
+
+def boundary_triangles(mesh: TetMesh) -> np.ndarray:
+    """(k, 3) boundary triangles of the tet mesh in global vertex ids,
+    oriented outward."""
+    return mesh.boundary_vertices[mesh.boundary.F]
+
+
+def write_fra(path: str, frames: np.ndarray) -> None:
+    """Write per-tet frames in CubeCover's ``.fra`` format::
+
+        FRA 1
+        ntets 3 1
+        a0x a0y a0z          (3 lines per tet, in tet order: the frame's
+        a1x a1y a1z           three axes, i.e. the columns of E)
+        a2x a2y a2z
+
+    The header line after ``FRA 1`` is ``#frames vectors-per-frame type``;
+    CubeCover reads the type and ignores it, and its own writer puts 1.
+    Checked against evouga/CubeCover src/ReadFrameField.cpp and
+    src/WriteFrameFIeld.cpp.
+
+    frames : (#T, 3, 3) float array, columns are the cross axes
+    """
+    F = np.asarray(frames, float)
+    rows = np.transpose(F, (0, 2, 1)).reshape(-1, 3)  # axis k of tet t on row 3t + k
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write(f"FRA 1\n{len(F)} 3 1\n")
+        fh.write(_fmt_rows(rows, "%.17g"))
+
+
+def read_fra(path: str) -> np.ndarray:
+    """Per-tet frames of a ``.fra`` file with 3 vectors per tet -> (#T, 3, 3),
+    the vectors as columns."""
+    tok = _tokens(path)
+    if len(tok) < 5 or tok[0] != "FRA" or tok[1] != "1":
+        raise ValueError(f"{path}: not a version-1 .fra file (expected 'FRA 1')")
+    n, vpt = int(tok[2]), int(tok[3])
+    if vpt != 3:
+        raise ValueError(f"{path}: {vpt} vectors per tet; only frames of 3 vectors are supported")
+    vals = np.asarray(tok[5:5 + 9 * n], dtype=float)
+    if len(vals) != 9 * n:
+        raise ValueError(f"{path}: expected {9 * n} numbers for {n} frames, found {len(vals)}")
+    return np.transpose(vals.reshape(n, 3, 3), (0, 2, 1))
+
+
+def write_perm(path: str, n_tets: int, tets: np.ndarray, perms: np.ndarray, keep_identity: bool = False) -> None:
+    """Write face matchings in CubeCover's ``.perm`` format::
+
+        PERM 1
+        ntets nfaces 3
+        t0 t1 p0 p1 p2       (one line per listed interior face)
+
+    t0, t1 are 0-based tets sharing the face; p_i = s * (j + 1) says that
+    axis i of t0's frame corresponds to s times axis j of t1's frame
+    (CubeCover's AssignmentGroup: ``to.row(j) ~ s * from.row(i)``).  Faces not
+    listed have the identity matching; like CubeCover's own writer only
+    non-identity faces are written unless ``keep_identity``.  CubeCover inverts
+    the permutation itself when t0, t1 come in the other order than in its face
+    table.  Checked against evouga/CubeCover src/ReadFrameField.cpp,
+    src/FrameField.cpp (fromFramesAndAssignments), src/AssignmentGroup.cpp
+    (parseFromPerm, operator*) and src/WriteFrameFIeld.cpp.
+
+    tets : (k, 2) int, perms : (k, 3) int (``signed_permutation``)
+    """
+    tets = np.asarray(tets, np.int64).reshape(-1, 2)
+    perms = np.asarray(perms, np.int64).reshape(-1, 3)
+    if not keep_identity:
+        keep = np.any(perms != [1, 2, 3], axis=1)
+        tets, perms = tets[keep], perms[keep]
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write(f"PERM 1\n{int(n_tets)} {len(tets)} 3\n")
+        fh.write(_fmt_rows(np.c_[tets, perms], "%d"))
+
+
+def read_perm(path: str) -> tuple[int, np.ndarray, np.ndarray]:
+    """(#tets, (k, 2) tet pairs, (k, 3) signed permutations) of a ``.perm`` file."""
+    tok = _tokens(path)
+    if len(tok) < 5 or tok[0] != "PERM" or tok[1] != "1":
+        raise ValueError(f"{path}: not a version-1 .perm file (expected 'PERM 1')")
+    nt, nf, nv = int(tok[2]), int(tok[3]), int(tok[4])
+    if nv != 3:
+        raise ValueError(f"{path}: {nv} assignments per face; only 3 are supported")
+    vals = np.asarray(tok[5:5 + 5 * nf], dtype=np.int64)
+    if len(vals) != 5 * nf:
+        raise ValueError(f"{path}: expected {nf} face lines of 5 integers")
+    vals = vals.reshape(nf, 5)
+    return nt, vals[:, :2], vals[:, 2:]
+
+
+def _tokens(path: str) -> list[str]:
+    with open(path, encoding="ascii", errors="replace") as fh:
+        return fh.read().split()
+
+
+# ======================================================================= QTN
+
+
+def write_qtn(path: str, quaternions: np.ndarray) -> None:
+    """Write AlgoHex's ``.qtn``: one unit quaternion ``w x y z`` per cell, in
+    cell order, no header (AlgoHex reads whitespace-separated numbers, four per
+    cell: cgg-bern/AlgoHex demo/HexMeshing/HexMeshing.cc load_cell_quaternions
+    and src/AlgoHex/SingularGraphExtractionT_impl.hh).  AlgoHex's frame axis i
+    is ``q * e_i``, the i-th column of the rotation matrix, as here.  The cell
+    order is the tet order of the ``.ovm``/``.mesh``/``.vtu`` written with it."""
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write(_fmt_rows(np.asarray(quaternions, float), "%.17g"))
+
+
+def read_qtn(path: str) -> np.ndarray:
+    """(n, 4) quaternions w, x, y, z of a ``.qtn`` file."""
+    vals = np.asarray(_tokens(path), dtype=float)
+    if len(vals) % 4:
+        raise ValueError(f"{path}: {len(vals)} numbers is not four per cell")
+    return vals.reshape(-1, 4)
+
+
+def quaternion_frames(q: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotation matrices of (n, 4) quaternions w, x, y, z."""
+    return Rotation.from_quat(np.asarray(q, float), scalar_first=True).as_matrix()
+
+
+# ======================================================================= OVM
+
+_OVM_ENTITIES = {"vertex": "VProp", "edge": "EProp", "halfedge": "HEProp", "face": "FProp",
+                 "halfface": "HFProp", "cell": "CProp", "mesh": "MProp"}
+_OVM_READ_ENTITIES = {"vprop": "vertex", "eprop": "edge", "heprop": "halfedge", "fprop": "face",
+                      "hfprop": "halfface", "cprop": "cell", "mprop": "mesh",
+                      # the older long names (OpenVolumeMesh documentation/examples)
+                      "vertex_property": "vertex", "edge_property": "edge", "halfedge_property": "halfedge",
+                      "face_property": "face", "halfface_property": "halfface", "polyhedron_property": "cell",
+                      "cell_property": "cell", "mesh_property": "mesh"}
+_OVM_SCALARS = {"int": np.int64, "uint": np.int64, "short": np.int64, "long": np.int64, "ulong": np.int64,
+                "char": np.int64, "uchar": np.int64, "bool": bool, "float": float, "double": float}
+
+
+def _ovm_type(a: np.ndarray) -> str:
+    k = a.dtype.kind
+    if a.ndim == 1:
+        return {"b": "bool", "i": "int", "u": "uint", "f": "double"}[k]
+    n = a.shape[1]
+    if a.ndim != 2 or n not in (2, 3, 4):
+        raise ValueError("OVM property arrays must be (n,) or (n, 2|3|4)")
+    return f"vec{n}" + {"i": "i", "u": "ui", "f": "d", "b": "i"}[k]
+
+
+def ovm_halffaces(mesh: TetMesh) -> tuple[np.ndarray, np.ndarray]:
+    """OpenVolumeMesh connectivity of a TetMesh.
+
+    Returns (face_halfedges (#F, 3), cell_halffaces (#T, 4)).  Edge e is
+    ``mesh.edges[e]`` from its first to its second vertex; halfedge 2e runs that
+    way, 2e + 1 back.  Face f = a < b < c (``mesh.faces``) is the loop
+    a -> b -> c -> a: halfedges (2 e_ab, 2 e_bc, 2 e_ac + 1).  Halfface 2f has
+    that loop's right-hand normal, 2f + 1 the opposite one.  A cell lists, for
+    its faces opposite local vertices 0..3, the halfface whose normal points
+    into the cell (OpenVolumeMesh's convention; TetrahedralMeshTopologyKernel
+    builds cells so from positively oriented vertex quadruples).  Chosen
+    combinatorially: the face (a, b, c) seen with the opposite vertex v is
+    inward-facing iff (a, b, c, v) is an even permutation of the positively
+    oriented tet.
+    """
+    fe = mesh.face_edges
+    he = np.stack([2 * fe[:, 0], 2 * fe[:, 1], 2 * fe[:, 2] + 1], axis=1)
+    T = mesh.tets
+    tf = mesh.tet_faces
+    Fv = mesh.faces[tf]  # (#T, 4, 3)
+    seq = np.concatenate([Fv, T[:, :, None]], axis=2)  # (#T, 4, 4): a, b, c, opposite
+    pos = np.argmax(seq[..., :, None] == T[:, None, None, :], axis=3)  # positions in the tet
+    inv = np.zeros(pos.shape[:2], np.int64)
+    for i in range(4):
+        for j in range(i + 1, 4):
+            inv += pos[..., i] > pos[..., j]
+    hf = 2 * tf + (inv % 2)
+    return he, hf
+
+
+def write_ovm(path: str, mesh: TetMesh, vertex_props: dict | None = None, edge_props: dict | None = None,
+              face_props: dict | None = None, cell_props: dict | None = None) -> None:
+    """Write a tet mesh as OpenVolumeMesh ASCII (.ovm)::
+
+        OVM ASCII
+        Vertices
+        n
+        x y z
+        Edges
+        #E
+        i j                  (mesh.edges order)
+        Faces
+        #F
+        3 h0 h1 h2           (halfedge indices, ovm_halffaces)
+        Polyhedra
+        #T
+        4 f0 f1 f2 f3        (halfface indices, normals into the cell)
+        CProp vec4d "name"   (then one value per line, per cell)
+        ...
+
+    Properties come after the topology as ``<VProp|EProp|FProp|CProp> <type>
+    "<name>"`` followed by one line per entity; types ``int``, ``uint``,
+    ``bool``, ``double``, ``vec{2,3,4}{d,i}``.  Checked against
+    OpenVolumeMesh/OpenVolumeMesh src/OpenVolumeMesh/FileManager
+    (FileManagerT_impl.hh readStream/writeStream/readProperty, TypeNames.cc) and
+    Core/TopologyKernel.cc, Mesh/TetrahedralMeshTopologyKernel.cc for the
+    halfedge/halfface conventions.
+
+    Property dicts map name -> (n,) or (n, k) arrays indexed like the mesh's
+    vertices / edges / faces / tets.
+    """
+    he, hf = ovm_halffaces(mesh)
+    out = ["OVM ASCII\n", f"Vertices\n{mesh.n_vertices}\n", _fmt_rows(mesh.vertices, "%.17g"),
+           f"Edges\n{mesh.n_edges}\n", _fmt_rows(mesh.edges, "%d"),
+           f"Faces\n{mesh.n_faces}\n", _fmt_rows(np.c_[np.full(mesh.n_faces, 3), he], "%d"),
+           f"Polyhedra\n{mesh.n_tets}\n", _fmt_rows(np.c_[np.full(mesh.n_tets, 4), hf], "%d")]
+    sizes = {"vertex": mesh.n_vertices, "edge": mesh.n_edges, "face": mesh.n_faces, "cell": mesh.n_tets}
+    for ent, props in (("vertex", vertex_props), ("edge", edge_props), ("face", face_props), ("cell", cell_props)):
+        for name, a in (props or {}).items():
+            a = np.asarray(a)
+            if len(a) != sizes[ent]:
+                raise ValueError(f"{ent} property {name!r} has {len(a)} values for {sizes[ent]} {ent}s")
+            if '"' in name:
+                raise ValueError(f"property name {name!r} must not contain a double quote")
+            t = _ovm_type(a)
+            out.append(f'{_OVM_ENTITIES[ent]} {t} "{name}"\n')
+            out.append(_fmt_rows(a.astype(np.int64) if a.dtype.kind == "b" else a,
+                                 "%.17g" if a.dtype.kind == "f" else "%d"))
+    with open(path, "w", encoding="ascii") as fh:
+        fh.write("".join(out))
+
+
+@dataclass
+class OVMData:
+    """An OpenVolumeMesh ASCII file: tets rebuilt from the halffaces.
+
+    vertices : (n, 3), edges : (#E, 2), face_halfedges : (#F, 3),
+    cell_halffaces : (#C, 4), tets : (#C, 4) vertex quadruples oriented like
+    the file (the first halfface's loop, then the remaining vertex: positive
+    when halfface normals point into the cells), props : {entity: {name: array}}
+    with entity in vertex, edge, halfedge, face, halfface, cell, mesh.
+    """
+
+    vertices: np.ndarray
+    edges: np.ndarray
+    face_halfedges: np.ndarray
+    cell_halffaces: np.ndarray
+    tets: np.ndarray
+    props: dict
+
+
+def read_ovm(path: str) -> OVMData:
+    """Read an OpenVolumeMesh ASCII tet mesh with its properties (format in
+    ``write_ovm``).  Comment lines (#) and blank lines are skipped, keywords are
+    case-insensitive.  Properties of types other than the scalars and vec2/3/4
+    are skipped (one line per entity assumed)."""
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        lines = [s.strip() for s in fh]
+    lines = [s for s in lines if s and not s.startswith("#")]
+    pos = 0
+    if lines and lines[0].split()[0].upper() == "OVM":
+        if len(lines[0].split()) > 1 and lines[0].split()[1].upper() == "BINARY":
+            raise ValueError(f"{path}: binary OVM is not supported; save it as OVM ASCII")
+        pos = 1
+
+    def section(name, width):
+        nonlocal pos
+        if pos >= len(lines) or lines[pos].upper() != name:
+            raise ValueError(f"{path}: expected the {name.title()} section at line {pos + 1} of content")
+        n = int(lines[pos + 1])
+        block = lines[pos + 2:pos + 2 + n]
+        pos += 2 + n
+        if n == 0:
+            return np.zeros((0, width))
+        vals = np.asarray(" ".join(block).split(), dtype=float)
+        if len(vals) != n * width:
+            raise ValueError(f"{path}: the {name.title()} section is not {width} numbers per line"
+                             + (" (only tetrahedral meshes are supported)" if name in ("FACES", "POLYHEDRA") else ""))
+        return vals.reshape(n, width)
+
+    V = section("VERTICES", 3)
+    E = section("EDGES", 2).astype(np.int64)
+    Fh = section("FACES", 4).astype(np.int64)
+    Ch = section("POLYHEDRA", 5).astype(np.int64)
+    if np.any(Fh[:, 0] != 3) or np.any(Ch[:, 0] != 4):
+        raise ValueError(f"{path}: only tetrahedral meshes are supported (faces of 3 halfedges, cells of 4)")
+    he, hf = Fh[:, 1:], Ch[:, 1:]
+    counts = {"vertex": len(V), "edge": len(E), "halfedge": 2 * len(E), "face": len(he),
+              "halfface": 2 * len(he), "cell": len(hf), "mesh": 1}
+    props: dict = {k: {} for k in counts}
+    while pos < len(lines):
+        head = lines[pos]
+        parts = head.split()
+        ent = _OVM_READ_ENTITIES.get(parts[0].lower()) if parts else None
+        if ent is None or len(parts) < 2:
+            pos += 1
+            continue
+        typ = parts[1].lower()
+        name = head[head.find('"') + 1:head.rfind('"')] if head.count('"') >= 2 else ""
+        n = counts[ent]
+        block = lines[pos + 1:pos + 1 + n]
+        pos += 1 + n
+        if typ in _OVM_SCALARS:
+            vals = np.asarray([b.split()[0] for b in block], dtype=float)
+            props[ent][name] = vals.astype(_OVM_SCALARS[typ]) if _OVM_SCALARS[typ] is not float else vals
+        elif typ.startswith("vec") and typ[3:4] in "234" and typ[4:] in ("d", "f", "i", "ui"):
+            k = int(typ[3])
+            vals = np.asarray(" ".join(block).split(), dtype=float).reshape(n, k)
+            props[ent][name] = vals if typ[4:] in ("d", "f") else vals.astype(np.int64)
+    # vertices of every halfface: from-vertices of the face loop, reversed for odd halffaces
+    hv = np.stack([E[:, 0], E[:, 1]], axis=1).reshape(-1)  # from-vertex of halfedge h: hv[h]
+    loop = hv[he]  # (#F, 3)
+    first = hf[:, 0]
+    tri = loop[first // 2]
+    tri = np.where((first % 2 == 1)[:, None], tri[:, ::-1], tri)
+    other = loop[hf[:, 1] // 2]
+    on_tri = (other[:, :, None] == tri[:, None, :]).any(axis=2)
+    fourth = other[np.arange(len(other)), np.argmin(on_tri, axis=1)]
+    T = np.c_[tri, fourth]
+    return OVMData(V, E, he, hf, T, props)
+
+
+# ============================================================ export dispatch
+
+FORMATS = {".vtu": "vtu", ".mesh": "medit", ".ovm": "ovm", ".qtn": "qtn"}
+
+
+def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
+                 all_faces: bool = False, data: FieldExport | None = None) -> list[str]:
+    """Write a solved field for ParaView or a hex mesher.
+
+    Parameters
+    ----------
+    result : solver.Result
+    path : output file; its extension picks the format unless ``fmt`` is given
+    fmt : 'vtu', 'medit' (writes path.mesh + .fra + .perm), 'ovm' or 'qtn'
+    binary : VTU only, base64 inline data instead of ASCII
+    all_faces : .perm only, list identity matchings too
+    data : ``field_export(result)`` if already computed (to write several
+        formats without recomputing it)
+
+    Returns
+    -------
+    list of str
+        The files written.
+
+    What is written (tet order = ``result.mesh.tets`` everywhere, so a ``.qtn``
+    matches the ``.ovm``/``.mesh``/``.vtu`` of the same result):
+
+    * vtu: ``vtu_field_data``;
+    * medit: ``.mesh`` with Vertices (ref 0), the outward boundary Triangles
+      (ref 1) and Tetrahedra (ref = 1 + index of the curve crossing the tet,
+      0 elsewhere: the tets a mesher may want to skip), ``.fra`` with the tet
+      frames, ``.perm`` with the omega-derived face matchings (module docs);
+    * ovm: topology as in ``write_ovm`` with properties VProp vec4d
+      ``vertex_frame_wxyz``, CProp vec4d ``cell_frame_wxyz`` (both unit
+      quaternions w, x, y, z), CProp vec3d ``cell_axis0..2``, CProp int
+      ``curve`` (-1 or the crossing curve), FProp int ``matching`` (the
+      CUBE_GROUP index g of the face from face_tets[f, 0] to face_tets[f, 1],
+      0 on the boundary);
+    * qtn: the tet quaternions w, x, y, z.
+    """
+    if fmt is None:
+        ext = os.path.splitext(path)[1].lower()
+        if ext not in FORMATS:
+            raise ValueError(f"cannot tell the format of {path!r} from its extension; use one of "
+                             f"{', '.join(FORMATS)} or pass fmt= ('vtu', 'medit', 'ovm', 'qtn')")
+        fmt = FORMATS[ext]
+    if fmt not in FORMATS.values():
+        raise ValueError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS.values())}")
+    fe = field_export(result) if data is None else data
+    mesh = fe.mesh
+    if fmt == "vtu":
+        pd, cd = vtu_field_data(fe)
+        write_vtu(path, mesh.vertices, mesh.tets, pd, cd, binary)
+        return [path]
+    if fmt == "qtn":
+        write_qtn(path, fe.tet_quaternions)
+        return [path]
+    if fmt == "ovm":
+        g = np.zeros(mesh.n_faces, np.int64)
+        g[fe.matchings.faces] = fe.matchings.symmetry
+        cell = {"cell_frame_wxyz": fe.tet_quaternions, "curve": fe.curve}
+        cell.update({f"cell_axis{k}": fe.tet.frames[:, :, k] for k in range(3)})
+        write_ovm(path, mesh, vertex_props={"vertex_frame_wxyz": fe.vertex_quaternions},
+                  face_props={"matching": g}, cell_props=cell)
+        return [path]
+    stem = os.path.splitext(path)[0]
+    paths = [stem + ".mesh", stem + ".fra", stem + ".perm"]
+    write_medit(paths[0], mesh.vertices, mesh.tets, boundary_triangles(mesh), tet_refs=fe.curve + 1,
+                triangle_refs=1)
+    write_fra(paths[1], fe.tet.frames)
+    fm = fe.matchings
+    write_perm(paths[2], mesh.n_tets, fm.tets, fm.signed_permutations(), keep_identity=all_faces)
+    return paths
