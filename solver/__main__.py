@@ -6,6 +6,8 @@ solver/io/formats.py), solves, prints the report and writes the result (.npz).
     python -m solver part.json -o part.npz
     python -m solver --example ball --edge-length 0.1 --profile
     python -m solver --export-example ball out/   # write ball.obj + ball.json
+    python -m solver part.json --export part.vtu --export part.mesh   # ParaView, CubeCover
+    python -m solver --tet-network field.ovm --tag-convention valence  # a tagged tet mesh's network
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from .errors import Cancelled, SymFramesError
 from .examples import EXAMPLES, load_example
 from .pipeline import INITS, FieldProblem
 
+TAG_CONVENTIONS = {"index": 1, "negated": -1, "valence": "valence"}
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m solver", description="Symmetric Moving Frames: a 3D cross field "
@@ -29,7 +33,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--example", choices=sorted(EXAMPLES), help="solve a built-in example instead")
     p.add_argument("--export-example", nargs=2, metavar=("NAME", "DIR"),
                    help="write a built-in example as NAME.obj + NAME.json into DIR and exit")
+    p.add_argument("--tet-network", metavar="FILE", help="read the domain and network from a tet mesh whose edges "
+                   "carry an integer singularity tag (.ovm edge property or MEDIT .mesh Edges) instead of JSON")
+    p.add_argument("--tag-convention", choices=sorted(TAG_CONVENTIONS), default="index",
+                   help="with --tet-network: 'index' = tag in quarter turns, +1 the valence-3 edge (SymFrames' "
+                   "sign); 'negated' = the opposite sign; 'valence' = hexahedra around the edge (3 -> +1/4)")
+    p.add_argument("--tag-property", metavar="NAME", help="with --tet-network .ovm: the edge property holding "
+                   "the tags (default: the only integer edge property)")
+    p.add_argument("--sharp-angle", type=float, metavar="DEG", help="with --tet-network: boundary edges whose "
+                   "dihedral angle turns by more than DEG degrees are sharp too (besides the tagged boundary edges)")
     p.add_argument("-o", "--output", help="result .npz (default: next to the network file, or NAME.npz)")
+    p.add_argument("--export", action="append", default=[], metavar="FILE",
+                   help="also write the field as FILE: .vtu (ParaView), .mesh (MEDIT + .fra + .perm, CubeCover), "
+                   ".ovm (OpenVolumeMesh) or .qtn (AlgoHex); may be repeated")
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
     p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
     p.add_argument("--refine", type=int, help="red-refinement levels after fTetWild (default: automatic, 0-2)")
@@ -56,6 +72,20 @@ def _options(args, file_options: dict):
     if args.no_snap:
         d["snap_features"] = False
     return io.options_from_dict(d)
+
+
+def _check_exports(paths: list[str]) -> None:
+    """Refuse an export the solve could not write, before the solve."""
+    from .io.interchange import FORMATS
+
+    for path in paths:
+        ext = os.path.splitext(path)[1].lower()
+        if ext not in FORMATS:
+            raise SymFramesError(f"--export {path}: unknown format {ext or '(no extension)'!r}; use one of "
+                                 f"{', '.join(FORMATS)}")
+        folder = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(folder):
+            raise SymFramesError(f"--export {path}: the folder {folder} does not exist")
 
 
 def _progress(quiet: bool):
@@ -95,6 +125,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.example:
             V, F, net = load_example(args.example)
             file_opts, stem = {}, args.example
+        elif args.tet_network:
+            V, F, net = io.read_tet_network(args.tet_network, TAG_CONVENTIONS[args.tag_convention],
+                                            args.tag_property, args.sharp_angle)
+            file_opts, stem = {}, os.path.splitext(args.tet_network)[0]
         elif args.network:
             net, file_opts, surface = io.read_network(args.network)
             surface = args.surface or surface
@@ -107,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
             print("error: give a network file or --example NAME", file=sys.stderr)
             return 2
         opts = _options(args, file_opts)
+        _check_exports(args.export)
         if args.check:
             from .network.validation import check_input
 
@@ -135,6 +170,12 @@ def main(argv: list[str] | None = None) -> int:
         out = args.output or f"{stem}.npz"
         io.save_result(out, result)
         print(f"wrote {out}")
+        if args.export:
+            from .io.interchange import field_export
+
+            data = field_export(result)
+            for path in args.export:
+                print("wrote " + ", ".join(io.export_field(result, path, data=data)))
         return 0
     except (SymFramesError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -516,3 +516,42 @@ def test_import_tagged_tet_mesh_and_solve(solved, tmp_path):
           f"{lm.reason}; converged {lm.converged}")
     assert np.isfinite(lm.final.energy)
     assert res.frames.shape == (tn.mesh.n_vertices, 3, 3) and np.all(np.isfinite(res.frames))
+
+
+def test_cli_exports_every_format_and_refuses_a_bad_one_before_solving(tmp_path, capsys):
+    """``python -m solver --export``: each format written after the solve, an
+    unknown extension or a missing folder refused before any work.  The cube's
+    field is constant, so its .perm lists no face: that writes too."""
+    from solver.__main__ import main
+
+    out = [str(tmp_path / f"cube.{ext}") for ext in ("vtu", "mesh", "ovm", "qtn")]
+    args = ["--example", "cube", "--edge-length", "0.5", "-q", "-o", str(tmp_path / "cube.npz")]
+    assert main(args + [a for p in out for a in ("--export", p)]) == 0
+    m = meshio.read(out[0])
+    assert len(m.cells_dict["tetra"]) == len(read_qtn(out[3]))
+    n_tets, pairs, _ = read_perm(str(tmp_path / "cube.perm"))
+    assert n_tets == len(m.cells_dict["tetra"]) and len(pairs) == 0
+    assert read_ovm(out[2]).tets.shape == (n_tets, 4)
+    capsys.readouterr()
+    assert main(["--example", "cube", "--export", str(tmp_path / "cube.stl")]) == 1
+    assert "unknown format '.stl'" in capsys.readouterr().err
+    assert main(["--example", "cube", "--export", str(tmp_path / "no" / "such" / "cube.vtu")]) == 1
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_cli_reads_a_tagged_tet_mesh(tmp_path, capsys):
+    """``python -m solver --tet-network``: the domain and network of a tagged
+    tet mesh, with the tag convention switch and sharp edges by angle (here
+    validated only)."""
+    from solver.__main__ import main
+
+    mesh = box_mesh(4)
+    tags = np.full(mesh.n_edges, 4, np.int64)  # valence 4: regular
+    for x, valence in ((1, 3), (3, 5)):  # two straight axes, sigma +1/4 and -1/4: Poincare-Hopf holds
+        ids = [int(np.argmin(np.linalg.norm(mesh.vertices - 0.25 * np.array([x, 2, z]), axis=1))) for z in range(5)]
+        tags[mesh.edge_index(np.array(ids[:-1]), np.array(ids[1:]))] = valence
+    path = str(tmp_path / "axis.ovm")
+    write_ovm(path, mesh, edge_props={"valence": tags})
+    assert main(["--tet-network", path, "--tag-convention", "valence", "--sharp-angle", "30",
+                 "--check"]) == 0
+    assert "2 interior curves" in capsys.readouterr().out

@@ -325,9 +325,10 @@ def _vtu_array(name: str, a: np.ndarray, binary: bool) -> str:
 
 def _fmt_rows(a: np.ndarray, fmt: str) -> str:
     """Rows of a 2D array as text lines (C-level formatting, no Python loop per row)."""
-    a = np.asarray(a).reshape(len(a), -1)
+    a = np.asarray(a)
     if len(a) == 0:
         return ""
+    a = a.reshape(len(a), -1)
     line = " ".join([fmt] * a.shape[1]) + "\n"
     return (line * len(a)) % tuple(a.reshape(-1).tolist())
 
