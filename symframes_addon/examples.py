@@ -42,7 +42,7 @@ def curve_from_points(name: str, P: np.ndarray, closed: bool = False, bevel: flo
     co = np.ones((len(P), 4))
     co[:, :3] = P
     sp.points.foreach_set("co", co.ravel())
-    sp.use_cyclic_u = closed
+    sp.use_cyclic_u = bool(closed)
     return cu
 
 
@@ -61,20 +61,21 @@ def _material(name: str, colour, alpha: float = 1.0):
     return mat
 
 
-def build_example(scene, name: str) -> tuple:
-    """Add example ``name`` to the scene and point the SymFrames settings at it.
-
-    Returns (domain object, network collection).
-    """
-    V, F, net = load_example(name)
-    title = name.capitalize()
+def add_domain_and_network(scene, title: str, V: np.ndarray, F: np.ndarray, net, group: str | None = None) -> tuple:
+    """A domain mesh object ``title`` and a network collection of curve
+    objects (with their index, role and torsion) in a new collection
+    ``group`` (default: ``title``); sharp edges
+    of the network are marked sharp on the domain.  Points the SymFrames
+    settings at them.  Returns (domain object, network collection)."""
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    root = bpy.data.collections.new(f"{title} Example")
+    root = bpy.data.collections.new(group or title)
     scene.collection.children.link(root)
     domain = bpy.data.objects.new(title, mesh_from_arrays(title, V, F))
     domain.data.materials.append(_material("SymFrames Domain", DOMAIN_COLOUR, 0.12))
     domain.display_type = "WIRE"  # the glyphs inside stay visible
     root.objects.link(domain)
+    if net.sharp_edges is not None and len(net.sharp_edges):
+        _mark_sharp(domain.data, np.asarray(net.sharp_edges, np.int64))
     network = bpy.data.collections.new(f"{title} Network")
     root.children.link(network)
     curve_mat = _material("SymFrames Network Curve", CURVE_COLOUR) if net.curves else None
@@ -90,11 +91,40 @@ def build_example(scene, name: str) -> tuple:
     s = scene.symframes
     s.domain = domain
     s.network = network
+    s.use_sharp_marks = True
     s.use_sharp_angle = net.sharp_angle is not None
     if net.sharp_angle is not None:
         s.sharp_angle = np.radians(net.sharp_angle)
+    s.glyph_size = 0.03 * diag
+    s.streamline_radius = 0.0035 * diag
+    return domain, network
+
+
+def _mark_sharp(me, pairs: np.ndarray) -> None:
+    """Mark the mesh edges joining the vertex pairs (k, 2) sharp."""
+    E = np.empty(2 * len(me.edges), np.int32)
+    me.edges.foreach_get("vertices", E)
+    E = np.sort(E.reshape(-1, 2).astype(np.int64), axis=1)
+    n = len(me.vertices)
+    keys = E[:, 0] * n + E[:, 1]
+    p = np.sort(pairs, axis=1)
+    sharp = np.isin(keys, p[:, 0] * n + p[:, 1])
+    if "sharp_edge" not in me.attributes:
+        me.attributes.new("sharp_edge", "BOOLEAN", "EDGE")
+    me.attributes["sharp_edge"].data.foreach_set("value", sharp)
+
+
+def build_example(scene, name: str) -> tuple:
+    """Add example ``name`` to the scene and point the SymFrames settings at it.
+
+    Returns (domain object, network collection).
+    """
+    V, F, net = load_example(name)
+    title = name.capitalize()
+    domain, network = add_domain_and_network(scene, title, V, F, net, group=f"{title} Example")
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    s = scene.symframes
     s.auto_resolution = False
     s.edge_length = EDGE_LENGTHS.get(name, 0.05 * diag)
     s.glyph_size = GLYPH_SIZES.get(name, 0.03 * diag)
-    s.streamline_radius = 0.0035 * diag
     return domain, network

@@ -23,6 +23,7 @@ import numpy as np
 from ..solver import Cancelled, FieldProblem
 from ..solver.analysis.measures import normal_adaptation
 from ..solver.analysis.streamlines import FrameField
+from ..solver.io.interchange import field_data
 from . import display
 
 _MESH_CACHE: dict = {}
@@ -48,6 +49,9 @@ class Outcome:
     network_faces: np.ndarray | None = None  # (k, 3) vertex triples
     edges: np.ndarray | None = None  # (e, 2) tet-mesh edges i -> j
     omega: np.ndarray | None = None  # (e, 3) the solver's Darboux derivative on them
+    tet_curve: np.ndarray | None = None  # (m,) the curve crossing each tet, -1 elsewhere
+    tet_node: np.ndarray | None = None  # (m,) tets of node regions
+    network_omega: np.ndarray | None = None  # (k, 3) the prescribed Omega of the network faces
     glyphs: tuple | None = None  # (points, quaternions, errors or None, error attribute name)
     streamlines: tuple | None = None  # (lines, families)
     remeshed: bool = True
@@ -128,8 +132,10 @@ class SolveJob:
             "remeshed": mesh is None,
         }
         adaptation, network_faces = diagnostic_data(result)
+        fd = field_data(result)
         out = Outcome(result.mesh.vertices, result.mesh.tets, result.quaternions(), report, adaptation,
-                      network_faces, result.mesh.edges, result.omega, remeshed=mesh is None)
+                      network_faces, result.mesh.edges, result.omega, fd.curve, fd.node_region,
+                      fd.face_omega[result.embedding.network_faces(result.mesh)], remeshed=mesh is None)
         if self.want_glyphs or self.want_streamlines:
             self._progress("display", 0.97, "sampling glyphs and streamlines")
             f = FrameField.from_result(result)

@@ -53,7 +53,8 @@ def write_outcome(scene, out: job.Outcome) -> None:
     created = []
     try:
         field_me = storage.new_field_mesh(out.vertices, out.tets, out.quaternions, out.report, out.adaptation,
-                                          out.network_faces, out.edges, out.omega)
+                                          out.network_faces, out.edges, out.omega, out.tet_curve, out.tet_node,
+                                          out.network_omega)
         created.append((bpy.data.meshes, field_me))
         glyph_me = curve = None
         if out.glyphs is not None:

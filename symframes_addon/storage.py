@@ -19,6 +19,12 @@ setting ``symframes.field`` (a pointer counts as a user, so it is saved):
                    computes omega from the frames.
 * ``["symframes_network_faces"]`` = int array, the vertex triples of the
                    tet-mesh faces the network passes through (flattened)
+* ``["symframes_network_omega"]`` = float array, the prescribed Omega of
+                   those faces (Eq. 19, flattened (k, 3))
+* ``curve``      = INT face attribute, the network curve crossing each tet,
+                   -1 elsewhere; ``node_region`` = BOOLEAN face attribute,
+                   the tets of node regions (both for exports; older results
+                   lack them)
 * ``["symframes_report"]`` = JSON with the report's sizes, metrics and summary
 
 Positions, quaternions and omega are float32 in Blender; the frames are
@@ -41,6 +47,9 @@ FRAME_ATTRIBUTE = "frame"
 ADAPTATION_ATTRIBUTE = "adaptation"
 OMEGA_ATTRIBUTE = "omega"
 NETWORK_FACES_KEY = "symframes_network_faces"
+NETWORK_OMEGA_KEY = "symframes_network_omega"
+CURVE_ATTRIBUTE = "curve"
+NODE_ATTRIBUTE = "node_region"
 REPORT_KEY = "symframes_report"
 ROLE_KEY = "symframes_role"
 RESULTS_COLLECTION = "SymFrames Results"
@@ -50,13 +59,16 @@ OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "erro
 # ------------------------------------------------------------------- field
 def new_field_mesh(vertices: np.ndarray, tets: np.ndarray, quaternions: np.ndarray, report: dict,
                    adaptation: np.ndarray | None = None, network_faces: np.ndarray | None = None,
-                   edges: np.ndarray | None = None, omega: np.ndarray | None = None):
+                   edges: np.ndarray | None = None, omega: np.ndarray | None = None,
+                   tet_curve: np.ndarray | None = None, tet_node: np.ndarray | None = None,
+                   network_omega: np.ndarray | None = None):
     """A new (unlinked) mesh datablock holding a solved field.
 
     vertices (n, 3), tets (m, 4), quaternions (n, 4) w x y z; adaptation
     (n,) radians or -1; network_faces (k, 3) vertex triples; edges (e, 2)
     the tet-mesh edges i -> j and omega (e, 3) their rotation vectors
-    (both or neither).
+    (both or neither); tet_curve (m,) int and tet_node (m,) bool per tet;
+    network_omega (k, 3) the prescribed Omega of the network faces.
     """
     n, m = len(vertices), len(tets)
     if (edges is None) != (omega is None) or (omega is not None and len(omega) != len(edges)):
@@ -83,6 +95,14 @@ def new_field_mesh(vertices: np.ndarray, tets: np.ndarray, quaternions: np.ndarr
             me.attributes[ADAPTATION_ATTRIBUTE].data.foreach_set("value", np.asarray(adaptation, np.float32))
         if network_faces is not None:
             me[NETWORK_FACES_KEY] = np.asarray(network_faces, np.int32).ravel().tolist()
+        if network_omega is not None:
+            me[NETWORK_OMEGA_KEY] = np.asarray(network_omega, float).ravel().tolist()
+        if tet_curve is not None:
+            me.attributes.new(CURVE_ATTRIBUTE, "INT", "FACE")
+            me.attributes[CURVE_ATTRIBUTE].data.foreach_set("value", np.asarray(tet_curve, np.int32))
+        if tet_node is not None:
+            me.attributes.new(NODE_ATTRIBUTE, "BOOLEAN", "FACE")
+            me.attributes[NODE_ATTRIBUTE].data.foreach_set("value", np.asarray(tet_node, bool))
         me[REPORT_KEY] = json.dumps(report)
     except Exception:
         bpy.data.meshes.remove(me)
@@ -167,6 +187,48 @@ def read_network_faces(me) -> np.ndarray | None:
     if NETWORK_FACES_KEY not in me:
         return None
     return np.asarray(me[NETWORK_FACES_KEY], dtype=np.int64).reshape(-1, 3)
+
+
+def _face_attribute(me, name: str, dtype) -> np.ndarray | None:
+    attr = me.attributes.get(name)
+    if attr is None or attr.domain != "FACE":
+        return None
+    a = np.empty(len(me.polygons), dtype)
+    attr.data.foreach_get("value", a)
+    return a
+
+
+def read_field_data(me):
+    """The stored field as solver.io.interchange.FieldData, for exports.
+
+    Results stored before the per-tet markers were kept mark the tets next
+    to the network faces as crossed by curve 0 and measure monodromy
+    against the identity there."""
+    from ..solver.io.interchange import FieldData
+    from ..solver.mesh.tetmesh import TetMesh
+
+    V, T, q = read_field(me)
+    mesh = TetMesh(V, T)
+    omega = read_omega(me, mesh.edges)
+    if omega is None:
+        from ..solver.analysis.measures import darboux_derivative
+
+        omega = darboux_derivative(mesh, quaternions_to_frames(q))
+    net = read_network_faces(me)
+    face_ids = mesh.face_index(net) if net is not None and len(net) else np.zeros(0, np.int64)
+    curve = _face_attribute(me, CURVE_ATTRIBUTE, np.int32)
+    if curve is None:
+        curve = np.full(mesh.n_tets, -1)
+        ft = mesh.face_tets[face_ids[face_ids >= 0]]
+        curve[ft[ft >= 0]] = 0
+    node = _face_attribute(me, NODE_ATTRIBUTE, bool)
+    face_omega = None
+    if NETWORK_OMEGA_KEY in me and len(face_ids):
+        face_omega = np.zeros((mesh.n_faces, 3))
+        ok = face_ids >= 0
+        face_omega[face_ids[ok]] = np.asarray(me[NETWORK_OMEGA_KEY], float).reshape(-1, 3)[ok]
+    return FieldData(mesh, quaternions_to_frames(q), omega, np.asarray(curve, np.int64),
+                     np.zeros(mesh.n_tets, bool) if node is None else node, face_omega)
 
 
 def quaternions_to_frames(q: np.ndarray) -> np.ndarray:

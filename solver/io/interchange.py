@@ -253,8 +253,43 @@ def _per_tet_max(mesh: TetMesh, face_values: np.ndarray) -> np.ndarray:
     return face_values[mesh.tet_faces].max(axis=1)
 
 
+@dataclass
+class FieldData:
+    """What an export needs of a solved field: a Result's, or one stored
+    elsewhere (the add-on keeps it in the .blend).
+
+    mesh        : TetMesh
+    frames      : (#V, 3, 3) vertex frames, columns the cross axes
+    omega       : (#E, 3) the Darboux derivative on mesh.edges (Eq. 8)
+    curve       : (#T,) int, the curve crossing each tet, -1 elsewhere
+    node_region : (#T,) bool, tets of node regions (no structure equation)
+    face_omega  : (#F, 3) the prescribed Omega of pierced faces (Eq. 19),
+                  zero elsewhere; None if unknown (monodromy is then
+                  measured against the identity everywhere)
+    """
+
+    mesh: TetMesh
+    frames: np.ndarray
+    omega: np.ndarray
+    curve: np.ndarray
+    node_region: np.ndarray
+    face_omega: np.ndarray | None = None
+
+
+def field_data(result) -> FieldData:
+    """The FieldData of a solver Result."""
+    mesh, emb = result.mesh, result.embedding
+    curve = np.full(mesh.n_tets, -1, dtype=np.int64)
+    for i in range(len(emb.traces)):
+        curve[result.curve_tets(i)] = i
+    node = np.zeros(mesh.n_tets, bool)
+    node[emb.node_region_tets] = True
+    return FieldData(mesh, np.asarray(result.frames), np.asarray(result.omega), curve, node, emb.face_omega)
+
+
 def field_export(result) -> FieldExport:
-    """Tet frames, face matchings, markers and per-tet measures of a Result.
+    """Tet frames, face matchings, markers and per-tet measures of a Result
+    (or a FieldData).
 
     measures (all (#T,)):
       ``monodromy_deg``       largest failure to close (Eq. 9) over the tet's
@@ -269,18 +304,13 @@ def field_export(result) -> FieldExport:
                               the closest-rotation matching of tet frames differ
       ``matching_ambiguous``  faces of the tet whose three vertices disagreed
     """
-    mesh, emb = result.mesh, result.embedding
-    tf = omega_tet_frames(mesh, result.omega, result.frames)
+    fd = result if isinstance(result, FieldData) else field_data(result)
+    mesh = fd.mesh
+    tf = omega_tet_frames(mesh, fd.omega, fd.frames)
     fm = face_matchings(mesh, tf)
-    nT = mesh.n_tets
-    curve = np.full(nT, -1, dtype=np.int64)
-    for i in range(len(emb.traces)):
-        curve[result.curve_tets(i)] = i
-    node = np.zeros(nT, bool)
-    node[emb.node_region_tets] = True
-    mono = np.degrees(monodromy_angles(mesh, result.omega, None, emb.face_omega))
-    osing = omega_singular_faces(mesh, result.omega, result.frames).astype(np.int64)
-    csing = matched_singular_faces(mesh, result.frames)[0].astype(np.int64)
+    mono = np.degrees(monodromy_angles(mesh, fd.omega, None, fd.face_omega))
+    osing = omega_singular_faces(mesh, fd.omega, fd.frames).astype(np.int64)
+    csing = matched_singular_faces(mesh, fd.frames)[0].astype(np.int64)
     dis = np.zeros(mesh.n_faces, np.int64)
     dis[fm.faces] = fm.symmetry != fm.closest
     amb = np.zeros(mesh.n_faces, np.int64)
@@ -294,7 +324,7 @@ def field_export(result) -> FieldExport:
         "matching_disagree": dis[tfc].sum(axis=1),
         "matching_ambiguous": amb[tfc].sum(axis=1),
     }
-    return FieldExport(mesh, np.asarray(result.frames), tf, fm, curve, node, measures)
+    return FieldExport(mesh, np.asarray(fd.frames), tf, fm, fd.curve, fd.node_region, measures)
 
 
 # ======================================================================= VTU
@@ -766,7 +796,7 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
 
     Parameters
     ----------
-    result : solver.Result
+    result : solver.Result, or a FieldData
     path : output file; its extension picks the format unless ``fmt`` is given
     fmt : 'vtu', 'medit' (writes path.mesh + .fra + .perm), 'ovm' or 'qtn'
     binary : VTU only, base64 inline data instead of ASCII

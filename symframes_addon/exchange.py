@@ -1,0 +1,201 @@
+"""Files in and out: Export Field (File > Export), Import Network (File >
+Import) and the tet mesh as a Blender object (so Blender's own exporters
+reach it).
+
+The formats are the solver's (solver/io/interchange.py, solver/io/tetnetwork.py,
+solver/io/formats.py; docs/usage.md); this module only moves arrays between
+them and the scene.  A failed import leaves the scene as it was.
+"""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty, FloatProperty, StringProperty
+from bpy_extras.io_utils import ExportHelper, ImportHelper
+
+from ..solver import SymFramesError
+from ..solver.io import export_field, read_network, read_obj, read_tet_network
+from . import examples, storage
+
+FORMATS = (
+    ("VTU", "VTU (ParaView)", "VTK XML unstructured grid: vertex and per-tet frames, curve markers, error measures",
+     ".vtu"),
+    ("MEDIT", "MEDIT + .fra + .perm (CubeCover)", "MEDIT .mesh with per-tet frames (.fra) and face matchings (.perm)",
+     ".mesh"),
+    ("OVM", "OpenVolumeMesh (.ovm)", "OpenVolumeMesh ASCII with per-vertex and per-cell frame properties", ".ovm"),
+    ("QTN", "Quaternions (.qtn, AlgoHex)", "One w x y z line per tet, in the tet order of the other formats", ".qtn"),
+)
+EXTENSION = {key: ext for key, _, _, ext in FORMATS}
+TAG_CONVENTIONS = (
+    ("INDEX", "Index", "Tag in quarter turns, +1 the valence-3 edge (SymFrames' sign)"),
+    ("NEGATED", "Negated Index", "Tag in quarter turns counted the other way: -1 the valence-3 edge"),
+    ("VALENCE", "Valence", "Tag = hexahedra around the edge: 3 -> +1/4, 5 -> -1/4 (0 and 4: untagged)"),
+)
+TAG_SIGN = {"INDEX": 1, "NEGATED": -1, "VALENCE": "valence"}
+TET_MESH_ROLE = "tet_mesh"
+
+
+def _field_or_report(op, context):
+    me = storage.stored_field(context.scene)
+    if me is None:
+        op.report({"ERROR"}, "SymFrames: no field computed yet; run Compute Field first")
+    return me
+
+
+class SYMFRAMES_OT_export_field(bpy.types.Operator, ExportHelper):
+    """Write the computed field for ParaView or a hex mesher."""
+
+    bl_description = ("Write the computed field for ParaView or a hex mesher (VTU, MEDIT + .fra + .perm, "
+                      "OpenVolumeMesh, AlgoHex .qtn)")
+
+    bl_idname = "symframes.export_field"
+    bl_label = "Export SymFrames Field"
+    bl_options = {"PRESET"}
+
+    filename_ext = ".vtu"
+    filter_glob: StringProperty(default="*.vtu;*.mesh;*.ovm;*.qtn", options={"HIDDEN"})
+    file_format: EnumProperty(name="Format", items=[f[:3] for f in FORMATS], default="VTU")
+
+    @classmethod
+    def poll(cls, context):
+        return storage.stored_field(context.scene) is not None
+
+    def check(self, context):
+        # keep the file name's extension in step with the chosen format
+        ext = EXTENSION[self.file_format]
+        stem, old = os.path.splitext(self.filepath)
+        if old.lower() != ext:
+            self.filepath = (stem if old.lower() in EXTENSION.values() else self.filepath) + ext
+            return True
+        return False
+
+    def invoke(self, context, event):
+        self.filename_ext = EXTENSION[self.file_format]
+        return ExportHelper.invoke(self, context, event)
+
+    def execute(self, context):
+        me = _field_or_report(self, context)
+        if me is None:
+            return {"CANCELLED"}
+        path = self.filepath
+        folder = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(folder):
+            self.report({"ERROR"}, f"SymFrames: the folder {folder} does not exist")
+            return {"CANCELLED"}
+        try:
+            written = export_field(storage.read_field_data(me), path, self.file_format.lower())
+        except (SymFramesError, ValueError, OSError) as e:
+            self.report({"ERROR"}, f"SymFrames: export failed: {e}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, "SymFrames: wrote " + ", ".join(os.path.basename(p) for p in written))
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_tet_mesh_object(bpy.types.Operator):
+    """The computed field's tet mesh as a mesh object."""
+
+    bl_description = ("Add the computed field's tet mesh as a mesh object (its triangles, the frames as a quaternion "
+                      "attribute, the curve marker per face), so Blender's exporters reach it")
+
+    bl_idname = "symframes.tet_mesh_object"
+    bl_label = "Tet Mesh as Object"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return storage.stored_field(context.scene) is not None
+
+    def execute(self, context):
+        me_field = _field_or_report(self, context)
+        if me_field is None:
+            return {"CANCELLED"}
+        fd = storage.read_field_data(me_field)
+        mesh = fd.mesh
+        me = bpy.data.meshes.new("SymFrames Tet Mesh")
+        try:
+            me.from_pydata(mesh.vertices.tolist(), [], mesh.faces.tolist())
+            q = storage.read_field(me_field)[2]
+            me.attributes.new(storage.FRAME_ATTRIBUTE, "QUATERNION", "POINT")
+            me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_set("value", q.astype(np.float32).ravel())
+            # a face of the tet mesh is on a curve's tube when a crossed tet holds it
+            ft = mesh.face_tets
+            on_curve = np.where(ft >= 0, fd.curve[np.maximum(ft, 0)], -1).max(axis=1)
+            me.attributes.new("curve", "INT", "FACE")
+            me.attributes["curve"].data.foreach_set("value", on_curve.astype(np.int32))
+            me.update()
+            obj = bpy.data.objects.new("SymFrames Tet Mesh", me)
+        except Exception:
+            bpy.data.meshes.remove(me)
+            raise
+        obj[storage.ROLE_KEY] = TET_MESH_ROLE
+        obj.display_type = "WIRE"
+        context.scene.collection.objects.link(obj)
+        self.report({"INFO"}, f"SymFrames: tet mesh with {mesh.n_tets:,} tets, {mesh.n_faces:,} triangles")
+        return {"FINISHED"}
+
+
+class SYMFRAMES_OT_import_network(bpy.types.Operator, ImportHelper):
+    """A domain and its network from a file."""
+
+    bl_description = ("Add a domain and its network from a file: SymFrames JSON (+ OBJ), or a tet mesh whose edges "
+                      "carry a singularity tag (OpenVolumeMesh .ovm, MEDIT .mesh)")
+
+    bl_idname = "symframes.import_network"
+    bl_label = "Import SymFrames Network"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filter_glob: StringProperty(default="*.json;*.ovm;*.mesh", options={"HIDDEN"})
+    tag_convention: EnumProperty(name="Tags", items=TAG_CONVENTIONS, default="INDEX",
+                                 description="What an edge's integer tag means (tet-mesh files)")
+    tag_property: StringProperty(name="Edge Property", default="",
+                                 description="OpenVolumeMesh: the edge property holding the tags (empty: the only "
+                                             "integer edge property)")
+    sharp_angle: FloatProperty(name="Sharp Angle", default=0.5235987755982988, min=0.0, max=3.141592653589793,
+                               subtype="ANGLE", description="Tet-mesh files: boundary edges turning by more than "
+                               "this are sharp too (0: only the tagged boundary edges)")
+
+    def execute(self, context):
+        path = self.filepath
+        name = os.path.splitext(os.path.basename(path))[0] or "Imported"
+        try:
+            if path.lower().endswith(".json"):
+                net, _opts, surface = read_network(path)
+                if surface is None:
+                    raise SymFramesError(f"{path}: the network file names no surface ('surface' key with an OBJ)")
+                if not os.path.isabs(surface):
+                    surface = os.path.join(os.path.dirname(path), surface)
+                V, F = read_obj(surface)
+            else:
+                angle = np.degrees(self.sharp_angle) if self.sharp_angle > 0 else None
+                V, F, net = read_tet_network(path, TAG_SIGN[self.tag_convention], self.tag_property or None, angle)
+        except (SymFramesError, ValueError, OSError) as e:
+            self.report({"ERROR"}, f"SymFrames: cannot import {os.path.basename(path)}: {e}")
+            return {"CANCELLED"}
+        examples.add_domain_and_network(context.scene, name, V, F, net)
+        self.report({"INFO"}, f"SymFrames: imported '{name}' with {len(net.curves)} curve(s); set the resolution "
+                              "and Compute Field")
+        return {"FINISHED"}
+
+
+def menu_export(self, context):
+    self.layout.operator(SYMFRAMES_OT_export_field.bl_idname, text="SymFrames Field (.vtu, .mesh, .ovm, .qtn)")
+
+
+def menu_import(self, context):
+    self.layout.operator(SYMFRAMES_OT_import_network.bl_idname, text="SymFrames Network (.json, .ovm, .mesh)")
+
+
+CLASSES = (SYMFRAMES_OT_export_field, SYMFRAMES_OT_tet_mesh_object, SYMFRAMES_OT_import_network)
+
+
+def register_menus():
+    bpy.types.TOPBAR_MT_file_export.append(menu_export)
+    bpy.types.TOPBAR_MT_file_import.append(menu_import)
+
+
+def unregister_menus():
+    bpy.types.TOPBAR_MT_file_export.remove(menu_export)
+    bpy.types.TOPBAR_MT_file_import.remove(menu_import)

@@ -1,0 +1,163 @@
+"""Files in and out of the add-on (symframes_addon/exchange.py): Export Field,
+the tet mesh as an object, Import Network, and their File menu entries.
+
+A cylinder is solved once through the add-on (coarse: seconds) and saved;
+each export test reopens it, so an export works from a field read back from
+a .blend, not only from the solve in memory.
+"""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+import meshio
+import numpy as np
+import pytest
+
+# the add-on is loaded as the package 'symframes' by tests.test_addon, so it comes first
+# isort: off
+from tests.meshes import box_mesh
+from tests.test_addon import add_example, addon, open_blend
+
+from symframes.solver import Curve, Network  # noqa: E402
+from symframes.solver.io import write_network, write_obj  # noqa: E402
+from symframes.solver.io.interchange import read_ovm, read_perm, read_qtn, write_ovm  # noqa: E402
+from symframes.solver.mesh.tetmesh import TetMesh  # noqa: E402
+from symframes.symframes_addon import exchange, storage  # noqa: E402
+
+# isort: on
+
+
+@pytest.fixture(scope="module", autouse=True)
+def registered():
+    addon.register()
+    yield
+    addon.unregister()
+
+
+@pytest.fixture(autouse=True)
+def empty_scene(registered):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    yield
+
+
+@pytest.fixture(scope="module")
+def cylinder(registered, tmp_path_factory):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    add_example("cylinder", 0.4)
+    assert bpy.ops.symframes.compute() == {"FINISHED"}
+    path = tmp_path_factory.mktemp("cylinder") / "cylinder.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path
+
+
+def scene_objects():
+    return sorted(o.name for o in bpy.data.objects)
+
+
+def test_file_menus_hold_the_operators():
+    assert exchange.menu_export in bpy.types.TOPBAR_MT_file_export._dyn_ui_initialize()
+    assert exchange.menu_import in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
+    addon.unregister()
+    try:
+        assert exchange.menu_export not in bpy.types.TOPBAR_MT_file_export._dyn_ui_initialize()
+        assert exchange.menu_import not in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
+    finally:
+        addon.register()
+
+
+def test_export_without_a_field_is_refused():
+    assert not bpy.ops.symframes.export_field.poll()
+
+
+def test_export_every_format_from_a_saved_field(cylinder, tmp_path):
+    open_blend(cylinder)
+    me = storage.stored_field(bpy.context.scene)
+    V, T, q = storage.read_field(me)
+    fd = storage.read_field_data(me)
+    assert (fd.curve >= 0).any() and fd.face_omega is not None and np.abs(fd.face_omega).max() > 1.0
+    for fmt, ext in (("VTU", "vtu"), ("MEDIT", "mesh"), ("OVM", "ovm"), ("QTN", "qtn")):
+        path = str(tmp_path / f"field.{ext}")
+        assert bpy.ops.symframes.export_field(filepath=path, file_format=fmt) == {"FINISHED"}
+        assert os.path.exists(path)
+    m = meshio.read(str(tmp_path / "field.vtu"))
+    assert np.allclose(m.points, V, atol=1e-6) and np.array_equal(m.cells_dict["tetra"], T)
+    frames = storage.quaternions_to_frames(q)
+    for k in range(3):
+        assert np.allclose(m.point_data[f"axis{k}"], frames[:, :, k], atol=1e-6)
+    # tets the four curves cross are marked, in the tet order of every format
+    curve = m.cell_data["curve"][0]
+    assert set(np.unique(curve[curve >= 0])) == {0, 1, 2, 3}
+    assert np.array_equal(curve, fd.curve)
+    assert len(read_qtn(str(tmp_path / "field.qtn"))) == len(T)
+    n_tets, pairs, perms = read_perm(str(tmp_path / "field.perm"))
+    assert n_tets == len(T) and len(pairs) > 0  # the field turns around the curves
+    assert read_ovm(str(tmp_path / "field.ovm")).tets.shape == T.shape
+    medit = meshio.read(str(tmp_path / "field.mesh"))
+    assert len(medit.cells_dict["tetra"]) == len(T)
+
+
+def test_export_into_a_missing_folder_is_refused(cylinder, tmp_path):
+    open_blend(cylinder)
+    with pytest.raises(RuntimeError, match="does not exist"):
+        bpy.ops.symframes.export_field(filepath=str(tmp_path / "no" / "field.vtu"), file_format="VTU")
+
+
+def test_tet_mesh_as_object(cylinder):
+    open_blend(cylinder)
+    V, T, _ = storage.read_field(storage.stored_field(bpy.context.scene))
+    mesh = TetMesh(V, T)
+    before = scene_objects()
+    assert bpy.ops.symframes.tet_mesh_object() == {"FINISHED"}
+    (name,) = set(scene_objects()) - set(before)
+    me = bpy.data.objects[name].data
+    assert len(me.polygons) == mesh.n_faces and len(me.vertices) == mesh.n_vertices
+    assert storage.FRAME_ATTRIBUTE in me.attributes and "curve" in me.attributes
+
+
+def test_import_a_json_network(tmp_path):
+    from symframes.solver.examples import load_example
+
+    V, F, net = load_example("cylinder")
+    write_obj(str(tmp_path / "part.obj"), V, F)
+    write_network(str(tmp_path / "part.json"), net, surface="part.obj")
+    assert bpy.ops.symframes.import_network(filepath=str(tmp_path / "part.json")) == {"FINISHED"}
+    s = bpy.context.scene.symframes
+    assert s.domain is not None and s.domain.name == "part"
+    curves = [o for o in s.network.all_objects if o.type == "CURVE"]
+    assert len(curves) == len(net.curves) and {o.symframes.index for o in curves} == {1}
+    assert bpy.ops.symframes.check_network() == {"FINISHED"}
+
+
+def test_import_a_tagged_tet_mesh(tmp_path):
+    """Two straight valence-3 and valence-5 axes through a box, tagged on the
+    edges of a structured tet mesh: two curves of index +1 and -1 quarter
+    turns with the valence convention, the box's edges sharp by angle."""
+    mesh = box_mesh(4)
+    tags = np.full(mesh.n_edges, 4, np.int64)
+    for x, valence in ((1, 3), (3, 5)):
+        ids = np.array([np.argmin(np.linalg.norm(mesh.vertices - 0.25 * np.array([x, 2, z]), axis=1))
+                        for z in range(5)])
+        tags[mesh.edge_index(ids[:-1], ids[1:])] = valence
+    path = str(tmp_path / "axes.ovm")
+    write_ovm(path, mesh, edge_props={"valence": tags})
+    assert bpy.ops.symframes.import_network(filepath=path, tag_convention="VALENCE") == {"FINISHED"}
+    s = bpy.context.scene.symframes
+    curves = [o for o in s.network.all_objects if o.type == "CURVE"]
+    assert sorted(o.symframes.index for o in curves) == [-1, 1]
+    assert bpy.ops.symframes.check_network() == {"FINISHED"}
+
+
+def test_a_failed_import_leaves_the_scene_unchanged(tmp_path):
+    add_example("cube", 0.4)
+    before = scene_objects()
+    bad = tmp_path / "broken.ovm"
+    bad.write_text("OVM ASCII\nVertices\n2\n0 0 0\n")
+    with pytest.raises(RuntimeError, match="cannot import broken.ovm"):
+        bpy.ops.symframes.import_network(filepath=str(bad))
+    lonely = tmp_path / "lonely.json"
+    write_network(str(lonely), Network(curves=[Curve(np.array([[0.0, 0, 0], [0, 0, 1]]), sigma=0.25)]))
+    with pytest.raises(RuntimeError, match="names no surface"):
+        bpy.ops.symframes.import_network(filepath=str(lonely))
+    assert scene_objects() == before
