@@ -317,6 +317,16 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
         )
     # each undirected edge in exactly two faces
     _, _, cnt = S._edge_data
+    if np.any(cnt == 1):
+        soup = _unmerged_vertices(S, np.unique(S.edges[cnt == 1]))
+        if soup is not None:
+            n_open, n_twin, (i, j) = soup
+            raise SurfaceError(
+                f"surface triangles are not connected: {n_open} open edges, and {n_twin} of their vertices sit at the "
+                f"same position as another vertex (e.g. vertices {i} and {j} at {_fmt(V[i])}) -- a triangle soup "
+                "as STL files store it. Merge vertices by distance (Blender: Mesh > Clean Up > Merge by Distance; "
+                "trimesh: merge_vertices())"
+            )
     if np.any(cnt != 2):
         e = np.nonzero(cnt != 2)[0][0]
         i, j = S.edges[e]
@@ -398,6 +408,21 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
                 f"way; its normals must point {fix} (Blender: Mesh > Normals > Recalculate Outside)"
             )
     return S
+
+
+def _unmerged_vertices(S: TriSurface, open_vertices: np.ndarray):
+    """(open edge count, vertices of open edges with a geometric twin, one
+    such pair) when most open-edge vertices coincide with another vertex --
+    the surface is an unmerged triangle soup -- else None."""
+    tree = cKDTree(S.V)
+    d, j = tree.query(S.V[open_vertices], k=2)
+    twin = d[:, 1] <= 1e-9 * S.bbox_diagonal
+    if twin.sum() < max(3, 0.5 * len(open_vertices)):
+        return None
+    k = int(np.argmax(twin))
+    n_open = int(np.sum(S._edge_data[2] == 1))
+    v = int(open_vertices[k])
+    return n_open, int(twin.sum()), (v, int(j[k, 1] if j[k, 0] == v else j[k, 0]))
 
 
 def find_self_intersection(S: TriSurface):
