@@ -93,8 +93,29 @@ def _check_output(path: str) -> None:
         raise OptionsError(f"-o {path}: the folder {folder} is not writable; choose another output path")
 
 
+def _exit_on_signals() -> None:
+    """SIGTERM (kill, a job scheduler) and SIGHUP (terminal closed) end the
+    command like Ctrl-C does: by an exception, so that every finally block
+    runs -- the fTetWild child is killed and its temporary folder removed
+    (tetmesh.run_tetwild) -- instead of Python dying on the spot."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def stop(signum, frame):
+        raise SystemExit(128 + signum)
+
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), stop)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if argv is None:  # run as a command, not called from Python (tests)
+        _exit_on_signals()
     try:
         if args.export_example:
             name, folder = args.export_example
