@@ -445,3 +445,64 @@ def test_ear_clipping_non_convex_polygons():
         tri = 0.5 * ((A[:, 1, 0] - A[:, 0, 0]) * (A[:, 2, 1] - A[:, 0, 1])
                      - (A[:, 1, 1] - A[:, 0, 1]) * (A[:, 2, 0] - A[:, 0, 0]))
         assert np.all(tri > 0) and np.isclose(tri.sum(), area)
+
+
+# ------------------------------------------------------- several solids
+def _two_boxes(lo, hi, n=2):
+    V1, F1 = box(n=n)
+    V2, F2 = box(lo=lo, hi=hi, n=n)
+    return np.vstack([V1, V2]), np.vstack([F1, F2 + len(V1)])
+
+
+def test_disjoint_solids_refused():
+    V, F = _two_boxes((2, -1, -1), (4, 1, 1))
+    msg = expect(SurfaceError, r"bounds 2 separate solids", V, F, Network(sharp_angle=30))
+    assert "near (3, 0, 0)" in msg and "Solve each solid separately" in msg
+
+
+def test_solid_inside_a_cavity_refused():
+    V, F = box(lo=(-2, -2, -2), hi=(2, 2, 2), n=2)
+    Vc, Fc = box(n=2)
+    Vs, Fs = box(lo=(-0.5,) * 3, hi=(0.5,) * 3, n=2)
+    W = np.vstack([V, Vc, Vs])
+    G = np.vstack([F, Fc[:, ::-1] + len(V), Fs + len(V) + len(Vc)])
+    expect(SurfaceError, r"component 2 .* is a solid inside a cavity", W, G, Network(sharp_angle=30))
+
+
+@pytest.mark.parametrize("lo, hi", [((1, -1, -1), (3, 1, 1)),          # face to face, same grid
+                                    ((1, -0.5, -0.3), (2, 0.5, 0.7)),  # face to face, offset
+                                    ((0, -1, -1), (2, 1, 1)),          # overlapping, coincident faces
+                                    ((1, 1, -1), (2, 2, 1))])          # along an edge
+def test_touching_or_overlapping_solids_refused(lo, hi):
+    """These passed validation and failed after meshing ('not connected') or
+    were called a wrongly oriented cavity."""
+    V, F = _two_boxes(lo, hi)
+    msg = expect(SurfaceError, r"surface components \d and \d touch or overlap: triangles \d+ and \d+ meet at \(",
+                 V, F, Network(sharp_angle=30))
+    assert "solve each solid separately" in msg
+
+
+def test_cavity_still_allowed():
+    V, F = box(n=2)
+    Vc, Fc = box(lo=(-0.5,) * 3, hi=(0.5,) * 3, n=2)
+    from solver.trisurface import validate_surface
+
+    S = validate_surface(np.vstack([V, Vc]), np.vstack([F, Fc[:, ::-1] + len(V)]))
+    assert S.n_components == 2
+
+
+def test_self_intersection_broad_phase_per_triangle():
+    """A few long triangles among many small ones: each triangle searches
+    its own neighbourhood (one global radius made this quadratic: a 13,102-
+    face version took 49 s, the 25k one ran out of memory)."""
+    from solver.polygons import ear_clip
+    from solver.trisurface import candidate_pairs, validate_surface
+
+    V, F = box(n=20)
+    top = np.all(np.isclose(V[F][:, :, 2], 1.0), axis=1)
+    rim = np.nonzero(np.isclose(V[:, 2], 1.0) & (np.isclose(np.abs(V[:, 0]), 1) | np.isclose(np.abs(V[:, 1]), 1)))[0]
+    ring = rim[np.argsort(np.arctan2(V[rim, 1], V[rim, 0]))]
+    F = np.vstack([F[~top], ring[ear_clip(V[ring])]])
+    S = validate_surface(V, F)  # unused centre vertices are allowed
+    n_pairs = sum(len(f) for f, _ in candidate_pairs(S))
+    assert n_pairs < 30 * len(F), n_pairs  # 4,078 faces: 36,682 candidate pairs, not ~n^2 / 2
