@@ -366,7 +366,13 @@ def tetrahedralize(
         Vi, Fi = internal
         V = np.vstack([V, Vi])
         F = np.vstack([F, Fi + len(surface.V)])
-    P, T = run_tetwild(V, F, edge_length, epsilon, cancel=cancel)
+    # fTetWild works in the model's units with absolute tolerances: the
+    # cylinder scaled by 1e-6 came back with no tet inside the surface.  It
+    # meshes the model centred and scaled to a unit bounding-box diagonal
+    # instead, so the result does not depend on the units.
+    centre, unit = _normalisation(surface)
+    P, T = run_tetwild((V - centre) / unit, F, edge_length / unit, epsilon, cancel=cancel)
+    P = np.asarray(P, float) * unit + centre
     if len(T) == 0:
         raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
     full = TetMesh(np.asarray(P), np.asarray(T))
@@ -387,6 +393,13 @@ def tetrahedralize(
     mesh.info["flat_tets"] = flat
     mesh.info["tetwild_seconds"] = time.perf_counter() - t0
     return mesh
+
+
+def _normalisation(surface: TriSurface) -> tuple[np.ndarray, float]:
+    """Centre and size (bounding-box diagonal) of the surface's vertices."""
+    used = surface.V[np.unique(surface.F)]
+    lo, hi = used.min(axis=0), used.max(axis=0)
+    return 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
 
 
 # fTetWild's optimisation passes (its default is 80).  Where a mesh reaches
