@@ -506,3 +506,49 @@ def test_self_intersection_broad_phase_per_triangle():
     S = validate_surface(V, F)  # unused centre vertices are allowed
     n_pairs = sum(len(f) for f, _ in candidate_pairs(S))
     assert n_pairs < 30 * len(F), n_pairs  # 4,078 faces: 36,682 candidate pairs, not ~n^2 / 2
+
+
+# ------------------------------------------------------ node configurations
+def test_four_half_turn_curves_at_a_node_refused():
+    """Accepted before, and LM ended at a penalty of 91: four sigma = 1/2
+    curves at an interior node of the ball leave room for no hex."""
+    from solver.examples import icosphere
+
+    V, F = icosphere(3)
+    dirs = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0)]
+    net = Network([Curve(seg([0.0, 0.0, 0.0], d, 9), 0.5, name=f"arm{k}") for k, d in enumerate(dirs)])
+    msg = expect(NetworkError, r"node 0 at \(0, 0, 0\) joining curve 0 'arm0' \(\+0\.5\).*sum to 2.*at most 1", V, F,
+                 net)
+    assert "0 hexes" in msg
+
+
+DIRS3 = [(1, 0, 0), (-0.5, 0.866, 0), (-0.5, -0.866, 0)]
+DIRS4 = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0)]
+
+
+@pytest.mark.parametrize("sigmas, match", [
+    ((0.25, 0.25, 0.25), "3 of its curves have an index that is an odd multiple of 1/4"),
+    ((0.25, 0.25, 0.25, 0.0), "3 of its curves"),
+    ((-0.25, 0.0, 0.0), "1 of its curves"),
+    ((0.5, 0.5, 0.25, 0.25), r"sum to 1\.5.*at most 1 at a node of 4"),
+    ((0.5, 0.5, 0.5, 0.5), "sum to 2"),
+    ((0.75, 0.75, 0.5), r"sum to 2.*at most 1\.5 at a node of 3"),
+    ((0.25, 0.25, 0.0), None), ((-0.25, -0.25, 0.0), None), ((0.5, 0.5, 0.5), None),
+    ((0.25, 0.25, 0.25, 0.25), None), ((-0.25,) * 4, None), ((0.25, 0.25, -0.25, -0.25), None),
+    ((0.5, 0.0, 0.0, 0.5), None), ((0.0, 0.0, 0.0), None),
+])
+def test_node_rules(sigmas, match):
+    """Parity of quarter turns (any cross field) and 6 - 2 sum(sigma) >= k
+    (a hex-mesh vertex); the ball's nodes (four +1/4) are accepted."""
+    from solver.network import prepare_network
+    from solver.validation import check_nodes
+
+    dirs = DIRS3 if len(sigmas) == 3 else DIRS4
+    curves = [Curve(seg([0.0, 0.0, 0.0], d), s, "singular" if s else "feature", name=f"c{k}")
+              for k, (d, s) in enumerate(zip(dirs, sigmas))]
+    pn = prepare_network(Network(curves), 4.0)
+    if match is None:
+        check_nodes(pn, str)
+    else:
+        with pytest.raises(NetworkError, match=match):
+            check_nodes(pn, str)
