@@ -414,10 +414,10 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     for c in range(ncomp):
         want_positive = depth[c] % 2 == 0
         if (vols[c] > 0) != want_positive:
-            what = "outer surface" if want_positive else "cavity"
+            what = "an outer surface" if want_positive else "a cavity"
             fix = "outward" if want_positive else "into the cavity (towards the solid's outside)"
             raise SurfaceError(
-                f"surface component {c} ({int(np.sum(lab == c))} triangles, a {what}) is oriented the wrong "
+                f"surface component {c} ({int(np.sum(lab == c))} triangles, {what}) is oriented the wrong "
                 f"way; its normals must point {fix} (Blender: Mesh > Normals > Recalculate Outside)"
             )
     return S
