@@ -179,7 +179,10 @@ def index_pairs(name: str, value, error=SymFramesError) -> np.ndarray:
                 raise error(f"{name}: entry {k} is {describe(row)}; each entry must be a pair of vertex indices "
                             "[i, j] (whole numbers, 0-based)")
         value = np.asarray(rows, dtype=np.int64).reshape(-1, 2) if rows else np.zeros((0, 2), np.int64)
-    elif not np.issubdtype(value.dtype, np.integer) or value.size % 2:
+    elif value.size == 0:
+        value = np.zeros((0, 2), np.int64)
+    elif value.size % 2 or not (np.issubdtype(value.dtype, np.integer) or (
+            np.issubdtype(value.dtype, np.floating) and np.all(np.isfinite(value)) and np.all(value == np.round(value)))):
         _fail(error, name, value, expected)
     A = np.asarray(value, dtype=np.int64).reshape(-1, 2)
     if len(A) and A.min() < 0:

@@ -282,8 +282,12 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     orientation, manifold vertices, self-intersections and outward
     orientation (cavities inward).
     """
-    V = np.asarray(V, dtype=float)
-    F = np.asarray(F)
+    try:
+        V = np.asarray(V, dtype=float)
+        F = np.asarray(F)
+    except (TypeError, ValueError) as e:
+        raise SurfaceError(f"surface vertices must be an (n, 3) array of numbers and faces an (m, 3) array of "
+                           f"vertex indices ({e})") from None
     if V.ndim != 2 or V.shape[1] != 3 or len(V) < 4:
         raise SurfaceError(f"surface vertices must be an (n, 3) array with n >= 4, got shape {V.shape}")
     if F.ndim != 2 or F.shape[1] != 3 or len(F) < 4:

@@ -552,3 +552,18 @@ def test_node_rules(sigmas, match):
     else:
         with pytest.raises(NetworkError, match=match):
             check_nodes(pn, str)
+
+
+@pytest.mark.parametrize("V, F", [([[0, 0, "a"]] * 4, [[0, 1, 2]] * 4), ([[0, 0, 0], [1, 0]], [[0, 1, 2]]),
+                                  ([[0, 0, 0]] * 4, [[0, 1], [2]])])
+def test_surface_arrays_of_the_wrong_kind(V, F):
+    expect(SurfaceError, r"surface vertices must be an \(n, 3\) array of numbers", V, F, Network())
+
+
+def test_sharp_edges_arrays():
+    """What the add-on passes (integer or integral float pairs, or none) is
+    accepted; fractional indices are not."""
+    assert Network(sharp_edges=np.zeros((0, 2))).sharp_edges.shape == (0, 2)
+    assert Network(sharp_edges=np.array([[1.0, 2.0]])).sharp_edges.tolist() == [[1, 2]]
+    with pytest.raises(NetworkError, match=r"sharp_edges = \[\[1\.5, 2\.0\]\]"):
+        Network(sharp_edges=np.array([[1.5, 2.0]]))
