@@ -351,8 +351,11 @@ def test_root_out_of_range_refused_before_lm(monkeypatch):
     from solver import FieldProblem
     from solver.volume3d import VolumeProblem
 
+    from tests.meshes import box_mesh
+
     V, F = box(n=2)
-    problem = FieldProblem(V, F, Network(sharp_angle=30), Options(edge_length=0.7, refine=0))
+    mesh = box_mesh(3, lo=(-1, -1, -1), hi=(1, 1, 1))  # a structured mesh: no fTetWild
+    problem = FieldProblem(V, F, Network(sharp_angle=30), Options(edge_length=0.7), mesh=mesh)
 
     def boom(*a, **k):
         raise AssertionError("LM started")
