@@ -116,6 +116,15 @@ class Network:
             setattr(self, key, checks.positive_float(key, getattr(self, key), E, allow_none=True,
                                                      fix="a distance in the units of the surface (None: the "
                                                          "default, a fraction of the bounding-box diagonal)"))
+        if self.node_tolerance is not None and self.curves:
+            # against the surface in check_tolerances; here against the curves
+            # themselves, whose ends it would all merge
+            X = np.vstack([c.points for c in self.curves])
+            size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
+            if size > 0 and self.node_tolerance > 0.5 * size:
+                raise E(f"node_tolerance = {self.node_tolerance:g} is more than half the size of the whole network "
+                        f"({size:.4g}); it would join every curve end into one node. Give it in the units of the "
+                        "curves, e.g. a thousandth of the model's size, or leave it unset")
 
     @property
     def interior_curves(self) -> list[int]:

@@ -264,8 +264,10 @@ def test_network_and_curve_refused_at_construction(make, match):
 def test_huge_node_tolerance_refused(cube):
     V, F = cube
     c = Curve(seg([0.1, 0.1, -1.0], [0.1, 0.1, 1.0]), 0.25)
-    expect(NetworkError, r"node_tolerance = 1e\+06 is more than 0\.1 of the surface's bounding-box diagonal", V, F,
-           Network([c], node_tolerance=1e6))
+    with pytest.raises(NetworkError, match=r"node_tolerance = 1e\+06 is more than half the size of the whole network"):
+        Network([c], node_tolerance=1e6)  # refused at construction, against the curves
+    net = Network([c], node_tolerance=0.5)  # fine for the curves, too large for the cube
+    expect(NetworkError, r"node_tolerance = 0\.5 is more than 0\.1 of the surface's bounding-box diagonal", V, F, net)
 
 
 def _write_cylinder(tmp_path):
