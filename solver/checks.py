@@ -181,8 +181,8 @@ def index_pairs(name: str, value, error=SymFramesError) -> np.ndarray:
         value = np.asarray(rows, dtype=np.int64).reshape(-1, 2) if rows else np.zeros((0, 2), np.int64)
     elif value.size == 0:
         value = np.zeros((0, 2), np.int64)
-    elif value.size % 2 or not (np.issubdtype(value.dtype, np.integer) or (
-            np.issubdtype(value.dtype, np.floating) and np.all(np.isfinite(value)) and np.all(value == np.round(value)))):
+    elif value.size % 2 or not (np.issubdtype(value.dtype, np.integer) or (np.issubdtype(value.dtype, np.floating)
+                                and np.all(np.isfinite(value)) and np.all(value == np.round(value)))):
         _fail(error, name, value, expected)
     A = np.asarray(value, dtype=np.int64).reshape(-1, 2)
     if len(A) and A.min() < 0:

@@ -8,9 +8,18 @@ import json
 import numpy as np
 import pytest
 
-from solver import (Curve, Network, NetworkError, Options, OptionsError, SurfaceError, SymFramesError, TopologyError,
-                    solve)
-from solver import io
+from solver import (
+    Curve,
+    Network,
+    NetworkError,
+    Options,
+    OptionsError,
+    SurfaceError,
+    SymFramesError,
+    TopologyError,
+    io,
+    solve,
+)
 from solver.__main__ import main as cli_main
 from solver.examples import box, cylinder_example, merge_vertices
 from solver.validation import check_input
@@ -352,7 +361,6 @@ def test_root_out_of_range_refused_before_lm(monkeypatch):
     """A root beyond the mesh is refused once the mesh exists, before LM."""
     from solver import FieldProblem
     from solver.volume3d import VolumeProblem
-
     from tests.meshes import box_mesh
 
     V, F = box(n=2)
