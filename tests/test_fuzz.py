@@ -2,9 +2,10 @@
 
 Random option values, mutated network files (JSON), mutated surfaces (OBJ)
 and random networks in the examples' solids go through the reading and
-validation path (io + check_input, what ``--check`` runs; no meshing).  The
+validation path (io + check_input, what ``--check`` runs; no meshing), and
+eight tiny solves with random valid options run on a structured tet mesh.  The
 bar: nothing but the documented errors (SymFramesError subclasses) comes
-out, and no case runs longer than a few seconds.  Each case is derived from
+out, and no case runs longer than CASE_SECONDS.  Each case is derived from
 its own seed, printed on failure so that it can be replayed.
 """
 
@@ -22,7 +23,7 @@ from solver import Curve, Network, SymFramesError, io
 from solver.examples import box, cylinder_example, cylinder_surface, icosphere
 from solver.validation import check_input
 
-CASE_SECONDS = 5
+CASE_SECONDS = 10  # wall clock, on a shared machine; a case takes well under a second
 
 
 @contextlib.contextmanager
@@ -44,10 +45,10 @@ def bounded(seconds=CASE_SECONDS):
         signal.signal(signal.SIGALRM, old)
 
 
-def run_case(label, fn):
+def run_case(label, fn, seconds=CASE_SECONDS):
     """Run fn; return 'ok' or the error class; fail on anything else."""
     try:
-        with bounded():
+        with bounded(seconds):
             fn()
         return "ok"
     except SymFramesError as e:
@@ -374,3 +375,33 @@ def test_fuzz_covers_enough_cases():
     n = sum(len(getattr(mod, f).pytestmark[0].args[1]) for f in dir(mod)
             if f.startswith("test_fuzz_") and hasattr(getattr(mod, f), "pytestmark"))
     assert n >= 200, n
+
+
+# ------------------------------------------------ a handful of tiny solves
+@pytest.mark.parametrize("seed", range(8))
+def test_fuzz_tiny_solves(seed):
+    """Random valid options through the whole solve, on a structured tet mesh
+    of the cube (no fTetWild): only documented errors, and rotations out."""
+    from solver import FieldProblem, Options
+    from tests.meshes import box_mesh
+
+    rng = np.random.default_rng(4000 + seed)
+    V, F = box(n=2)
+    opts = Options(edge_length=0.7, penalty=float(10 ** rng.uniform(-3, 6)), max_iterations=int(rng.integers(1, 5)),
+                   tolerance=float(rng.choice([0.0, 1e-12, 1e-3])), init=str(rng.choice(["zero", "constant", "random",
+                                                                                          "linear"])),
+                   seed=int(rng.integers(0, 2**31)), node_radius=float(rng.uniform(0.5, 3.0)))
+    mesh = box_mesh(int(rng.integers(2, 4)), lo=(-1, -1, -1), hi=(1, 1, 1), jitter=float(rng.uniform(0, 0.3)),
+                    seed=seed)
+    out = {}
+
+    def go():
+        p = FieldProblem(V, F, Network(sharp_angle=30), opts, mesh=mesh)
+        root = None if rng.random() < 0.5 else int(rng.integers(0, p.mesh.n_vertices))
+        out["r"] = p.solve(root=root)
+
+    outcome = run_case(f"tiny solve seed {4000 + seed}: {opts}", go, seconds=30)
+    if outcome == "ok":
+        E = out["r"].frames
+        assert np.all(np.isfinite(E))
+        assert np.allclose(np.einsum("vji,vjk->vik", E, E), np.eye(3), atol=1e-6)
