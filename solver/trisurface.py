@@ -469,41 +469,75 @@ def _unmerged_vertices(S: TriSurface, open_vertices: np.ndarray):
 
 
 def candidate_pairs(S: TriSurface, pad: float = 0.0, chunk: int = 500_000):
-    """Pairs of triangles (f, g) whose bounding spheres (centroid, largest
-    centroid-to-corner distance) and bounding boxes come within pad, in
-    chunks of at most ``chunk`` pairs.
+    """Pairs of triangles (f < g) that may come within pad of each other, in
+    chunks of at most ``chunk`` pairs: their bounding boxes do, and pieces of
+    them (below) have bounding spheres that do.
 
-    Each triangle searches with a radius of its own: the larger triangle of
-    a pair finds the smaller one (|c_f - c_g| <= r_f + r_g <= 2 r_f), so a
-    few large triangles among many small ones cost their own neighbourhoods,
-    not a radius of twice the largest triangle for everyone.  Before, one
-    global radius made the broad phase quadratic on such surfaces (a cube
-    with a 0.1-wide grid on five faces and the sixth cut into long ear-clip
-    triangles: 13,102 faces, 49 s).
+    One search radius for all triangles (twice the largest) made this
+    quadratic when a few large triangles sit among many small ones (a cube
+    with a 0.1 grid on five faces and the sixth cut into long triangles:
+    13,102 faces, 49 s).  Here every triangle searches with a radius of its
+    own (the larger of a pair finds the smaller: |c_f - c_g| <= r_f + r_g
+    <= 2 r_f), and triangles much larger than the median are first bisected
+    along their longest edge into pieces of at most ``cap``, so that a long
+    thin triangle searches along itself instead of a ball of its length.
     """
     V, F = S.V, S.F
+    n = len(F)
     P = V[F]
-    cent = P.mean(axis=1)
-    rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
-    lo, hi = P.min(axis=1) - pad, P.max(axis=1) + pad
-    rank = np.empty(len(F), np.int64)
-    rank[np.lexsort((np.arange(len(F)), rad))] = np.arange(len(F))
-    tree = cKDTree(cent)
-    order = np.argsort(rank)[::-1]  # large triangles first, so chunks fill evenly
-    step = 4096
-    for s0 in range(0, len(order), step):
-        f_ids = order[s0:s0 + step]
-        hits = tree.query_ball_point(cent[f_ids], 2.0 * rad[f_ids] + pad, return_sorted=False)
+    rad = np.max(np.linalg.norm(P - P.mean(axis=1)[:, None], axis=2), axis=1)
+    cap = 4.0 * float(np.median(rad))
+    while np.sum(np.maximum(1.0, 2.0 * (rad / cap) ** 2)) > 8 * n + 64:
+        cap *= 2.0  # bounded work for surfaces made mostly of large triangles
+    Q, owner = _bisect_to_radius(P, cap)
+    qc = Q.mean(axis=1)
+    qr = np.max(np.linalg.norm(Q - qc[:, None], axis=2), axis=1)
+    rank = np.empty(len(Q), np.int64)
+    rank[np.lexsort((np.arange(len(Q)), qr))] = np.arange(len(Q))
+    tree = cKDTree(qc)
+    keys = []
+    step = 8192
+    for s0 in range(0, len(Q), step):
+        ids = np.arange(s0, min(s0 + step, len(Q)))
+        hits = tree.query_ball_point(qc[ids], 2.0 * qr[ids] + pad, return_sorted=False)
         lens = np.fromiter((len(h) for h in hits), np.int64, len(hits))
-        g = np.fromiter(itertools.chain.from_iterable(hits), np.int64, int(lens.sum()))
-        f = np.repeat(f_ids, lens)
-        keep = rank[g] < rank[f]
-        f, g = f[keep], g[keep]
-        keep = np.linalg.norm(cent[f] - cent[g], axis=1) <= rad[f] + rad[g] + pad
-        keep &= np.all((lo[f] <= hi[g]) & (lo[g] <= hi[f]), axis=1)
-        f, g = f[keep], g[keep]
-        for c0 in range(0, len(f), chunk):
-            yield f[c0:c0 + chunk], g[c0:c0 + chunk]
+        b = np.fromiter(itertools.chain.from_iterable(hits), np.int64, int(lens.sum()))
+        a = np.repeat(ids, lens)
+        keep = (rank[b] < rank[a]) & (owner[a] != owner[b])
+        a, b = a[keep], b[keep]
+        keep = np.linalg.norm(qc[a] - qc[b], axis=1) <= qr[a] + qr[b] + pad
+        f, g = owner[a[keep]], owner[b[keep]]
+        keys.append(np.unique(np.minimum(f, g) * n + np.maximum(f, g)))
+    key = np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
+    f, g = key // n, key % n
+    lo, hi = P.min(axis=1) - pad, P.max(axis=1) + pad
+    keep = np.all((lo[f] <= hi[g]) & (lo[g] <= hi[f]), axis=1)
+    f, g = f[keep], g[keep]
+    for c0 in range(0, len(f), chunk):
+        yield f[c0:c0 + chunk], g[c0:c0 + chunk]
+
+
+def _bisect_to_radius(P: np.ndarray, cap: float):
+    """Split triangles P (k, 3, 3) by bisecting their longest edge until every
+    piece's centroid-to-corner radius is at most cap.  Returns the pieces and
+    the index of the triangle each comes from."""
+    owner = np.arange(len(P))
+    out, own = [], []
+    while len(P):
+        c = P.mean(axis=1)
+        done = np.max(np.linalg.norm(P - c[:, None], axis=2), axis=1) <= cap
+        out.append(P[done])
+        own.append(owner[done])
+        P, owner = P[~done], owner[~done]
+        if not len(P):
+            break
+        k = np.argmax(np.linalg.norm(np.roll(P, -1, axis=1) - P, axis=2), axis=1)  # edge k -> k + 1
+        i = np.arange(len(P))
+        a, b, c = P[i, k], P[i, (k + 1) % 3], P[i, (k + 2) % 3]
+        m = 0.5 * (a + b)
+        P = np.concatenate([np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
+        owner = np.concatenate([owner, owner])
+    return np.concatenate(out), np.concatenate(own)
 
 
 def find_self_intersection(S: TriSurface):
