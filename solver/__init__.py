@@ -11,7 +11,7 @@ No bpy anywhere in this package.  Typical use::
 See README.md for the sign convention of the index sigma and the file formats.
 """
 
-from .errors import Cancelled, MeshingError, NetworkError, SurfaceError, SymFramesError, TopologyError
+from .errors import Cancelled, MeshingError, NetworkError, OptionsError, SurfaceError, SymFramesError, TopologyError
 from .network.network import Curve, Network, Role, Torsion
 from .pipeline import FieldProblem, Options, Report, Result, solve
 
@@ -23,6 +23,7 @@ __all__ = [
     "Network",
     "NetworkError",
     "Options",
+    "OptionsError",
     "Report",
     "Result",
     "Role",

@@ -18,7 +18,7 @@ import sys
 import time
 
 from . import io
-from .errors import Cancelled, SymFramesError
+from .errors import Cancelled, OptionsError, SymFramesError
 from .examples import EXAMPLES, load_example
 from .pipeline import INITS, FieldProblem
 
@@ -111,8 +111,41 @@ def _print_profile(result) -> None:
     print(f"  setup {lm.setup_seconds:.2f} s, total {lm.seconds:.2f} s")
 
 
+def _check_output(path: str) -> None:
+    """Refuse an output path that cannot be written, before the solve."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise OptionsError(f"-o {path}: is a folder; give a file name such as {os.path.join(path, 'result.npz')}")
+    if not os.path.isdir(folder):
+        raise OptionsError(f"-o {path}: the folder {folder} does not exist; create it first or choose another "
+                           "output path")
+    if not os.access(folder, os.W_OK):
+        raise OptionsError(f"-o {path}: the folder {folder} is not writable; choose another output path")
+
+
+def _exit_on_signals() -> None:
+    """SIGTERM (kill, a job scheduler) and SIGHUP (terminal closed) end the
+    command like Ctrl-C does: by an exception, so that every finally block
+    runs -- the fTetWild child is killed and its temporary folder removed
+    (mesh.tetwild.run_tetwild) -- instead of Python dying on the spot."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def stop(signum, frame):
+        raise SystemExit(128 + signum)
+
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), stop)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if argv is None:  # run as a command, not called from Python (tests)
+        _exit_on_signals()
     try:
         if args.export_example:
             name, folder = args.export_example
@@ -141,6 +174,13 @@ def main(argv: list[str] | None = None) -> int:
             print("error: give a network file or --example NAME", file=sys.stderr)
             return 2
         opts = _options(args, file_opts)
+        # what can only fail at the end is checked before any work
+        if args.root is not None and args.root < 0:
+            raise OptionsError(f"--root {args.root}: must be a tet-mesh vertex index >= 0 (omit it for a boundary "
+                               "vertex)")
+        out = args.output or f"{stem}.npz"
+        if not args.check:
+            _check_output(out)
         _check_exports(args.export)
         if args.check:
             from .network.validation import check_input
@@ -167,7 +207,6 @@ def main(argv: list[str] | None = None) -> int:
 
             print("\nHottest functions (cumulative time):")
             pstats.Stats(profiler, stream=sys.stdout).sort_stats("tottime").print_stats(15)
-        out = args.output or f"{stem}.npz"
         io.save_result(out, result)
         print(f"wrote {out}")
         if args.export:

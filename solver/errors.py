@@ -28,5 +28,10 @@ class MeshingError(SymFramesError):
     """Tetrahedral meshing failed or produced a mesh that cannot be used."""
 
 
+class OptionsError(SymFramesError):
+    """A solver option (an Options field, a command-line flag or the network
+    file's "options") has the wrong type or a value no solve can use."""
+
+
 class Cancelled(Exception):
     """Raised inside a solve when the caller's cancel callback returns True."""

@@ -17,7 +17,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .errors import Cancelled, MeshingError, TopologyError
+from . import checks
+from .errors import Cancelled, MeshingError, OptionsError, TopologyError
 from .field.boundary2d import BoundaryField, lift_mismatch, solve_boundary_field
 from .field.constraints import TUBE, AffineOmega, build_constraints
 from .field.develop import develop, symmetric_turn
@@ -77,16 +78,30 @@ class Options:
     snap_features: bool = True
 
     def __post_init__(self):
-        if self.init not in INITS:
-            raise ValueError(f"init must be one of {', '.join(INITS)}, got {self.init!r}")
-        if self.edge_length is not None and not self.edge_length > 0:
-            raise ValueError(f"edge_length must be positive, got {self.edge_length}")
-        if not self.penalty > 0:
-            raise ValueError(f"penalty must be positive, got {self.penalty}")
-        if int(self.max_iterations) < 1:
-            raise ValueError("max_iterations must be at least 1")
-        if self.refine is not None and not 0 <= int(self.refine) <= 3:
-            raise ValueError(f"refine must be 0-3 levels (or None for automatic), got {self.refine}")
+        # types and ranges in one place (checks.py): a bad value is refused
+        # here, not minutes later inside fTetWild or LM
+        E = OptionsError
+        self.edge_length = checks.positive_float("option 'edge_length'", self.edge_length, E, allow_none=True,
+                                                 fix="a length in the units of the surface")
+        self.penalty = checks.positive_float("option 'penalty'", self.penalty, E, fix="the default is 1000")
+        self.max_iterations = checks.integer("option 'max_iterations'", self.max_iterations, E, low=1,
+                                             fix="the default is 30")
+        self.tolerance = checks.nonnegative_float("option 'tolerance'", self.tolerance, E, fix="the default is 1e-10")
+        self.init = checks.choice("option 'init'", self.init, INITS, E)
+        self.seed = checks.integer("option 'seed'", self.seed, E, low=0, fix="a whole number such as 0")
+        self.tube_radius = checks.positive_float("option 'tube_radius'", self.tube_radius, E, high=1.0,
+                                                 fix="a fraction of the edge length, the default is 0.35")
+        self.node_radius = checks.positive_float("option 'node_radius'", self.node_radius, E, high=10.0,
+                                                 fix="a multiple of the edge length, the default is 1.5")
+        self.epsilon = checks.positive_float("option 'epsilon'", self.epsilon, E, high=0.1,
+                                             fix="fTetWild's envelope as a fraction of the bounding-box diagonal, "
+                                                 "the default is 1e-3")
+        self.target_tets = checks.integer("option 'target_tets'", self.target_tets, E, low=1,
+                                          fix="the default is 15000")
+        self.check_intersections = checks.boolean("option 'check_intersections'", self.check_intersections, E)
+        self.refine = checks.integer("option 'refine'", self.refine, E, low=0, high=3, allow_none=True,
+                                     fix="0-3 red-refinement levels, or null/None for automatic")
+        self.snap_features = checks.boolean("option 'snap_features'", self.snap_features, E)
 
 
 @dataclass
@@ -427,7 +442,12 @@ class FieldProblem:
         opts = self.options
         init = init or opts.init
         if init not in INITS:
-            raise ValueError(f"init must be one of {', '.join(INITS)}, got {init!r}")
+            raise OptionsError(f"init must be one of {', '.join(INITS)}, got {init!r}")
+        # checked before LM, so a bad root does not lose the solve
+        max_iterations = checks.integer("max_iterations", max_iterations, OptionsError, low=1, allow_none=True)
+        root = checks.integer("root", root, OptionsError, low=0, high=self.mesh.n_vertices - 1, allow_none=True,
+                              fix=f"a vertex of the tet mesh, which has {self.mesh.n_vertices} vertices "
+                                  "(None: a boundary vertex)")
         if penalty is not None and penalty != self.volume.a:
             self._volume = None
             self.options = Options(**{**asdict(opts), "penalty": penalty})

@@ -17,6 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # lower one.  Top-level solver modules not listed take the rank of pipeline.
 RANKS = {
     "solver.errors": 0,
+    "solver.checks": 0,
     "solver.linalg": 1,
     "solver.surface": 2,
     "solver.network": 3,
@@ -75,7 +76,7 @@ def imports_of(name: str, path: Path, known: set[str]) -> set[str]:
 def rank(name: str) -> int:
     best = None
     for prefix in RANKS:
-        if name == prefix or name.startswith(prefix + "."):
+        if name == prefix or (prefix != "solver" and name.startswith(prefix + ".")):
             if best is None or len(prefix) > len(best):
                 best = prefix
     return RANKS[best] if best is not None else RANKS["solver.pipeline"]

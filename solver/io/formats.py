@@ -35,13 +35,21 @@ from dataclasses import asdict, fields
 
 import numpy as np
 
-from ..errors import NetworkError, SurfaceError
+from .. import checks
+from ..errors import NetworkError, OptionsError, SurfaceError
 from ..network.network import Curve, Network
+from ..surface.polygons import triangulate_polygons
 
 
 def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices and triangles of an OBJ file; polygons are fanned."""
-    V, F = [], []
+    """Vertices and triangles of an OBJ file.
+
+    Polygons are triangulated by ear clipping in their plane (polygons.py).
+    Face indices are OBJ's: 1-based, negative counts back from the last
+    vertex read so far; any other index (0, or beyond the vertices) is
+    refused with the file, the line and the valid range.
+    """
+    V, polys, lines = [], [], []
     try:
         fh = open(path, encoding="utf-8", errors="replace")
     except OSError as e:
@@ -53,21 +61,47 @@ def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
                 continue
             if parts[0] == "v":
                 try:
-                    V.append([float(x) for x in parts[1:4]])
+                    xyz = [float(x) for x in parts[1:4]]
                 except ValueError:
-                    raise SurfaceError(f"{path}:{k}: bad vertex line {line.strip()!r}") from None
+                    xyz = []
+                if len(xyz) != 3 or not all(np.isfinite(xyz)):
+                    raise SurfaceError(f"{path}:{k}: bad vertex line {line.strip()[:80]!r}; a vertex is 'v x y z' "
+                                       "with three finite numbers")
+                V.append(xyz)
             elif parts[0] == "f":
                 try:
                     idx = [int(p.split("/")[0]) for p in parts[1:]]
                 except ValueError:
-                    raise SurfaceError(f"{path}:{k}: bad face line {line.strip()!r}") from None
-                idx = [i - 1 if i > 0 else len(V) + i for i in idx]
+                    raise SurfaceError(f"{path}:{k}: bad face line {line.strip()[:80]!r}; a face is 'f i j k ...' "
+                                       "with 1-based vertex indices") from None
                 if len(idx) < 3:
-                    raise SurfaceError(f"{path}:{k}: a face needs at least 3 vertices")
-                F.extend([idx[0], idx[j], idx[j + 1]] for j in range(1, len(idx) - 1))
-    if not V or not F:
+                    raise SurfaceError(f"{path}:{k}: a face needs at least 3 vertices, got {len(idx)}")
+                for i in idx:
+                    # 0 is no OBJ index; negative ones count back from the vertices read so far
+                    if i == 0 or i < -len(V):
+                        raise SurfaceError(_obj_index_message(path, k, i, len(V), relative=i < 0))
+                polys.append([i - 1 if i > 0 else len(V) + i for i in idx])
+                lines.append(k)
+    if not V or not polys:
         raise SurfaceError(f"{path}: no vertices or faces found; is it a triangle/polygon OBJ?")
-    return np.asarray(V, float), np.asarray(F, np.int64)
+    for p, k in zip(polys, lines):  # positive indices may refer to vertices listed later
+        if max(p) >= len(V):
+            raise SurfaceError(_obj_index_message(path, k, max(p) + 1, len(V), relative=False))
+    V = np.asarray(V, float)
+    F, src, failed = triangulate_polygons(V, polys)
+    if failed:
+        k = lines[failed[0]]
+        raise SurfaceError(f"{path}:{k}: polygon with {len(polys[failed[0]])} vertices has zero area (all its "
+                           f"vertices on one line) or crosses itself; {len(failed)} such polygon(s). Dissolve or "
+                           "fix it (Blender: Mesh > Clean Up > Degenerate Dissolve)")
+    return V, F
+
+
+def _obj_index_message(path, line, index, n, relative):
+    where = "counting back from the last vertex" if relative else "1-based"
+    rng = f"1..{n} or -1..-{n}" if n else "none yet: no vertex is listed before this face"
+    return (f"{path}:{line}: face refers to vertex {index} ({where}), but the file has {n} vertices"
+            f"{' so far' if relative else ''}; OBJ vertex indices run {rng} (0 is not an OBJ index)")
 
 
 def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
@@ -82,31 +116,36 @@ _CURVE_KEYS = {"name", "points", "sigma", "role", "torsion", "closed"}
 
 
 def network_from_dict(d: dict) -> tuple[Network, dict]:
-    """(Network, options dict) from the JSON structure above."""
+    """(Network, options dict) from the JSON structure above.  Types are
+    checked here and in Curve/Network (checks.py); every message names the
+    key and the curve."""
+    E = NetworkError
     if not isinstance(d, dict):
-        raise NetworkError("the network file must hold a JSON object with a 'curves' list")
+        raise E(f"the network file must hold a JSON object with a 'curves' list, got {checks.describe(d)}")
     unknown = set(d) - _NETWORK_KEYS
     if unknown:
-        raise NetworkError(f"unknown key(s) {sorted(unknown)} in the network file; allowed: {sorted(_NETWORK_KEYS)}")
+        raise E(f"unknown key(s) {sorted(unknown)} in the network file; allowed: {sorted(_NETWORK_KEYS)}")
     curves = []
-    for k, c in enumerate(d.get("curves", [])):
+    for k, c in enumerate(checks.sequence("curves", d.get("curves", []), E)):
         if not isinstance(c, dict) or "points" not in c:
-            raise NetworkError(f"curve {k}: must be an object with at least 'points'")
+            raise E(f"curve {k}: must be an object with at least 'points', got {checks.describe(c)}")
         bad = set(c) - _CURVE_KEYS
         if bad:
-            raise NetworkError(f"curve {k}: unknown key(s) {sorted(bad)}; allowed: {sorted(_CURVE_KEYS)}")
+            raise E(f"curve {k}: unknown key(s) {sorted(bad)}; allowed: {sorted(_CURVE_KEYS)}")
+        name = c.get("name", f"curve{k}")
+        name = name if isinstance(name, str) else checks.text(f"curve {k}: name", name, E)
         try:
-            curves.append(Curve(points=np.asarray(c["points"], float), sigma=c.get("sigma", 0.25),
-                                role=c.get("role", "singular"), torsion=c.get("torsion", "free"),
-                                name=str(c.get("name", f"curve{k}")), closed=bool(c.get("closed", False))))
-        except (TypeError, ValueError) as e:
-            raise NetworkError(f"curve {k} ({c.get('name', '')}): {e}") from None
-    sharp_edges = d.get("sharp_edges")
-    net = Network(curves=curves,
-                  sharp_edges=None if sharp_edges is None else np.asarray(sharp_edges, np.int64).reshape(-1, 2),
-                  sharp_angle=d.get("sharp_angle"), node_tolerance=d.get("node_tolerance"),
-                  boundary_tolerance=d.get("boundary_tolerance"))
-    return net, dict(d.get("options", {}))
+            curves.append(Curve(points=c["points"], sigma=c.get("sigma", 0.25), role=c.get("role", "singular"),
+                                torsion=c.get("torsion", "free"), name=name, closed=c.get("closed", False)))
+        except NetworkError as e:
+            # Curve names itself by name only; add its place in the file
+            msg = str(e)
+            label = f"curve '{name}'"
+            raise E(f"curve {k} '{name}'{msg[len(label):]}" if msg.startswith(label) else f"curve {k}: {msg}") \
+                from None
+    net = Network(curves=curves, sharp_edges=d.get("sharp_edges"), sharp_angle=d.get("sharp_angle"),
+                  node_tolerance=d.get("node_tolerance"), boundary_tolerance=d.get("boundary_tolerance"))
+    return net, dict(checks.mapping("options", d.get("options", {}), OptionsError))
 
 
 def network_to_dict(net: Network, options: dict | None = None) -> dict:
@@ -134,9 +173,13 @@ def read_network(path: str) -> tuple[Network, dict, str | None]:
         raise NetworkError(f"cannot read network file {path!r}: {e.strerror}") from None
     except json.JSONDecodeError as e:
         raise NetworkError(f"{path}: not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})") from None
+    except (UnicodeDecodeError, ValueError) as e:
+        raise NetworkError(f"{path}: not a JSON text file ({e.__class__.__name__}: {str(e)[:80]}); the network "
+                           "file is JSON (see solver/io.py), the surface an OBJ") from None
     net, opts = network_from_dict(d)
     surface = d.get("surface")
     if surface is not None:
+        surface = checks.text("surface", surface, NetworkError)
         surface = os.path.join(os.path.dirname(os.path.abspath(path)), surface)
     return net, opts, surface
 
@@ -152,10 +195,11 @@ def write_network(path: str, net: Network, surface: str | None = None, options: 
 def options_from_dict(d: dict):
     from ..pipeline import Options
 
+    d = checks.mapping("options", d, OptionsError)
     allowed = {f.name for f in fields(Options)}
     bad = set(d) - allowed
     if bad:
-        raise ValueError(f"unknown solver option(s) {sorted(bad)}; allowed: {sorted(allowed)}")
+        raise OptionsError(f"unknown solver option(s) {sorted(bad)}; allowed: {sorted(allowed)}")
     return Options(**d)
 
 

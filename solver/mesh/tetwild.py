@@ -46,7 +46,13 @@ def tetrahedralize(
         Vi, Fi = internal
         V = np.vstack([V, Vi])
         F = np.vstack([F, Fi + len(surface.V)])
-    P, T = run_tetwild(V, F, edge_length, epsilon, cancel=cancel)
+    # fTetWild works in the model's units with absolute tolerances: the
+    # cylinder scaled by 1e-6 came back with no tet inside the surface.  It
+    # meshes the model centred and scaled to a unit bounding-box diagonal
+    # instead, so the result does not depend on the units.
+    centre, unit = _normalisation(surface)
+    P, T = run_tetwild((V - centre) / unit, F, edge_length / unit, epsilon, cancel=cancel)
+    P = np.asarray(P, float) * unit + centre
     if len(T) == 0:
         raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
     full = TetMesh(np.asarray(P), np.asarray(T))
@@ -67,6 +73,13 @@ def tetrahedralize(
     return mesh
 
 
+def _normalisation(surface: TriSurface) -> tuple[np.ndarray, float]:
+    """Centre and size (bounding-box diagonal) of the surface's vertices."""
+    used = surface.V[np.unique(surface.F)]
+    lo, hi = used.min(axis=0), used.max(axis=0)
+    return 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+
+
 # fTetWild's optimisation passes (its default is 80).  Where a mesh reaches
 # fTetWild's quality target it does so within a few passes; where it does not
 # (inputs with curve tubes, the smooth torus) every further pass refined
@@ -76,13 +89,110 @@ def tetrahedralize(
 TETWILD_PASSES = 10
 
 _TETWILD_WORKER = r"""
-import sys, numpy as np, pytetwild
+import os, sys
+parent = int(sys.argv[3])
+if sys.platform.startswith("linux"):
+    # die with the parent, even when it is SIGKILLed (Blender killed)
+    import ctypes, signal
+    ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
+if os.getppid() != parent:
+    sys.exit(3)  # the parent died before prctl took effect
+if not sys.platform.startswith("linux"):
+    import threading, time
+    def watch():
+        while True:
+            time.sleep(1.0)
+            try:
+                os.kill(parent, 0)
+            except OSError:
+                os._exit(3)
+    threading.Thread(target=watch, daemon=True).start()
+import numpy as np, pytetwild
 z = np.load(sys.argv[1])
 P, T = pytetwild.tetrahedralize(z["V"], z["F"].astype(np.int32), edge_length_abs=float(z["h"]),
                                 epsilon=float(z["eps"]), optimize=True, disable_filtering=True, quiet=True,
                                 num_opt_iter=int(z["passes"]))
 np.savez(sys.argv[2], P=np.asarray(P), T=np.asarray(T))
 """
+
+TEMP_PREFIX = "symframes_tetwild_"
+_OWNER_FILE = "owner"
+_LIVE_CHILDREN: set = set()  # fTetWild processes running now, killed at exit
+
+
+def _process_start(pid: int) -> str | None:
+    """The start time of a process (Linux /proc), to tell a reused pid from
+    the owner; None where unknown."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
+
+
+def _pid_alive(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's process
+    except OSError:
+        return True  # unknown (Windows): keep the folder
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"  # a zombie is dead
+    except (OSError, IndexError):
+        return True
+
+
+def remove_stale_folders(folder: str | None = None) -> list[str]:
+    """Remove the temporary folders of fTetWild runs whose owner process is
+    dead (killed before it could clean up: SIGKILL, a crash, Blender killed).
+
+    Only folders named TEMP_PREFIX + '<pid>_...' that hold our owner file,
+    belong to this user and whose pid is not running (or now belongs to a
+    process started at another time) are removed.  Returns their paths.
+    """
+    import os
+    import shutil
+    import tempfile
+
+    folder = folder or tempfile.gettempdir()
+    removed = []
+    try:
+        names = [n for n in os.listdir(folder) if n.startswith(TEMP_PREFIX)]
+    except OSError:
+        return removed
+    for name in names:
+        path = os.path.join(folder, name)
+        try:
+            st = os.lstat(path)
+            if not os.path.isdir(path) or os.path.islink(path) or (hasattr(os, "getuid") and st.st_uid != os.getuid()):
+                continue
+            with open(os.path.join(path, _OWNER_FILE)) as fh:
+                pid_text, start = (fh.read().split() + [""])[:2]
+            pid = int(pid_text)
+        except (OSError, ValueError):
+            continue  # not ours, or the owner is still writing it
+        if pid == os.getpid():
+            continue
+        if _pid_alive(pid) and (not start or _process_start(pid) in (None, start)):
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        if not os.path.exists(path):
+            removed.append(path)
+    return removed
+
+
+def _kill_live_children() -> None:
+    for proc in list(_LIVE_CHILDREN):
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        _LIVE_CHILDREN.discard(proc)
 
 
 def run_tetwild(V, F, edge_length, epsilon, cancel=None):
@@ -92,7 +202,16 @@ def run_tetwild(V, F, edge_length, epsilon, cancel=None):
     fTetWild writes a debug file (_tracked_surface.stl) into the current
     directory, and a child can be stopped when the caller cancels and cannot
     take the host application (Blender) down if the mesher crashes.
+
+    The child never outlives the solve: it is killed when the wait for it
+    ends in any way (cancel, an exception such as KeyboardInterrupt or the
+    command line's SIGTERM handler, interpreter exit via atexit), and on
+    Linux it asks the kernel to kill it when its parent dies (PR_SET_PDEATHSIG),
+    so a SIGKILLed parent does not orphan it either.  The folder is named
+    after the owner's pid; folders of owners that died without cleaning up
+    are removed by the next run (remove_stale_folders).
     """
+    import atexit
     import os
     import subprocess
     import sys
@@ -100,24 +219,37 @@ def run_tetwild(V, F, edge_length, epsilon, cancel=None):
 
     from ..errors import Cancelled
 
-    with tempfile.TemporaryDirectory(prefix="symframes_tetwild_") as tmp:
+    remove_stale_folders()
+    if not getattr(run_tetwild, "_atexit", False):
+        atexit.register(_kill_live_children)
+        run_tetwild._atexit = True
+    with tempfile.TemporaryDirectory(prefix=f"{TEMP_PREFIX}{os.getpid()}_") as tmp:
+        with open(os.path.join(tmp, _OWNER_FILE), "w") as fh:
+            fh.write(f"{os.getpid()} {_process_start(os.getpid()) or ''}\n")
         src = os.path.join(tmp, "in.npz")
         dst = os.path.join(tmp, "out.npz")
         np.savez(src, V=np.asarray(V, np.float64), F=np.asarray(F, np.int64), h=float(edge_length),
                  eps=float(epsilon), passes=TETWILD_PASSES)
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
-        proc = subprocess.Popen([sys.executable, "-c", _TETWILD_WORKER, src, dst], cwd=tmp, env=env,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        while True:
-            try:
-                _, err = proc.communicate(timeout=0.2)
-                break
-            except subprocess.TimeoutExpired:
-                if cancel is not None and cancel():
-                    proc.kill()
-                    proc.communicate()
-                    raise Cancelled() from None
+        proc = subprocess.Popen([sys.executable, "-c", _TETWILD_WORKER, src, dst, str(os.getpid())], cwd=tmp,
+                                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        _LIVE_CHILDREN.add(proc)
+        try:
+            while True:
+                try:
+                    _, err = proc.communicate(timeout=0.2)
+                    break
+                except subprocess.TimeoutExpired:
+                    if cancel is not None and cancel():
+                        raise Cancelled() from None
+        finally:
+            # cancelled, interrupted or terminated: the child goes first, then
+            # the folder it works in
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            _LIVE_CHILDREN.discard(proc)
         if proc.returncode != 0 or not os.path.exists(dst):
             msg = err.decode(errors="replace").strip().splitlines()[-3:] if err else []
             raise MeshingError(f"fTetWild failed (exit code {proc.returncode}): {' | '.join(msg)}")

@@ -22,6 +22,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from .. import checks
 from ..errors import NetworkError
 
 
@@ -55,10 +56,17 @@ class Curve:
     closed: bool = False
 
     def __post_init__(self):
-        self.points = np.asarray(self.points, dtype=float)
-        self.role = Role(self.role)
-        self.torsion = Torsion(self.torsion)
-        self.sigma = float(self.sigma)
+        # types and ranges in one place (checks.py); geometry is checked
+        # against the solid in validation.py
+        E = NetworkError
+        self.name = "" if self.name is None else checks.text("curve name", self.name, E)
+        where = f"curve {self.label}"
+        self.points = checks.points3(f"{where}: points", self.points, E)
+        self.sigma = checks.real(f"{where}: sigma", self.sigma, E,
+                                 fix="the index in turns, a multiple of 1/4 such as 0.25 or -0.25 (0 for a feature)")
+        self.role = Role(checks.choice(f"{where}: role", self.role, [r.value for r in Role], E))
+        self.torsion = Torsion(checks.choice(f"{where}: torsion", self.torsion, [t.value for t in Torsion], E))
+        self.closed = checks.boolean(f"{where}: closed", self.closed, E)
 
     @property
     def label(self) -> str:
@@ -84,6 +92,39 @@ class Network:
     sharp_angle: float | None = None
     node_tolerance: float | None = None
     boundary_tolerance: float | None = None
+
+    def __post_init__(self):
+        self.validate()
+
+    def validate(self) -> None:
+        """Types and ranges of the fields (checks.py); raises NetworkError.
+        Tolerances are checked against the surface's size in prepare_network."""
+        E = NetworkError
+        if not isinstance(self.curves, (list, tuple)):
+            raise E(f"the network's curves must be a list of Curve, got {checks.describe(self.curves)}")
+        self.curves = list(self.curves)
+        for k, c in enumerate(self.curves):
+            if not isinstance(c, Curve):
+                raise E(f"curves[{k}] is {checks.describe(c)}, not a Curve; wrap each polyline, e.g. "
+                        "Curve(points, sigma=0.25, name='axis')")
+        if self.sharp_edges is not None:
+            self.sharp_edges = checks.index_pairs("sharp_edges", self.sharp_edges, E)
+        self.sharp_angle = checks.real("sharp_angle", self.sharp_angle, E, low=0.0, high=180.0, high_open=True,
+                                       allow_none=True,
+                                       fix="a dihedral angle in degrees, e.g. 30 (None: no sharp edges by angle)")
+        for key in ("node_tolerance", "boundary_tolerance"):
+            setattr(self, key, checks.positive_float(key, getattr(self, key), E, allow_none=True,
+                                                     fix="a distance in the units of the surface (None: the "
+                                                         "default, a fraction of the bounding-box diagonal)"))
+        if self.node_tolerance is not None and self.curves:
+            # against the surface in check_tolerances; here against the curves
+            # themselves, whose ends it would all merge
+            X = np.vstack([c.points for c in self.curves])
+            size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0)))
+            if size > 0 and self.node_tolerance > 0.5 * size:
+                raise E(f"node_tolerance = {self.node_tolerance:g} is more than half the size of the whole network "
+                        f"({size:.4g}); it would join every curve end into one node. Give it in the units of the "
+                        "curves, e.g. a thousandth of the model's size, or leave it unset")
 
     @property
     def interior_curves(self) -> list[int]:
@@ -159,6 +200,22 @@ def check_curve_basics(net: Network, diag: float) -> None:
             raise NetworkError(f"{where}: needs at least two distinct points")
 
 
+MAX_TOLERANCE = 0.1  # of the bounding-box diagonal, for node_tolerance and boundary_tolerance
+
+
+def check_tolerances(net: Network, diag: float) -> None:
+    """Refuse tolerances so large that they join unrelated curve ends into a
+    node or call a point deep inside the solid "on the boundary"."""
+    net.validate()  # fields may have been changed since construction
+    for key, default in (("node_tolerance", 1e-3), ("boundary_tolerance", 1e-2)):
+        v = getattr(net, key)
+        if v is not None and v > MAX_TOLERANCE * diag:
+            raise NetworkError(
+                f"{key} = {v:g} is more than {MAX_TOLERANCE:g} of the surface's bounding-box diagonal ({diag:.4g}); "
+                f"it would merge unrelated points. Give it in the units of the surface (the default is "
+                f"{default:g} of the diagonal, {default * diag:.3g} here) or leave it unset")
+
+
 def prepare_network(net: Network, diag: float) -> PreparedNetwork:
     """Clean interior curves, find nodes, join degree-2 chains and loops.
 
@@ -167,6 +224,7 @@ def prepare_network(net: Network, diag: float) -> PreparedNetwork:
     boundary claim is checked against the surface later.
     """
     check_curve_basics(net, diag)
+    check_tolerances(net, diag)
     tol = net.node_tolerance if net.node_tolerance is not None else 1e-3 * diag
     idx = net.interior_curves
     curves = []

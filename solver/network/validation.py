@@ -69,6 +69,7 @@ def check_input(V, F, net: Network, check_intersections: bool = True) -> Checked
     S = validate_surface(V, F, check_intersections=check_intersections)
     diag = S.bbox_diagonal
     pn = prepare_network(net, diag)
+    check_nodes(pn, lambda ci: _label(net.curves, pn.source[ci]))
     btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
     names = [net.curves[i] for i in pn.source]
 
@@ -157,6 +158,61 @@ def check_input(V, F, net: Network, check_intersections: bool = True) -> Checked
     size = network_feature_size(S, pn)
     del names
     return CheckedInput(S, pn, G, face_sigma, size)
+
+
+def check_nodes(pn: PreparedNetwork, label) -> None:
+    """Refuse node configurations that no hex mesh vertex has (and, for the
+    first rule, that no cross field has), naming the node and the rule.
+
+    Let a node join k curve ends of indices sigma_1..sigma_k.
+
+    1. Parity.  Going around a curve of index sigma the field turns by
+       2 pi sigma, an element of the cube's rotation group O, which acts on
+       the four body diagonals as S4: a quarter or three-quarter turn is a
+       4-cycle (odd), a half or full turn even.  The loops around all curve
+       ends at a node compose to a loop on a small sphere around it that
+       bounds a disk there, so the product of their turns is the identity.
+       Hence the number of ends whose index is an odd multiple of 1/4 must be
+       even: three +1/4 curves cannot meet, nor three +1/4 and one feature.
+
+    2. Room for the curves.  The field is meant for hex meshing (Liu et al.
+       2018, "Singularity-constrained octahedral fields for hexahedral
+       meshing", list the locally meshable node types).  The link of a hex
+       mesh vertex is a triangulated sphere: its vertices are the mesh edges
+       at the node, its triangles the hexes, and an edge of valence v (v
+       hexes around it, v = 4 - 4 sigma: 3 for +1/4, 5 for -1/4, 4 for a
+       regular edge or a feature curve) is a link vertex of degree v.
+       Euler's formula with 3 T = 2 E gives sum (6 - v) = 12 over the link
+       vertices, so the node has 6 - 2 sum(sigma) edges and 8 - 4 sum(sigma)
+       hexes.  Each curve end is one of those edges, so
+       6 - 2 sum(sigma) >= k: sum(sigma) <= 3/2 at a degree-3 node and <= 1
+       at a degree-4 node (the ball's cube-sphere nodes, four +1/4 curves,
+       are exactly at the bound: 4 hexes).  Four half-turn curves (sum 2)
+       leave room for no hex at all; LM then ended at a penalty of 91.
+    """
+    for n, nd in enumerate(pn.nodes):
+        sig = np.array([pn.curves[i].sigma for i, _ in nd.ends])
+        q = np.rint(4 * sig).astype(int)
+        k = len(sig)
+        names = ", ".join(f"{label(i)} ({s:+g})" for (i, _), s in zip(nd.ends, sig))
+        where = f"node {n} at {_fmt(nd.position)} joining {names}"
+        odd = int(np.sum(q % 2 != 0))
+        if odd % 2:
+            raise NetworkError(
+                f"{where}: {odd} of its curves have an index that is an odd multiple of 1/4; no cross field has such "
+                "a node (the turns around the curves at a node must compose to no turn, and an odd number of "
+                "quarter turns cannot). Change one index by 1/4 (e.g. make a curve a feature or give it "
+                "+-1/2), or add or remove a curve at the node"
+            )
+        total = float(sig.sum())
+        edges = 6 - 2 * total
+        if edges < k:
+            raise NetworkError(
+                f"{where}: the indices sum to {total:g}, but a hex-mesh vertex with edges of these indices has "
+                f"6 - 2 x {total:g} = {edges:g} edges and {8 - 4 * total:g} hexes around it, fewer than its {k} "
+                f"curves need (the sum must be at most {(6 - k) / 2:g} at a node of {k} curves). Lower some "
+                "indices (e.g. +1/4 instead of +1/2)"
+            )
 
 
 def _check_segments_inside(S: TriSurface, P, label, pn, ci):

@@ -6,6 +6,7 @@ and on the boundary of the tetrahedral mesh (the domain of the 2D problem).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -281,8 +282,12 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     orientation, manifold vertices, self-intersections and outward
     orientation (cavities inward).
     """
-    V = np.asarray(V, dtype=float)
-    F = np.asarray(F)
+    try:
+        V = np.asarray(V, dtype=float)
+        F = np.asarray(F)
+    except (TypeError, ValueError) as e:
+        raise SurfaceError(f"surface vertices must be an (n, 3) array of numbers and faces an (m, 3) array of "
+                           f"vertex indices ({e})") from None
     if V.ndim != 2 or V.shape[1] != 3 or len(V) < 4:
         raise SurfaceError(f"surface vertices must be an (n, 3) array with n >= 4, got shape {V.shape}")
     if F.ndim != 2 or F.shape[1] != 3 or len(F) < 4:
@@ -317,6 +322,16 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
         )
     # each undirected edge in exactly two faces
     _, _, cnt = S._edge_data
+    if np.any(cnt == 1):
+        soup = _unmerged_vertices(S, np.unique(S.edges[cnt == 1]))
+        if soup is not None:
+            n_open, n_twin, (i, j) = soup
+            raise SurfaceError(
+                f"surface triangles are not connected: {n_open} open edges, and {n_twin} of their vertices sit at the "
+                f"same position as another vertex (e.g. vertices {i} and {j} at {_fmt(V[i])}) -- a triangle soup "
+                "as STL files store it. Merge vertices by distance (Blender: Mesh > Clean Up > Merge by Distance; "
+                "trimesh: merge_vertices())"
+            )
     if np.any(cnt != 2):
         e = np.nonzero(cnt != 2)[0][0]
         i, j = S.edges[e]
@@ -367,12 +382,23 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
         )
     # intersections first: nesting below is only meaningful without them
     if check_intersections:
-        hit = find_self_intersection(S)
-        if hit is not None:
-            f, g = hit
+        hit = find_crossing_or_contact(S)
+        if hit is not None and hit[0] == "cross":
+            f, g = hit[1:3]
             raise SurfaceError(
                 f"surface intersects itself: triangles {f} and {g} cross near {_fmt(P[f].mean(0))}; "
                 "remove the intersection (Blender: 3D-Print Toolbox > Intersections, or a Boolean union)"
+            )
+        if hit is not None:
+            f, g, x = hit[1:]
+            cf, cg = S.component_of_faces()[[f, g]]
+            what = (f"surface components {cf} and {cg} touch or overlap" if cf != cg else
+                    f"surface component {cf} touches itself")
+            raise SurfaceError(
+                f"{what}: triangles {f} and {g} meet at {_fmt(x)} without sharing vertices -- solids touching face "
+                "to face or along an edge, overlapping with coincident faces, or a surface folded onto itself. "
+                "Move the parts apart and solve each solid separately, or join them into one solid (a Boolean "
+                "union)"
             )
     # orientation and nesting of components
     vols = S.signed_volumes()
@@ -388,41 +414,154 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
                     depth[c] += 1
     else:
         depth = np.zeros(1, int)
+    _check_one_solid(S, depth)
     for c in range(ncomp):
         want_positive = depth[c] % 2 == 0
         if (vols[c] > 0) != want_positive:
-            what = "outer surface" if want_positive else "cavity"
+            what = "an outer surface" if want_positive else "a cavity"
             fix = "outward" if want_positive else "into the cavity (towards the solid's outside)"
             raise SurfaceError(
-                f"surface component {c} ({int(np.sum(lab == c))} triangles, a {what}) is oriented the wrong "
+                f"surface component {c} ({int(np.sum(lab == c))} triangles, {what}) is oriented the wrong "
                 f"way; its normals must point {fix} (Blender: Mesh > Normals > Recalculate Outside)"
             )
     return S
 
 
+def _check_one_solid(S: TriSurface, depth: np.ndarray) -> None:
+    """One solid per solve: exactly one outer component (depth 0, inside no
+    other); every other component is a cavity directly inside it (depth 1).
+    A second outer component is a separate solid (the tet mesh would not be
+    connected); a component inside a cavity is a solid floating in it."""
+    ncomp, lab = S.face_components
+    outer = np.nonzero(depth == 0)[0]
+    sizes = np.bincount(lab, minlength=ncomp)
+    if len(outer) > 1:
+        where = ", ".join(f"component {c} ({sizes[c]} triangles) near {_fmt(S.V[S.F[lab == c]].mean(axis=(0, 1)))}"
+                          for c in outer[:4])
+        raise SurfaceError(
+            f"the surface bounds {len(outer)} separate solids ({where}{', ...' if len(outer) > 4 else ''}); a solve "
+            "takes one solid, possibly with cavities inside it. Solve each solid separately (Blender: Mesh > "
+            "Separate > By Loose Parts), or join them into one (a Boolean union)"
+        )
+    inner = np.nonzero(depth >= 2)[0]
+    if len(inner):
+        c = inner[0]
+        raise SurfaceError(
+            f"surface component {c} ({sizes[c]} triangles) near {_fmt(S.V[S.F[lab == c]].mean(axis=(0, 1)))} is a "
+            "solid inside a cavity of another; a solve takes one solid. Solve it separately (Blender: Mesh > "
+            "Separate > By Loose Parts)"
+        )
+
+
+def _unmerged_vertices(S: TriSurface, open_vertices: np.ndarray):
+    """(open edge count, vertices of open edges with a geometric twin, one
+    such pair) when most open-edge vertices coincide with another vertex --
+    the surface is an unmerged triangle soup -- else None."""
+    tree = cKDTree(S.V)
+    d, j = tree.query(S.V[open_vertices], k=2)
+    twin = d[:, 1] <= 1e-9 * S.bbox_diagonal
+    if twin.sum() < max(3, 0.5 * len(open_vertices)):
+        return None
+    k = int(np.argmax(twin))
+    n_open = int(np.sum(S._edge_data[2] == 1))
+    v = int(open_vertices[k])
+    return n_open, int(twin.sum()), (v, int(j[k, 1] if j[k, 0] == v else j[k, 0]))
+
+
+def candidate_pairs(S: TriSurface, pad: float = 0.0, chunk: int = 500_000):
+    """Pairs of triangles (f < g) that may come within pad of each other, in
+    chunks of at most ``chunk`` pairs: their bounding boxes do, and pieces of
+    them (below) have bounding spheres that do.
+
+    One search radius for all triangles (twice the largest) made this
+    quadratic when a few large triangles sit among many small ones (a cube
+    with a 0.1 grid on five faces and the sixth cut into long triangles:
+    13,102 faces, 49 s).  Here every triangle searches with a radius of its
+    own (the larger of a pair finds the smaller: |c_f - c_g| <= r_f + r_g
+    <= 2 r_f), and triangles much larger than the median are first bisected
+    along their longest edge into pieces of at most ``cap``, so that a long
+    thin triangle searches along itself instead of a ball of its length.
+    """
+    V, F = S.V, S.F
+    n = len(F)
+    P = V[F]
+    rad = np.max(np.linalg.norm(P - P.mean(axis=1)[:, None], axis=2), axis=1)
+    cap = 4.0 * float(np.median(rad))
+    while np.sum(np.maximum(1.0, 2.0 * (rad / cap) ** 2)) > 8 * n + 64:
+        cap *= 2.0  # bounded work for surfaces made mostly of large triangles
+    Q, owner = _bisect_to_radius(P, cap)
+    qc = Q.mean(axis=1)
+    qr = np.max(np.linalg.norm(Q - qc[:, None], axis=2), axis=1)
+    rank = np.empty(len(Q), np.int64)
+    rank[np.lexsort((np.arange(len(Q)), qr))] = np.arange(len(Q))
+    tree = cKDTree(qc)
+    keys = []
+    step = 8192
+    for s0 in range(0, len(Q), step):
+        ids = np.arange(s0, min(s0 + step, len(Q)))
+        hits = tree.query_ball_point(qc[ids], 2.0 * qr[ids] + pad, return_sorted=False)
+        lens = np.fromiter((len(h) for h in hits), np.int64, len(hits))
+        b = np.fromiter(itertools.chain.from_iterable(hits), np.int64, int(lens.sum()))
+        a = np.repeat(ids, lens)
+        keep = (rank[b] < rank[a]) & (owner[a] != owner[b])
+        a, b = a[keep], b[keep]
+        keep = np.linalg.norm(qc[a] - qc[b], axis=1) <= qr[a] + qr[b] + pad
+        f, g = owner[a[keep]], owner[b[keep]]
+        keys.append(np.unique(np.minimum(f, g) * n + np.maximum(f, g)))
+    key = np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
+    f, g = key // n, key % n
+    lo, hi = P.min(axis=1) - pad, P.max(axis=1) + pad
+    keep = np.all((lo[f] <= hi[g]) & (lo[g] <= hi[f]), axis=1)
+    f, g = f[keep], g[keep]
+    for c0 in range(0, len(f), chunk):
+        yield f[c0:c0 + chunk], g[c0:c0 + chunk]
+
+
+def _bisect_to_radius(P: np.ndarray, cap: float):
+    """Split triangles P (k, 3, 3) by bisecting their longest edge until every
+    piece's centroid-to-corner radius is at most cap.  Returns the pieces and
+    the index of the triangle each comes from."""
+    owner = np.arange(len(P))
+    out, own = [], []
+    while len(P):
+        c = P.mean(axis=1)
+        done = np.max(np.linalg.norm(P - c[:, None], axis=2), axis=1) <= cap
+        out.append(P[done])
+        own.append(owner[done])
+        P, owner = P[~done], owner[~done]
+        if not len(P):
+            break
+        k = np.argmax(np.linalg.norm(np.roll(P, -1, axis=1) - P, axis=2), axis=1)  # edge k -> k + 1
+        i = np.arange(len(P))
+        a, b, c = P[i, k], P[i, (k + 1) % 3], P[i, (k + 2) % 3]
+        m = 0.5 * (a + b)
+        P = np.concatenate([np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
+        owner = np.concatenate([owner, owner])
+    return np.concatenate(out), np.concatenate(own)
+
+
 def find_self_intersection(S: TriSurface):
     """Return one pair of crossing triangles (f, g), or None.
 
-    Broad phase: KD-tree on centroids; narrow phase: an edge of one triangle
-    properly crossing the other, for pairs that share no vertex, and the edge
-    opposite the shared vertex for pairs that share one.
+    Broad phase: candidate_pairs (per-triangle search radius); narrow phase:
+    an edge of one triangle properly crossing the other, for pairs that share
+    no vertex, and the edge opposite the shared vertex for pairs that share
+    one.
     """
+    for f, g in candidate_pairs(S):
+        hit = _crossing(S, f, g)
+        if hit is not None:
+            return hit
+    return None
+
+
+def _crossing(S: TriSurface, f, g):
     V, F = S.V, S.F
     P = V[F]
-    cent = P.mean(axis=1)
-    rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
-    tree = cKDTree(cent)
-    pairs = tree.query_pairs(2.0 * rad.max(), output_type="ndarray")
-    if len(pairs) == 0:
-        return None
-    f, g = pairs[:, 0], pairs[:, 1]
-    close = np.linalg.norm(cent[f] - cent[g], axis=1) <= rad[f] + rad[g]
-    f, g = f[close], g[close]
+    tol = 1e-9 * S.bbox_diagonal
     shared = (F[f][:, :, None] == F[g][:, None, :]).sum(axis=(1, 2))
     keep = shared <= 1
     f, g = f[keep], g[keep]
-    shared = shared[keep]
-    tol = 1e-9 * S.bbox_diagonal
     hits = np.zeros(len(f), bool)
     for A, B in ((f, g), (g, f)):
         for k in range(3):
@@ -436,6 +575,91 @@ def find_self_intersection(S: TriSurface):
         i = np.nonzero(hits)[0][0]
         return int(f[i]), int(g[i])
     return None
+
+
+CONTACT_TOLERANCE = 1e-6  # of the bounding-box diagonal: float32 coordinates (Blender) touch to ~1e-7
+
+
+def find_contact(S: TriSurface):
+    """One pair of triangles that share no vertex but touch -- a vertex or
+    an edge of one within tolerance of the other -- and the contact point,
+    or None.
+
+    Catches what find_self_intersection cannot: two solids touching face to
+    face, overlapping with coincident faces, or meeting along an edge, where
+    nothing crosses properly.  The tolerance is CONTACT_TOLERANCE of the
+    diagonal, and at most a hundredth of the two triangles' shortest edge so
+    that fine meshes are not flagged; far below fTetWild's envelope (1e-3),
+    which would merge such surfaces anyway.
+    """
+    for f, g in candidate_pairs(S, pad=CONTACT_TOLERANCE * S.bbox_diagonal):
+        hit = _contact(S, f, g)
+        if hit is not None:
+            return hit
+    return None
+
+
+def find_crossing_or_contact(S: TriSurface):
+    """find_self_intersection and find_contact in one broad phase: (kind,
+    f, g, point) with kind 'cross' or 'touch', or None.  Crossings anywhere
+    are reported before contacts."""
+    touch = None
+    for f, g in candidate_pairs(S, pad=CONTACT_TOLERANCE * S.bbox_diagonal):
+        hit = _crossing(S, f, g)
+        if hit is not None:
+            return "cross", hit[0], hit[1], S.V[S.F[hit[0]]].mean(axis=0)
+        if touch is None:
+            touch = _contact(S, f, g)
+    return None if touch is None else ("touch", *touch)
+
+
+def _contact(S: TriSurface, f, g):
+    V, F = S.V, S.F
+    P = V[F]
+    shared = (F[f][:, :, None] == F[g][:, None, :]).any(axis=(1, 2))
+    f, g = f[~shared], g[~shared]
+    if not len(f):
+        return None
+    L = np.minimum(np.linalg.norm(P[f] - np.roll(P[f], 1, axis=1), axis=2).min(axis=1),
+                   np.linalg.norm(P[g] - np.roll(P[g], 1, axis=1), axis=2).min(axis=1))
+    tol = np.minimum(CONTACT_TOLERANCE * S.bbox_diagonal, 0.01 * L)
+    best = np.full(len(f), np.inf)
+    where = np.zeros((len(f), 3))
+    for A, B in ((f, g), (g, f)):
+        for k in range(3):
+            x = V[F[A, k]]
+            d = np.linalg.norm(closest_point_on_triangles(x, P[B]) - x, axis=1)
+            better = d < best
+            best[better], where[better] = d[better], x[better]
+    for i in range(3):
+        for j in range(3):
+            d, x = _segments_distance(P[f, i], P[f, (i + 1) % 3], P[g, j], P[g, (j + 1) % 3])
+            better = d < best
+            best[better], where[better] = d[better], x[better]
+    hit = np.nonzero(best <= tol)[0]
+    if len(hit):
+        i = hit[0]
+        return int(f[i]), int(g[i]), where[i]
+    return None
+
+
+def _segments_distance(p0, p1, q0, q1):
+    """Distance between segments p0-p1 and q0-q1 (k, 3) each, and the
+    midpoint of the closest pair (Ericson, clamped)."""
+    u, v, w = p1 - p0, q1 - q0, p0 - q0
+    a = np.einsum("ij,ij->i", u, u)
+    b = np.einsum("ij,ij->i", u, v)
+    c = np.einsum("ij,ij->i", v, v)
+    d = np.einsum("ij,ij->i", u, w)
+    e = np.einsum("ij,ij->i", v, w)
+    den = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.clip(np.where(den > 1e-300, (b * e - c * d) / den, 0.0), 0, 1)
+        t = np.clip(np.where(c > 1e-300, (b * s + e) / c, 0.0), 0, 1)
+        s = np.clip(np.where(a > 1e-300, (b * t - d) / a, 0.0), 0, 1)
+    x = p0 + s[:, None] * u
+    y = q0 + t[:, None] * v
+    return np.linalg.norm(x - y, axis=1), 0.5 * (x + y)
 
 
 def segment_crosses_triangle(s0, s1, T, tol=0.0):

@@ -1,0 +1,407 @@
+"""Seeded fuzzing of everything that reads user input (issue 28).
+
+Random option values, mutated network files (JSON), mutated surfaces (OBJ)
+and random networks in the examples' solids go through the reading and
+validation path (io + check_input, what ``--check`` runs; no meshing), and
+eight tiny solves with random valid options run on a structured tet mesh.  The
+bar: nothing but the documented errors (SymFramesError subclasses) comes
+out, and no case runs longer than CASE_SECONDS.  Each case is derived from
+its own seed, printed on failure so that it can be replayed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import signal
+import sys
+
+import numpy as np
+import pytest
+
+from solver import Curve, Network, SymFramesError, io
+from solver.examples import box, cylinder_example, cylinder_surface, icosphere
+from solver.network.validation import check_input
+
+CASE_SECONDS = 10  # wall clock, on a shared machine; a case takes well under a second
+
+
+@contextlib.contextmanager
+def bounded(seconds=CASE_SECONDS):
+    """Fail a case that runs longer than ``seconds`` (POSIX alarm)."""
+    if not hasattr(signal, "SIGALRM"):
+        yield
+        return
+
+    def hang(signum, frame):
+        raise TimeoutError(f"case ran longer than {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, hang)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def run_case(label, fn, seconds=CASE_SECONDS):
+    """Run fn; return 'ok' or the error class; fail on anything else."""
+    try:
+        with bounded(seconds):
+            fn()
+        return "ok"
+    except SymFramesError as e:
+        assert str(e), label
+        return type(e).__name__
+    except Exception as e:  # noqa: BLE001 - this is what the test looks for
+        pytest.fail(f"{label}: {type(e).__name__}: {e}")
+
+
+# ------------------------------------------------------------------ values
+WEIRD = [None, True, False, 0, -1, 1, 2.5, -0.0, 1e308, -1e-300, float("nan"), float("inf"), -float("inf"), "",
+         "0.3", "abc", "1e3", [], [1], [1, 2, 3], {}, {"a": 1}, 10**30, -(10**30), 3.0, 0.001]
+
+
+def weird(rng):
+    return WEIRD[int(rng.integers(len(WEIRD)))]
+
+
+OPTION_KEYS = ["edge_length", "penalty", "max_iterations", "tolerance", "init", "seed", "tube_radius", "node_radius",
+               "epsilon", "target_tets", "check_intersections", "refine", "snap_features", "bogus"]
+
+
+@pytest.mark.parametrize("seed", range(60))
+def test_fuzz_options(seed):
+    rng = np.random.default_rng(seed)
+    d = {OPTION_KEYS[int(k)]: weird(rng) for k in rng.integers(0, len(OPTION_KEYS), int(rng.integers(1, 4)))}
+    run_case(f"options seed {seed}: {d!r}", lambda: io.options_from_dict(d))
+
+
+# ------------------------------------------------------- network files
+def _small_cylinder():
+    """The cylinder example on a coarser surface (validation in ~0.1 s)."""
+    _, _, net = cylinder_example()
+    V, F = cylinder_surface(1.0, 2.0, n=24, rings=3)
+    return V, F, net
+
+
+@pytest.fixture(scope="module")
+def cylinder_files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fuzz")
+    V, F, net = _small_cylinder()
+    io.write_obj(str(d / "c.obj"), V, F)
+    io.write_network(str(d / "c.json"), net, surface="c.obj")
+    return d, json.loads((d / "c.json").read_text()), (d / "c.obj").read_text()
+
+
+def mutate_json(rng, obj, depth=0):
+    """Replace, delete or add one value somewhere in a JSON structure."""
+    if isinstance(obj, dict) and obj and rng.random() < 0.8:
+        key = list(obj)[int(rng.integers(len(obj)))]
+        r = rng.random()
+        if r < 0.15:
+            del obj[key]
+        elif r < 0.5 or depth > 3:
+            obj[key] = weird(rng)
+        else:
+            obj[key] = mutate_json(rng, obj[key], depth + 1)
+        return obj
+    if isinstance(obj, list) and obj and rng.random() < 0.8:
+        i = int(rng.integers(len(obj)))
+        r = rng.random()
+        if r < 0.15:
+            del obj[i]
+        elif r < 0.25:
+            obj.append(obj[i] if rng.random() < 0.5 else weird(rng))
+        elif r < 0.5 or depth > 3:
+            obj[i] = weird(rng)
+        else:
+            obj[i] = mutate_json(rng, obj[i], depth + 1)
+        return obj
+    if isinstance(obj, (int, float)) and not isinstance(obj, bool) and rng.random() < 0.6:
+        return obj * float(rng.choice([-1.0, 0.0, 0.5, 2.0, 1e6, 1e-6])) + float(rng.normal())
+    return weird(rng)
+
+
+def gentle_network(rng, d):
+    """Valid-looking changes: jittered points, other quarter-turn indices,
+    roles, torsions, closed flags, tolerances, sharp edges and options."""
+    for c in d["curves"]:
+        P = np.asarray(c["points"], float)
+        c["points"] = (P + rng.normal(scale=float(rng.choice([0.0, 1e-4, 0.01, 0.1])), size=P.shape)).tolist()
+        if rng.random() < 0.3:
+            c["sigma"] = float(rng.choice([-0.5, -0.25, 0.0, 0.25, 0.5]))
+            c["role"] = "singular" if c["sigma"] else str(rng.choice(["feature", "sharp"]))
+        if rng.random() < 0.2:
+            c["torsion"] = "fixed"
+        if rng.random() < 0.1:
+            c["closed"] = True
+    if rng.random() < 0.3:
+        d["curves"] = d["curves"][: int(rng.integers(0, len(d["curves"]) + 1))]
+    if rng.random() < 0.3:
+        d["sharp_angle"] = float(rng.uniform(0, 179))
+    if rng.random() < 0.2:
+        d["sharp_edges"] = rng.integers(0, 200, (int(rng.integers(1, 5)), 2)).tolist()
+    for key in ("node_tolerance", "boundary_tolerance"):
+        if rng.random() < 0.2:
+            d[key] = float(rng.choice([1e-9, 1e-3, 0.05, 0.2, 1.0]))
+    if rng.random() < 0.3:
+        d["options"] = {"edge_length": float(rng.choice([0.05, 0.3, 1.0])), "refine": int(rng.integers(0, 4)),
+                        "init": str(rng.choice(["zero", "random", "linear"]))}
+    return d
+
+
+@pytest.mark.parametrize("seed", range(70))
+def test_fuzz_network_file(cylinder_files, seed):
+    folder, base, _ = cylinder_files
+    rng = np.random.default_rng(1000 + seed)
+    d = json.loads(json.dumps(base))
+    if seed % 2:
+        d = gentle_network(rng, d)  # plausible values: reach the geometric checks
+    for _ in range(int(rng.integers(0 if seed % 2 else 1, 3))):
+        d = mutate_json(rng, d)
+    path = folder / f"m{seed}.json"
+    if rng.random() < 0.15:  # corrupt the text itself
+        text = bytearray(json.dumps(d).encode())
+        for _ in range(int(rng.integers(1, 5))):
+            text[int(rng.integers(len(text)))] = int(rng.integers(256))
+        path.write_bytes(bytes(text[: int(rng.integers(1, len(text) + 1))]))
+    else:
+        path.write_text(json.dumps(d))
+
+    def go():
+        net, opts, surface = io.read_network(str(path))
+        io.options_from_dict(opts)
+        V, F = io.read_obj(str(folder / "c.obj"))
+        check_input(V, F, net)
+
+    run_case(f"network file seed {1000 + seed}: {path.read_bytes()[:300]!r}", go)
+
+
+# ---------------------------------------------------------------- OBJ files
+def mutate_obj(rng, text):
+    lines = text.splitlines()
+    for _ in range(int(rng.integers(1, 4))):
+        i = int(rng.integers(len(lines)))
+        r = rng.random()
+        parts = lines[i].split()
+        if r < 0.15:
+            del lines[i]
+        elif r < 0.25:
+            lines.insert(i, lines[i])
+        elif r < 0.45 and parts and parts[0] == "f":  # an index out of range, 0, negative or garbage
+            j = int(rng.integers(1, len(parts)))
+            parts[j] = str(rng.choice(["0", "-1", "-999", "999", "x", "1/2/3", "2//1", "1.5"]))
+            lines[i] = " ".join(parts)
+        elif r < 0.6 and parts and parts[0] == "v":
+            j = int(rng.integers(1, len(parts)))
+            parts[j] = str(rng.choice(["nan", "inf", "1e400", "abc", "", "0"]))
+            lines[i] = " ".join(parts)
+        elif r < 0.7 and parts and parts[0] == "f":  # reverse or merge into a polygon
+            lines[i] = " ".join(["f"] + parts[:0:-1])
+        elif r < 0.8:
+            f = [str(int(x)) for x in rng.integers(-20, 60, int(rng.integers(1, 7)))]
+            lines.insert(i, "f " + " ".join(f))
+        elif r < 0.9:
+            lines.insert(i, f"v {rng.normal():.3f} {rng.normal():.3f}")
+        else:
+            lines = lines[: i + 1]
+    return "\n".join(lines) + "\n"
+
+
+def gentle_obj(rng, V, F):
+    """The box as an OBJ with its coplanar triangle pairs merged into quads
+    or larger polygons (vertices rotated, some collinear), vt/vn/comment
+    records, slash indices, negative indices, jitter."""
+    V = V + rng.normal(scale=float(rng.choice([0.0, 1e-9, 1e-4])), size=V.shape)
+    polys = [list(f) for f in F]
+    # merge triangle pairs sharing an edge in the same plane into quads
+    if rng.random() < 0.7:
+        merged, used = [], set()
+        for i in range(0, len(F) - 1, 2):
+            a, b = F[i], F[i + 1]
+            shared = set(a) & set(b)
+            if len(shared) == 2:
+                (x,) = set(b) - shared
+                # insert b's free vertex between a's shared pair
+                j = next(j for j in range(3) if a[j] in shared and a[(j + 1) % 3] in shared)
+                merged.append([a[j], x, a[(j + 1) % 3], a[(j + 2) % 3]])
+                used |= {i, i + 1}
+        polys = merged + [list(F[i]) for i in range(len(F)) if i not in used]
+    polys = [list(np.roll(p, int(rng.integers(len(p))))) for p in polys]
+    lines = ["# fuzz", "o box"] + [f"v {x:.12g} {y:.12g} {z:.12g}" for x, y, z in V] + ["vt 0 0", "vn 0 0 1"]
+    n = len(V)
+    late = rng.random() < 0.2  # faces before the vertices they use (then no negative indices)
+    for p in polys:
+        style = rng.random()
+        if late and 0.3 <= style < 0.4:
+            style = 0.5
+        if style < 0.2:
+            idx = [f"{i + 1}/1/1" for i in p]
+        elif style < 0.3:
+            idx = [f"{i + 1}//1" for i in p]
+        elif style < 0.4:
+            idx = [str(i - n) for i in p]
+        else:
+            idx = [str(i + 1) for i in p]
+        lines.append("f " + " ".join(idx))
+    if late:
+        k = 2 + n
+        lines = lines[:2] + lines[k + 2:] + lines[2:k + 2]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("seed", range(50))
+def test_fuzz_obj_file(tmp_path, seed):
+    rng = np.random.default_rng(2000 + seed)
+    V, F = box(n=2)
+    text = "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V) + "".join(f"f {a + 1} {b + 1} {c + 1}\n"
+                                                                            for a, b, c in F)
+    path = tmp_path / "m.obj"
+    valid = False
+    if seed % 2:  # valid-looking: polygons, other OBJ records, faces before vertices, jitter
+        text = gentle_obj(rng, V, F)
+        valid = rng.random() >= 0.3
+        if not valid:
+            text = mutate_obj(rng, text)
+        path.write_text(text)
+    elif rng.random() < 0.1:
+        path.write_bytes(bytes(rng.integers(0, 256, 400, dtype=np.uint8)))
+    else:
+        path.write_text(mutate_obj(rng, text))
+
+    def go():
+        W, G = io.read_obj(str(path))
+        check_input(W, G, Network(sharp_angle=30))
+
+    outcome = run_case(f"OBJ seed {2000 + seed}: {path.read_bytes()[:400]!r}", go)
+    if valid:  # a closed box, however its polygons are written, is accepted
+        assert outcome == "ok", (seed, outcome)
+
+
+# ------------------------------------------------------ random networks
+@pytest.fixture(scope="module")
+def solids():
+    Vb, Fb = icosphere(2)
+    Vc, Fc = box(n=3)
+    return {"ball": (Vb, Fb, None), "cube": (Vc, Fc, 30.0)}
+
+
+def random_network(rng, sharp_angle, surface=None):
+    """Random polylines between random points of [-1.2, 1.2]^3 (some outside,
+    some ending on the surface), some sharing a node; random indices, roles,
+    torsions and tolerances."""
+    kind = rng.random()
+    if kind < 0.35:
+        return _radial_network(rng, sharp_angle, surface)
+    if kind < 0.6:
+        return _axis_network(rng, sharp_angle)
+    curves = []
+    hub = rng.uniform(-0.5, 0.5, 3)
+    for k in range(int(rng.integers(0, 6))):
+        a = hub if rng.random() < 0.4 else rng.uniform(-1.2, 1.2, 3)
+        b = rng.normal(size=3)
+        b = b / np.linalg.norm(b) * (1.0 if rng.random() < 0.5 else rng.uniform(0.2, 1.3))
+        n = int(rng.integers(2, 9))
+        P = np.linspace(a, b, n) + rng.normal(scale=0.02 * rng.random(), size=(n, 3))
+        if rng.random() < 0.1:
+            P = np.vstack([P, P[:1]])
+        role = str(rng.choice(["singular", "feature", "sharp"]))
+        sigma = 0.0 if role != "singular" else float(rng.choice([-0.5, -0.25, 0.25, 0.5, 0.75, 0.3]))
+        curves.append(Curve(P, sigma, role, str(rng.choice(["free", "fixed"])), name=f"r{k}",
+                            closed=bool(rng.random() < 0.05)))
+    kw = {}
+    if rng.random() < 0.2:
+        kw["node_tolerance"] = float(rng.choice([1e-6, 1e-3, 0.05, 0.5]))
+    if rng.random() < 0.2:
+        kw["boundary_tolerance"] = float(rng.choice([1e-6, 1e-2, 0.1, 0.5]))
+    if rng.random() < 0.2:
+        kw["sharp_edges"] = rng.integers(0, 40, (int(rng.integers(1, 4)), 2))
+    return Network(curves, sharp_angle=sharp_angle if rng.random() < 0.8 else float(rng.uniform(0, 179)), **kw)
+
+
+SIGMAS = [-0.5, -0.25, 0.0, 0.25, 0.5]
+
+
+def _sigma_role(rng):
+    s = float(rng.choice(SIGMAS))
+    return s, ("singular" if s else "feature")
+
+
+def _radial_network(rng, sharp_angle, surface):
+    """2-5 arms from a node at the centre to their closest surface points
+    (on the ball along the normal, on the cube mostly not)."""
+    k = int(rng.integers(2, 6))
+    dirs = rng.normal(size=(k, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    if surface is not None:
+        dirs = surface.closest_points(dirs)[2]
+    curves = []
+    for j, d in enumerate(dirs):
+        s, role = _sigma_role(rng)
+        curves.append(Curve(np.linspace(np.zeros(3), d, 6), s, role, name=f"arm{j}"))
+    return Network(curves, sharp_angle=sharp_angle)
+
+
+def _axis_network(rng, sharp_angle):
+    """Straight curves parallel to an axis through the solid (face to face in
+    the cube, perpendicular at both ends), some crossing each other."""
+    curves = []
+    for j in range(int(rng.integers(1, 5))):
+        ax = int(rng.integers(3))
+        a = rng.uniform(-0.8, 0.8, 3)
+        b = a.copy()
+        a[ax], b[ax] = -1.0, 1.0
+        s, role = _sigma_role(rng)
+        curves.append(Curve(np.linspace(a, b, 7), s, role, name=f"line{j}"))
+    return Network(curves, sharp_angle=sharp_angle)
+
+
+@pytest.mark.parametrize("seed", range(60))
+def test_fuzz_random_networks(solids, seed):
+    rng = np.random.default_rng(3000 + seed)
+    name = "ball" if seed % 2 else "cube"
+    V, F, angle = solids[name]
+    from solver.surface.trisurface import TriSurface
+
+    net = random_network(rng, angle, TriSurface(V, F))
+    run_case(f"random network seed {3000 + seed} in the {name}", lambda: check_input(V, F, net))
+
+
+def test_fuzz_covers_enough_cases():
+    """The issue's bar: >= 200 cases."""
+    mod = sys.modules[__name__]
+    n = sum(len(getattr(mod, f).pytestmark[0].args[1]) for f in dir(mod)
+            if f.startswith("test_fuzz_") and hasattr(getattr(mod, f), "pytestmark"))
+    assert n >= 200, n
+
+
+# ------------------------------------------------ a handful of tiny solves
+@pytest.mark.parametrize("seed", range(8))
+def test_fuzz_tiny_solves(seed):
+    """Random valid options through the whole solve, on a structured tet mesh
+    of the cube (no fTetWild): only documented errors, and rotations out."""
+    from solver import FieldProblem, Options
+    from tests.meshes import box_mesh
+
+    rng = np.random.default_rng(4000 + seed)
+    V, F = box(n=2)
+    opts = Options(edge_length=0.7, penalty=float(10 ** rng.uniform(-3, 6)), max_iterations=int(rng.integers(1, 5)),
+                   tolerance=float(rng.choice([0.0, 1e-12, 1e-3])), init=str(rng.choice(["zero", "constant", "random",
+                                                                                          "linear"])),
+                   seed=int(rng.integers(0, 2**31)), node_radius=float(rng.uniform(0.5, 3.0)))
+    mesh = box_mesh(int(rng.integers(2, 4)), lo=(-1, -1, -1), hi=(1, 1, 1), jitter=float(rng.uniform(0, 0.3)),
+                    seed=seed)
+    out = {}
+
+    def go():
+        p = FieldProblem(V, F, Network(sharp_angle=30), opts, mesh=mesh)
+        root = None if rng.random() < 0.5 else int(rng.integers(0, p.mesh.n_vertices))
+        out["r"] = p.solve(root=root)
+
+    outcome = run_case(f"tiny solve seed {4000 + seed}: {opts}", go, seconds=30)
+    if outcome == "ok":
+        E = out["r"].frames
+        assert np.all(np.isfinite(E))
+        assert np.allclose(np.einsum("vji,vjk->vik", E, E), np.eye(3), atol=1e-6)
