@@ -373,7 +373,7 @@ class SYMFRAMES_OT_show_omega(_FieldOperator, bpy.types.Operator):
 
 
 class SYMFRAMES_OT_show_slice(_FieldOperator, bpy.types.Operator):
-    """Show tet faces coloured by monodromy (along the slice plane) or adaptation error (surface, cut away)"""
+    """Show tet faces colored by monodromy (along the slice plane) or adaptation error (surface, cut away)"""
 
     bl_idname = "symframes.show_slice"
     bl_label = "Show Error Slice"

@@ -172,8 +172,8 @@ class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
             col.label(text=f"{st['faces']:,} faces ({st['grey']:,} {grey}, grey)")
             col.label(text=f"   {what} mean {st['mean_deg']:.3g}°   max {st['max_deg']:.3g}°")
         layout.prop(s, "glyph_colour")
-        layout.operator("symframes.show_glyphs", text="Show Glyphs", icon="EMPTY_AXIS")
-        layout.label(text="Colours: Solid view → Color → Attribute, or Material Preview")
+        layout.operator("symframes.show_glyphs", icon="EMPTY_AXIS")
+        layout.label(text="Error colors in full: Material Preview (Solid view: in steps)", icon="INFO")
 
 
 CLASSES = (SYMFRAMES_PT_main, SYMFRAMES_PT_curve, SYMFRAMES_PT_display, SYMFRAMES_PT_result, SYMFRAMES_PT_diagnostics)

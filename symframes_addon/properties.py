@@ -30,13 +30,13 @@ GLYPH_REGIONS = (
     ("CUTAWAY", "Cutaway", "Glyphs on one side of the slice plane only, to see inside"),
     ("SLICE", "Slice", "Glyphs on the slice plane only"),
 )
-GLYPH_COLOURS = (
-    ("AXES", "Axes", "Bars coloured by frame axis (red, green, blue)"),
+GLYPH_COLORS = (
+    ("AXES", "Axes", "Bars colored by frame axis (red, green, blue)"),
     ("ADAPTATION", "Adaptation Error",
-     "Glyphs at the boundary vertices, coloured by the angle between the surface normal and the nearest frame "
+     "Glyphs at the boundary vertices, colored by the angle between the surface normal and the nearest frame "
      "axis (blue: 0 degrees, red: the Adaptation Scale and above)"),
     ("MONODROMY", "Monodromy",
-     "Glyphs at tet-mesh vertices (all, the cutaway's or the slice faces'), coloured by the mean monodromy angle "
+     "Glyphs at tet-mesh vertices (all, the cutaway's or the slice faces'), colored by the mean monodromy angle "
      "of the faces around the vertex, off the network (blue: 0, red: the Monodromy Scale and above)"),
 )
 OMEGA_REGIONS = (
@@ -46,10 +46,10 @@ OMEGA_REGIONS = (
 )
 SLICE_QUANTITIES = (
     ("MONODROMY", "Monodromy",
-     "Tet faces along the slice plane, coloured by how far omega fails to close around each (Eq. 9); "
+     "Tet faces along the slice plane, colored by how far omega fails to close around each (Eq. 9); "
      "faces the network passes through are grey"),
     ("ADAPTATION", "Adaptation Error",
-     "The domain surface on the kept side of the slice plane, coloured by the normal adaptation error"),
+     "The domain surface on the kept side of the slice plane, colored by the normal adaptation error"),
 )
 INITS = (
     ("zero", "Zero", "Start Levenberg-Marquardt from omega = 0"),
@@ -157,7 +157,8 @@ class SymFramesSettings(bpy.types.PropertyGroup):
                               description="Length of a glyph's bars", update=_update_glyph_inputs)
     glyph_region: EnumProperty(name="Region", items=GLYPH_REGIONS, default="VOLUME",
                                description="Where glyphs are sampled")
-    glyph_colour: EnumProperty(name="Colour", items=GLYPH_COLOURS, default="AXES")
+    glyph_colour: EnumProperty(name="Color", items=GLYPH_COLORS, default="AXES",
+                               description="What the glyphs' colors show")
     error_scale: FloatProperty(
         name="Adaptation Scale", default=0.08726646259971647, min=1e-4, max=1.5707963267948966, subtype="ANGLE",
         description="Adaptation error shown in full red (glyphs and error slice)", update=_update_error_scales,
