@@ -22,6 +22,7 @@ from . import (
     glyphs,
     job,
     omega_arrows,
+    properties,
     scene_io,
     storage,
     streamline_curves,
@@ -437,6 +438,25 @@ class SYMFRAMES_OT_add_example(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SYMFRAMES_OT_apply_preset(bpy.types.Operator):
+    """Set the resolution and iterations for a quality: Draft, Standard (the defaults) or Fine"""
+
+    bl_idname = "symframes.apply_preset"
+    bl_label = "Apply Quality Preset"
+    bl_options = {"REGISTER", "UNDO"}
+
+    preset: EnumProperty(name="Preset", items=properties.PRESET_ITEMS, default="STANDARD")
+
+    def execute(self, context):
+        s = context.scene.symframes
+        values = properties.PRESETS[self.preset]
+        for key, value in values.items():
+            setattr(s, key, value)
+        self.report({"INFO"}, f"SymFrames: {self.preset.capitalize()} preset, about {values['target_tets']:,} "
+                              f"tets, at most {values['max_iterations']} iterations")
+        return {"FINISHED"}
+
+
 CLASSES = (
     SYMFRAMES_OT_check_network,
     SYMFRAMES_OT_compute,
@@ -447,4 +467,5 @@ CLASSES = (
     SYMFRAMES_OT_show_slice,
     SYMFRAMES_OT_clear,
     SYMFRAMES_OT_add_example,
+    SYMFRAMES_OT_apply_preset,
 )
