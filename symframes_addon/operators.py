@@ -1,4 +1,4 @@
-"""Operators (all in F3 search under "SymFrames").
+"""Operators (all in F3 search, through the menus of menus.py).
 
 Every failure is reported with self.report({'ERROR'}, message) and leaves
 the scene as it was: inputs are read into arrays first, numerics run on
