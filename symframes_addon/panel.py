@@ -84,13 +84,17 @@ class SYMFRAMES_UL_curves(bpy.types.UIList):
         row.label(text=_enum_name(cs, "torsion"))
 
     def filter_items(self, context, data, propname):
-        # only the curves (scene_io reads only those); the name filter as in Blender's lists
+        # only the curves, by name: as scene_io reads them and messages number them
+        objects = list(getattr(data, propname))
         pattern = f"*{self.filter_name}*" if self.filter_name else "*"
-        shown = [obj.type == "CURVE" and fnmatch.fnmatch(obj.name.lower(), pattern.lower())
-                 for obj in getattr(data, propname)]
+        shown = [obj.type == "CURVE" and fnmatch.fnmatch(obj.name.lower(), pattern.lower()) for obj in objects]
         if self.use_filter_invert:
             shown = [not x for x in shown]
-        return [self.bitflag_filter_item if x else 0 for x in shown], []
+        by_name = sorted(range(len(objects)), key=lambda i: objects[i].name)
+        order = [0] * len(objects)
+        for position, i in enumerate(by_name):
+            order[i] = position  # the new position of item i
+        return [self.bitflag_filter_item if x else 0 for x in shown], order
 
 
 def _enum_name(data, prop: str) -> str:
