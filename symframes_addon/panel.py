@@ -38,7 +38,10 @@ class SYMFRAMES_PT_main(SymFramesPanel, bpy.types.Panel):
         col = layout.column(heading="Resolution")
         row = col.row(align=True)
         row.prop(s, "auto_resolution", text="Auto")
-        row.prop(s, "target_tets" if s.auto_resolution else "edge_length", text="")
+        if s.auto_resolution:
+            row.prop(s, "target_tets", text="Tets")
+        else:
+            row.prop(s, "edge_length", text="")
         row = layout.row(align=True)
         row.use_property_split = False
         row.operator_enum("symframes.apply_preset", "preset")

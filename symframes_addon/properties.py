@@ -59,9 +59,10 @@ PRESETS = {
     "FINE": {"auto_resolution": True, "target_tets": 50000, "max_iterations": 60},
 }
 PRESET_ITEMS = (
-    ("DRAFT", "Draft", "Auto resolution at about 4,000 tets, at most 15 iterations: seconds, for trying a network"),
-    ("STANDARD", "Standard", "Auto resolution at about 15,000 tets, at most 30 iterations (the defaults)"),
-    ("FINE", "Fine", "Auto resolution at about 50,000 tets, at most 60 iterations: tens of seconds to minutes"),
+    ("DRAFT", "Draft", "Auto resolution aiming at about 4,000 tets, at most 15 iterations: the quickest, to try "
+     "a network"),
+    ("STANDARD", "Standard", "Auto resolution aiming at about 15,000 tets, at most 30 iterations (the defaults)"),
+    ("FINE", "Fine", "Auto resolution aiming at about 50,000 tets, at most 60 iterations: a finer field, slower"),
 )
 INITS = (
     ("zero", "Zero", "Start Levenberg-Marquardt from omega = 0"),
