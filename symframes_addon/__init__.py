@@ -14,29 +14,30 @@ Modules, in the order data flows through them:
 * omega_arrows      -- the Darboux derivative omega as instanced arrows
 * error_slice       -- tet faces coloured by monodromy or adaptation error
 * exchange          -- Export Field, Import Network, the tet mesh as an object
-* operators, panel  -- the user interface
+* operators, panel, menus -- the user interface (sidebar tab; Object, Add and
+                       File menus, which F3 search finds)
 * examples, presentation -- example scenes; camera, lights, render settings
 """
 
 import bpy
 
-from . import exchange, operators, panel, properties
+from . import exchange, menus, operators, panel, properties
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(
-    properties.CLASSES + operators.CLASSES + exchange.CLASSES + panel.CLASSES
+    properties.CLASSES + operators.CLASSES + exchange.CLASSES + panel.CLASSES + menus.CLASSES
 )
 
 
 def register():
     _register_classes()
     properties.register_properties()
-    exchange.register_menus()
+    menus.register_menus()
 
 
 def unregister():
     job = operators.running_job()
     if job is not None:
         job.cancel()
-    exchange.unregister_menus()
+    menus.unregister_menus()
     properties.unregister_properties()
     _unregister_classes()  # in reverse order

@@ -15,9 +15,12 @@ Two quantities (the scene's Slice Quantity):
 
 The mesh has one triangle per face, the value as a FLOAT face attribute
 named after the quantity (radians), the tet-mesh face id (``face``), and a
-colour attribute ``symframes_colour`` (face corners; blue 0, yellow, red at
-the quantity's scale and above) that the material and the Solid view's
-Attribute colouring show.  Changing the scale recolours it (recolour).
+color attribute ``symframes_colour`` (face corners; blue 0, yellow, red at
+the quantity's scale and above) that the materials and the Solid view's
+Attribute coloring show.  The Solid view's default coloring (Material)
+shows the materials' viewport display colors instead, so each face also
+gets the material of its step (glyphs.ERROR_STEPS of them, grey first).
+Changing the scale recolours it (recolour).
 """
 
 from __future__ import annotations
@@ -35,8 +38,9 @@ FACE_ATTRIBUTE = "face"
 NETWORK_ATTRIBUTE = "network"
 COLOUR_ATTRIBUTE = "symframes_colour"
 STATS_KEY = "symframes_slice"
-MATERIAL = "SymFrames Error Slice"
-RAMP = np.array([(0.10, 0.25, 0.90), (0.95, 0.85, 0.15), (0.90, 0.08, 0.05)])  # at 0, 1/2, 1 (glyphs' ramp)
+MATERIALS = ("SymFrames Error Slice Grey",
+             *(f"SymFrames Error Slice {k + 1}" for k in range(glyphs.ERROR_STEPS)))
+RAMP = glyphs.ERROR_RAMP  # at 0, 1/2, 1
 GREY = (0.35, 0.35, 0.35)
 
 
@@ -70,19 +74,31 @@ def slice_values(field, omega: np.ndarray, adaptation: np.ndarray | None, networ
     raise ValueError(f"unknown slice quantity {quantity!r}")
 
 
-def material():
-    """Base colour from the colour attribute."""
-    mat = bpy.data.materials.get(MATERIAL)
-    if mat is not None:
-        return mat
-    mat = bpy.data.materials.new(MATERIAL)
-    bsdf = glyphs._principled(mat, (0.8, 0.8, 0.8))
-    if bsdf is not None:
-        col = mat.node_tree.nodes.new("ShaderNodeVertexColor")
-        col.layer_name = COLOUR_ATTRIBUTE
-        col.location = (-400, 200)
-        mat.node_tree.links.new(col.outputs["Color"], bsdf.inputs["Base Color"])
-    return mat
+def materials():
+    """Material 0 for grey faces, then one per error step: the viewport
+    display color is the step's color (what the Solid view shows by
+    default); the shading reads the color attribute (smooth)."""
+    colours = [GREY, *map(tuple, glyphs.error_step_colours())]
+    mats = []
+    for name, colour in zip(MATERIALS, colours):
+        mat = bpy.data.materials.get(name)
+        if mat is None:
+            mat = bpy.data.materials.new(name)
+            bsdf = glyphs._principled(mat, colour)
+            if bsdf is not None:
+                col = mat.node_tree.nodes.new("ShaderNodeVertexColor")
+                col.layer_name = COLOUR_ATTRIBUTE
+                col.location = (-400, 200)
+                mat.node_tree.links.new(col.outputs["Color"], bsdf.inputs["Base Color"])
+        mats.append(mat)
+    return mats
+
+
+def material_steps(values: np.ndarray, scale: float, grey: np.ndarray) -> np.ndarray:
+    """(k,) material index: 0 where grey, else 1 + the step of values / scale."""
+    t = np.clip(np.asarray(values, float) / max(float(scale), 1e-300), 0.0, 1.0)
+    step = 1 + np.minimum((t * glyphs.ERROR_STEPS).astype(np.int32), glyphs.ERROR_STEPS - 1)
+    return np.where(np.asarray(grey, bool), 0, step).astype(np.int32)
 
 
 def new_slice_mesh(vertices: np.ndarray, tris: np.ndarray, faces: np.ndarray, values: np.ndarray,
@@ -91,7 +107,8 @@ def new_slice_mesh(vertices: np.ndarray, tris: np.ndarray, faces: np.ndarray, va
     used vertices kept, with the attributes of the module docstring."""
 
     def finish(me):
-        me.materials.append(material())
+        for mat in materials():
+            me.materials.append(mat)
         attr = QUANTITY_ATTRIBUTES[quantity]
         me.attributes.new(attr, "FLOAT", "FACE")
         me.attributes[attr].data.foreach_set("value", np.asarray(values, np.float32))
@@ -103,14 +120,15 @@ def new_slice_mesh(vertices: np.ndarray, tris: np.ndarray, faces: np.ndarray, va
         me.color_attributes.new(COLOUR_ATTRIBUTE, "FLOAT_COLOR", "CORNER")
         me.color_attributes.active_color = me.color_attributes[COLOUR_ATTRIBUTE]
         me.color_attributes.render_color_index = me.color_attributes.active_color_index
-        _set_colours(me, ramp_colours(values, scale, grey))
+        _set_colours(me, values, scale, grey)
 
     return diagnostics.new_triangle_mesh(name, vertices, tris, finish)
 
 
-def _set_colours(me, rgba: np.ndarray) -> None:
-    corners = np.repeat(rgba, 3, axis=0)  # triangles: three corners per face
+def _set_colours(me, values: np.ndarray, scale: float, grey: np.ndarray) -> None:
+    corners = np.repeat(ramp_colours(values, scale, grey), 3, axis=0)  # triangles: three corners per face
     me.color_attributes[COLOUR_ATTRIBUTE].data.foreach_set("color", corners.astype(np.float32).ravel())
+    me.polygons.foreach_set("material_index", material_steps(values, scale, grey))
 
 
 def quantity_scale(scene, quantity: str) -> float:
@@ -161,11 +179,12 @@ def recolour(scene) -> None:
         net = np.empty(k, bool)
         me.attributes[NETWORK_ATTRIBUTE].data.foreach_get("value", net)
         grey |= net
-    _set_colours(me, ramp_colours(val, quantity_scale(scene, quantity), grey))
+    _set_colours(me, val, quantity_scale(scene, quantity), grey)
     me.update()
 
 
 def remove_unused_material() -> None:
-    mat = bpy.data.materials.get(MATERIAL)
-    if mat is not None and mat.users == 0:
-        bpy.data.materials.remove(mat)
+    for name in MATERIALS:
+        mat = bpy.data.materials.get(name)
+        if mat is not None and mat.users == 0:
+            bpy.data.materials.remove(mat)

@@ -180,22 +180,5 @@ class SYMFRAMES_OT_import_network(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
-def menu_export(self, context):
-    self.layout.operator(SYMFRAMES_OT_export_field.bl_idname, text="SymFrames Field (.vtu, .mesh, .ovm, .qtn)")
-
-
-def menu_import(self, context):
-    self.layout.operator(SYMFRAMES_OT_import_network.bl_idname, text="SymFrames Network (.json, .ovm, .mesh)")
-
-
 CLASSES = (SYMFRAMES_OT_export_field, SYMFRAMES_OT_tet_mesh_object, SYMFRAMES_OT_import_network)
 
-
-def register_menus():
-    bpy.types.TOPBAR_MT_file_export.append(menu_export)
-    bpy.types.TOPBAR_MT_file_import.append(menu_import)
-
-
-def unregister_menus():
-    bpy.types.TOPBAR_MT_file_export.remove(menu_export)
-    bpy.types.TOPBAR_MT_file_import.remove(menu_import)

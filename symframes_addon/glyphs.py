@@ -9,9 +9,12 @@ Writing 100k points is two foreach_set calls.
 In the error colourings the points also carry a FLOAT attribute (radians):
 ``adaptation`` (normal adaptation error) or ``monodromy`` (mean monodromy
 of the faces around the vertex); the modifier's Error Attribute names it.
-The node group stores error / Error Scale, clamped to [0, 1], on the
-instances as ``symframes_error``, which the error material reads with an
-Attribute node (Instancer) through a colour ramp.
+The node group then picks one of ERROR_STEPS crosses, each with its own
+material, by the step of error / Error Scale (clamped to [0, 1]), and
+stores that factor on the instances as ``symframes_error``.  The materials'
+viewport display colors are the steps' colors, which the Solid view shows
+as it is (Color: Material); Material Preview and renders show a smooth ramp,
+as the materials read the factor with an Attribute node (Instancer).
 """
 
 from __future__ import annotations
@@ -22,11 +25,13 @@ import numpy as np
 from . import display, storage
 
 NODE_GROUP = "SymFrames Cross Glyph"
-NODE_GROUP_VERSION = 3
+NODE_GROUP_VERSION = 4
 MODIFIER = "SymFrames Glyphs"
 AXIS_COLOURS = ((0.85, 0.12, 0.10), (0.15, 0.65, 0.15), (0.12, 0.30, 0.90))
 AXIS_MATERIALS = tuple(f"SymFrames Axis {a}" for a in "XYZ")
-ERROR_MATERIAL = "SymFrames Adaptation Error"
+ERROR_MATERIAL = "SymFrames Glyph Error"  # + " 1" .. " ERROR_STEPS"
+ERROR_STEPS = 8  # error colors the Solid view shows (it shows a material's viewport color)
+ERROR_RAMP = np.array([(0.10, 0.25, 0.90), (0.95, 0.85, 0.15), (0.90, 0.08, 0.05)])  # at 0, 1/2, 1
 ERROR_ATTRIBUTE = display.ERROR_ATTRIBUTES["ADAPTATION"]
 MONODROMY_ATTRIBUTE = display.ERROR_ATTRIBUTES["MONODROMY"]
 ERROR_FACTOR = "symframes_error"
@@ -34,7 +39,7 @@ BAR_THICKNESS = 0.14  # relative to the bar length
 # modifier inputs: name -> (socket type, default)
 INPUTS = {
     "Size": ("NodeSocketFloat", 0.1),
-    "Colour by Error": ("NodeSocketBool", False),
+    "Color by Error": ("NodeSocketBool", False),
     "Error Scale": ("NodeSocketFloat", 0.0872665),
     "Error Attribute": ("NodeSocketString", ERROR_ATTRIBUTE),
 }
@@ -42,7 +47,8 @@ INPUTS = {
 
 # --------------------------------------------------------------- materials
 def _principled(mat, colour):
-    mat.diffuse_color = (*colour, 1.0)  # solid-mode viewport colour
+    # the viewport display color: what the Solid view shows by default (Color: Material)
+    mat.diffuse_color = (*colour, 1.0)
     if mat.node_tree is None:  # Blender < 5.0 creates materials without nodes
         mat.use_nodes = True
     bsdf = mat.node_tree.nodes.get("Principled BSDF")
@@ -61,30 +67,43 @@ def axis_material(axis: int):
     return mat
 
 
-def error_material():
-    """Blue (no error) to red (Error Scale or more), from the instance attribute."""
-    mat = bpy.data.materials.get(ERROR_MATERIAL)
-    if mat is not None:
-        return mat
-    mat = bpy.data.materials.new(ERROR_MATERIAL)
-    bsdf = _principled(mat, (0.6, 0.3, 0.5))
-    if bsdf is None:
-        return mat
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    attr = nodes.new("ShaderNodeAttribute")
-    attr.attribute_type = "INSTANCER"
-    attr.attribute_name = ERROR_FACTOR
-    attr.location = (-700, 200)
-    ramp = nodes.new("ShaderNodeValToRGB")
-    ramp.location = (-450, 200)
-    els = ramp.color_ramp.elements
-    els[0].color = (0.10, 0.25, 0.90, 1.0)
-    els[1].color = (0.90, 0.08, 0.05, 1.0)
-    mid = els.new(0.5)
-    mid.color = (0.95, 0.85, 0.15, 1.0)
-    links.new(attr.outputs["Fac"], ramp.inputs["Fac"])
-    links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
-    return mat
+def error_step_colours(steps: int | None = None) -> np.ndarray:
+    """(steps, 3) RGB of ERROR_RAMP at the middle of each step of [0, 1]."""
+    steps = ERROR_STEPS if steps is None else steps
+    t = (np.arange(steps) + 0.5) / steps
+    x = np.linspace(0.0, 1.0, len(ERROR_RAMP))
+    return np.stack([np.interp(t, x, ERROR_RAMP[:, c]) for c in range(3)], axis=1)
+
+
+def error_materials():
+    """One material per error step: in Material Preview and renders a smooth
+    ramp from the instance attribute (blue, yellow, red at Error Scale); in
+    the Solid view, whose default color is the material's viewport display
+    color, the step's color."""
+    mats = []
+    for k, colour in enumerate(error_step_colours()):
+        name = f"{ERROR_MATERIAL} {k + 1}"
+        mat = bpy.data.materials.get(name)
+        if mat is None:
+            mat = bpy.data.materials.new(name)
+            bsdf = _principled(mat, tuple(colour))
+            if bsdf is not None:
+                nodes, links = mat.node_tree.nodes, mat.node_tree.links
+                attr = nodes.new("ShaderNodeAttribute")
+                attr.attribute_type = "INSTANCER"
+                attr.attribute_name = ERROR_FACTOR
+                attr.location = (-700, 200)
+                ramp = nodes.new("ShaderNodeValToRGB")
+                ramp.location = (-450, 200)
+                els = ramp.color_ramp.elements
+                els[0].color = (*ERROR_RAMP[0], 1.0)
+                els[1].color = (*ERROR_RAMP[-1], 1.0)
+                mid = els.new(0.5)
+                mid.color = (*ERROR_RAMP[1], 1.0)
+                links.new(attr.outputs["Fac"], ramp.inputs["Fac"])
+                links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+        mats.append(mat)
+    return mats
 
 
 # -------------------------------------------------------------- node group
@@ -126,10 +145,12 @@ def node_group():
     gin.location = (-900, 0)
     gout = nodes.new("NodeGroupOutput")
     gout.location = (700, 0)
+    # the cross: three bars, in the axis colors, and once more per error step
     join = nodes.new("GeometryNodeJoinGeometry")
     join.location = (-150, -300)
+    plain = nodes.new("GeometryNodeJoinGeometry")
+    plain.location = (-150, -900)
     t = BAR_THICKNESS
-    err_mat = error_material()
     for axis in range(3):
         y = -250 - 200 * axis
         cube = nodes.new("GeometryNodeMeshCube")
@@ -137,28 +158,33 @@ def node_group():
         dims = [t, t, t]
         dims[axis] = 1.0
         cube.inputs["Size"].default_value = dims
-        switch = nodes.new("GeometryNodeSwitch")
-        switch.input_type = "MATERIAL"
-        switch.location = (-650, y - 100)
-        switch.inputs["False"].default_value = axis_material(axis)
-        switch.inputs["True"].default_value = err_mat
-        links.new(gin.outputs["Colour by Error"], switch.inputs["Switch"])
         setmat = nodes.new("GeometryNodeSetMaterial")
         setmat.location = (-400, y)
+        setmat.inputs["Material"].default_value = axis_material(axis)
         links.new(cube.outputs["Mesh"], setmat.inputs["Geometry"])
-        links.new(switch.outputs["Output"], setmat.inputs["Material"])
         links.new(setmat.outputs["Geometry"], join.inputs["Geometry"])
+        links.new(cube.outputs["Mesh"], plain.inputs["Geometry"])
+    # one instance per error step, picked by the step of error / Error Scale
+    steps = nodes.new("GeometryNodeGeometryToInstance")
+    steps.location = (150, -900)
+    # a multi-input socket lists its links last-linked first: link the last step first
+    for k, mat in reversed(list(enumerate(error_materials()))):
+        setmat = nodes.new("GeometryNodeSetMaterial")
+        setmat.location = (-100, -900 - 120 * k)
+        setmat.inputs["Material"].default_value = mat
+        links.new(plain.outputs["Geometry"], setmat.inputs["Geometry"])
+        links.new(setmat.outputs["Geometry"], steps.inputs["Geometry"])
+    which = nodes.new("GeometryNodeSwitch")
+    which.input_type = "GEOMETRY"
+    which.location = (300, -400)
+    links.new(gin.outputs["Color by Error"], which.inputs["Switch"])
+    links.new(join.outputs["Geometry"], which.inputs["False"])
+    links.new(steps.outputs["Instances"], which.inputs["True"])
     frame = nodes.new("GeometryNodeInputNamedAttribute")
     frame.location = (-400, 200)
     frame.data_type = "QUATERNION"
     frame.inputs["Name"].default_value = storage.FRAME_ATTRIBUTE
-    inst = nodes.new("GeometryNodeInstanceOnPoints")
-    inst.location = (0, 0)
-    links.new(gin.outputs["Geometry"], inst.inputs["Points"])
-    links.new(join.outputs["Geometry"], inst.inputs["Instance"])
-    links.new(frame.outputs["Attribute"], inst.inputs["Rotation"])
-    links.new(gin.outputs["Size"], inst.inputs["Scale"])
-    # error / scale in [0, 1] on the instances, for the error material
+    # error / scale in [0, 1], and its step min(floor(factor * STEPS), STEPS - 1)
     err = nodes.new("GeometryNodeInputNamedAttribute")
     err.location = (0, -250)
     err.data_type = "FLOAT"
@@ -169,6 +195,24 @@ def node_group():
     div.use_clamp = True
     links.new(err.outputs["Attribute"], div.inputs[0])
     links.new(gin.outputs["Error Scale"], div.inputs[1])
+    step = div
+    for op, value in (("MULTIPLY", ERROR_STEPS), ("FLOOR", None), ("MINIMUM", ERROR_STEPS - 1)):
+        node = nodes.new("ShaderNodeMath")
+        node.location = (step.location[0] + 150, -450)
+        node.operation = op
+        links.new(step.outputs["Value"], node.inputs[0])
+        if value is not None:
+            node.inputs[1].default_value = value
+        step = node
+    inst = nodes.new("GeometryNodeInstanceOnPoints")
+    inst.location = (0, 0)
+    links.new(gin.outputs["Geometry"], inst.inputs["Points"])
+    links.new(which.outputs["Output"], inst.inputs["Instance"])
+    links.new(gin.outputs["Color by Error"], inst.inputs["Pick Instance"])
+    links.new(step.outputs["Value"], inst.inputs["Instance Index"])
+    links.new(frame.outputs["Attribute"], inst.inputs["Rotation"])
+    links.new(gin.outputs["Size"], inst.inputs["Scale"])
+    # the factor on the instances, for the error materials' smooth ramp
     store = nodes.new("GeometryNodeStoreNamedAttribute")
     store.location = (400, 0)
     store.data_type = "FLOAT"
@@ -194,7 +238,7 @@ def remove_unused(node_group_prefix: str, material_names) -> None:
 
 def remove_unused_helpers() -> None:
     """Drop the node group and the materials once nothing uses them."""
-    remove_unused(NODE_GROUP, (*AXIS_MATERIALS, ERROR_MATERIAL))
+    remove_unused(NODE_GROUP, (*AXIS_MATERIALS, *(f"{ERROR_MATERIAL} {k + 1}" for k in range(ERROR_STEPS))))
 
 
 # ------------------------------------------------------------------- write
@@ -275,7 +319,7 @@ def sync_modifier(scene) -> None:
     attr = error_attribute(obj)
     values = {
         "Size": float(s.glyph_size),
-        "Colour by Error": attr is not None,
+        "Color by Error": attr is not None,
         "Error Scale": float(s.monodromy_scale if attr == MONODROMY_ATTRIBUTE else s.error_scale),
         "Error Attribute": attr or ERROR_ATTRIBUTE,
     }

@@ -1,4 +1,4 @@
-"""Operators (all in F3 search under "SymFrames").
+"""Operators (all in F3 search, through the menus of menus.py).
 
 Every failure is reported with self.report({'ERROR'}, message) and leaves
 the scene as it was: inputs are read into arrays first, numerics run on
@@ -22,6 +22,7 @@ from . import (
     glyphs,
     job,
     omega_arrows,
+    properties,
     scene_io,
     storage,
     streamline_curves,
@@ -374,7 +375,7 @@ class SYMFRAMES_OT_show_omega(_FieldOperator, bpy.types.Operator):
 
 
 class SYMFRAMES_OT_show_slice(_FieldOperator, bpy.types.Operator):
-    """Show tet faces coloured by monodromy (along the slice plane) or adaptation error (surface, cut away)"""
+    """Show tet faces colored by monodromy (along the slice plane) or adaptation error (surface, cut away)"""
 
     bl_idname = "symframes.show_slice"
     bl_label = "Show Error Slice"
@@ -438,6 +439,25 @@ class SYMFRAMES_OT_add_example(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SYMFRAMES_OT_apply_preset(bpy.types.Operator):
+    """Set the resolution and iterations for a quality: Draft, Standard (the defaults) or Fine"""
+
+    bl_idname = "symframes.apply_preset"
+    bl_label = "Apply Quality Preset"
+    bl_options = {"REGISTER", "UNDO"}
+
+    preset: EnumProperty(name="Preset", items=properties.PRESET_ITEMS, default="STANDARD")
+
+    def execute(self, context):
+        s = context.scene.symframes
+        values = properties.PRESETS[self.preset]
+        for key, value in values.items():
+            setattr(s, key, value)
+        self.report({"INFO"}, f"SymFrames: {self.preset.capitalize()} preset, about {values['target_tets']:,} "
+                              f"tets, at most {values['max_iterations']} iterations")
+        return {"FINISHED"}
+
+
 CLASSES = (
     SYMFRAMES_OT_check_network,
     SYMFRAMES_OT_compute,
@@ -448,4 +468,5 @@ CLASSES = (
     SYMFRAMES_OT_show_slice,
     SYMFRAMES_OT_clear,
     SYMFRAMES_OT_add_example,
+    SYMFRAMES_OT_apply_preset,
 )

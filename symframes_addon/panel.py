@@ -1,5 +1,7 @@
 """The SymFrames tab of the 3D viewport sidebar (N panel)."""
 
+import fnmatch
+
 import bpy
 
 from . import diagnostics, error_slice, operators, storage
@@ -26,7 +28,6 @@ class SYMFRAMES_PT_main(SymFramesPanel, bpy.types.Panel):
         col = layout.column()
         col.prop(s, "domain")
         col.prop(s, "network")
-        col.prop(s, "node_tolerance")
         col = layout.column(heading="Sharp Edges")
         col.prop(s, "use_sharp_marks", text="Marked")
         row = col.row(align=True)
@@ -37,13 +38,13 @@ class SYMFRAMES_PT_main(SymFramesPanel, bpy.types.Panel):
         col = layout.column(heading="Resolution")
         row = col.row(align=True)
         row.prop(s, "auto_resolution", text="Auto")
-        sub = row.row()
-        sub.active = not s.auto_resolution
-        sub.prop(s, "edge_length", text="")
-        col = layout.column()
-        col.prop(s, "penalty")
-        col.prop(s, "max_iterations")
-        col.prop(s, "init")
+        if s.auto_resolution:
+            row.prop(s, "target_tets", text="Tets")
+        else:
+            row.prop(s, "edge_length", text="")
+        row = layout.row(align=True)
+        row.use_property_split = False
+        row.operator_enum("symframes.apply_preset", "preset")
         layout.operator("symframes.check_network", icon="CHECKMARK")
         j = operators.running_job()
         if j is not None:
@@ -53,22 +54,95 @@ class SYMFRAMES_PT_main(SymFramesPanel, bpy.types.Panel):
         layout.operator_menu_enum("symframes.add_example", "example", text="Add Example", icon="ADD")
 
 
-class SYMFRAMES_PT_curve(SymFramesPanel, bpy.types.Panel):
-    bl_label = "Network Curve"
+class SYMFRAMES_PT_advanced(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Advanced Solver Settings"
     bl_parent_id = "SYMFRAMES_PT_main"
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == "CURVE"
+    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        obj = context.active_object
-        cs = obj.symframes
+        s = context.scene.symframes
         layout = _split(self.layout)
-        net = context.scene.symframes.network
-        if net is None or obj.name not in net.all_objects:
+        col = layout.column()
+        col.prop(s, "penalty")
+        col.prop(s, "max_iterations")
+        col.prop(s, "init")
+        col.prop(s, "solve_seed")
+        col.prop(s, "node_tolerance")
+        layout.label(text="Guide: docs/addon.md, “Advanced solver settings”", icon="HELP")
+
+
+class SYMFRAMES_UL_curves(bpy.types.UIList):
+    """The curve objects of the network collection: name, index, role, torsion."""
+
+    bl_idname = "SYMFRAMES_UL_curves"
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0, flt_flag=0):
+        cs = item.symframes
+        row = layout.row(align=True)
+        row.label(text=item.name, icon="CURVE_DATA")
+        sub = row.row(align=True)
+        sub.active = cs.role == "singular"
+        sub.label(text=f"{cs.index:+d}" if cs.role == "singular" else "0")
+        row.label(text=_enum_name(cs, "role"))
+        row.label(text=_enum_name(cs, "torsion"))
+
+    def filter_items(self, context, data, propname):
+        # only the curves, by name: as scene_io reads them and messages number them
+        objects = list(getattr(data, propname))
+        pattern = f"*{self.filter_name}*" if self.filter_name else "*"
+        shown = [obj.type == "CURVE" and fnmatch.fnmatch(obj.name.lower(), pattern.lower()) for obj in objects]
+        if self.use_filter_invert:
+            shown = [not x for x in shown]
+        by_name = sorted(range(len(objects)), key=lambda i: objects[i].name)
+        order = [0] * len(objects)
+        for position, i in enumerate(by_name):
+            order[i] = position  # the new position of item i
+        return [self.bitflag_filter_item if x else 0 for x in shown], order
+
+
+def _enum_name(data, prop: str) -> str:
+    value = getattr(data, prop)
+    return next(item.name for item in data.bl_rna.properties[prop].enum_items if item.identifier == value)
+
+
+def active_network_curve(scene):
+    """The curve picked in the Network Curves list, or None."""
+    s = scene.symframes
+    net = s.network
+    if net is None or not 0 <= s.curve_index < len(net.all_objects):
+        return None
+    obj = net.all_objects[s.curve_index]
+    return obj if obj.type == "CURVE" else None
+
+
+class SYMFRAMES_PT_curve(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Network Curves"
+    bl_parent_id = "SYMFRAMES_PT_main"
+
+    def draw(self, context):
+        s = context.scene.symframes
+        layout = self.layout
+        net = s.network
+        if net is None:
+            layout.label(text="Pick a Network collection above", icon="INFO")
+            return
+        row = layout.row()
+        row.label(text="Curve")
+        row.label(text="Index")
+        row.label(text="Role")
+        row.label(text="Torsion")
+        layout.template_list("SYMFRAMES_UL_curves", "", net, "all_objects", s, "curve_index", rows=4)
+        obj = active_network_curve(context.scene)
+        active = context.active_object
+        if obj is None and active is not None and active.type == "CURVE":
+            obj = active  # a curve selected in the viewport that is not in the list
             layout.label(text=f"'{obj.name}' is not in the network collection", icon="INFO")
+        if obj is None:
+            layout.label(text="Pick a curve in the list to edit its settings")
+            return
+        cs = obj.symframes
+        layout = _split(layout)
+        layout.label(text=obj.name, icon="CURVE_DATA")
         layout.prop(cs, "role")
         row = layout.row()
         row.active = cs.role == "singular"
@@ -172,8 +246,9 @@ class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
             col.label(text=f"{st['faces']:,} faces ({st['grey']:,} {grey}, grey)")
             col.label(text=f"   {what} mean {st['mean_deg']:.3g}°   max {st['max_deg']:.3g}°")
         layout.prop(s, "glyph_colour")
-        layout.operator("symframes.show_glyphs", text="Show Glyphs", icon="EMPTY_AXIS")
-        layout.label(text="Colours: Solid view → Color → Attribute, or Material Preview")
+        layout.operator("symframes.show_glyphs", icon="EMPTY_AXIS")
+        layout.label(text="Error colors in full: Material Preview (Solid view: in steps)", icon="INFO")
 
 
-CLASSES = (SYMFRAMES_PT_main, SYMFRAMES_PT_curve, SYMFRAMES_PT_display, SYMFRAMES_PT_result, SYMFRAMES_PT_diagnostics)
+CLASSES = (SYMFRAMES_UL_curves, SYMFRAMES_PT_main, SYMFRAMES_PT_curve, SYMFRAMES_PT_advanced, SYMFRAMES_PT_display,
+           SYMFRAMES_PT_result, SYMFRAMES_PT_diagnostics)

@@ -30,13 +30,13 @@ GLYPH_REGIONS = (
     ("CUTAWAY", "Cutaway", "Glyphs on one side of the slice plane only, to see inside"),
     ("SLICE", "Slice", "Glyphs on the slice plane only"),
 )
-GLYPH_COLOURS = (
-    ("AXES", "Axes", "Bars coloured by frame axis (red, green, blue)"),
+GLYPH_COLORS = (
+    ("AXES", "Axes", "Bars colored by frame axis (red, green, blue)"),
     ("ADAPTATION", "Adaptation Error",
-     "Glyphs at the boundary vertices, coloured by the angle between the surface normal and the nearest frame "
+     "Glyphs at the boundary vertices, colored by the angle between the surface normal and the nearest frame "
      "axis (blue: 0 degrees, red: the Adaptation Scale and above)"),
     ("MONODROMY", "Monodromy",
-     "Glyphs at tet-mesh vertices (all, the cutaway's or the slice faces'), coloured by the mean monodromy angle "
+     "Glyphs at tet-mesh vertices (all, the cutaway's or the slice faces'), colored by the mean monodromy angle "
      "of the faces around the vertex, off the network (blue: 0, red: the Monodromy Scale and above)"),
 )
 OMEGA_REGIONS = (
@@ -46,10 +46,23 @@ OMEGA_REGIONS = (
 )
 SLICE_QUANTITIES = (
     ("MONODROMY", "Monodromy",
-     "Tet faces along the slice plane, coloured by how far omega fails to close around each (Eq. 9); "
+     "Tet faces along the slice plane, colored by how far omega fails to close around each (Eq. 9); "
      "faces the network passes through are grey"),
     ("ADAPTATION", "Adaptation Error",
-     "The domain surface on the kept side of the slice plane, coloured by the normal adaptation error"),
+     "The domain surface on the kept side of the slice plane, colored by the normal adaptation error"),
+)
+# Quality presets (the Apply Preset operator): Auto resolution aiming at a tet
+# count, and the largest number of LM iterations.  Standard is the defaults.
+PRESETS = {
+    "DRAFT": {"auto_resolution": True, "target_tets": 4000, "max_iterations": 15},
+    "STANDARD": {"auto_resolution": True, "target_tets": 15000, "max_iterations": 30},
+    "FINE": {"auto_resolution": True, "target_tets": 50000, "max_iterations": 60},
+}
+PRESET_ITEMS = (
+    ("DRAFT", "Draft", "Auto resolution aiming at about 4,000 tets, at most 15 iterations: the quickest, to try "
+     "a network"),
+    ("STANDARD", "Standard", "Auto resolution aiming at about 15,000 tets, at most 30 iterations (the defaults)"),
+    ("FINE", "Fine", "Auto resolution aiming at about 50,000 tets, at most 60 iterations: a finer field, slower"),
 )
 INITS = (
     ("zero", "Zero", "Start Levenberg-Marquardt from omega = 0"),
@@ -61,6 +74,22 @@ INITS = (
 
 def _is_mesh(_self, obj):
     return obj.type == "MESH"
+
+
+def _select_network_curve(self, context):
+    # picking a curve in the list makes it the active, selected object, as the
+    # Outliner does, so that it can be found in the viewport
+    net = self.network
+    if net is None or not 0 <= self.curve_index < len(net.all_objects):
+        return
+    obj = net.all_objects[self.curve_index]
+    view_layer = context.view_layer
+    if view_layer is None or view_layer.objects.get(obj.name) is None:
+        return
+    for other in view_layer.objects.selected:
+        other.select_set(False)
+    obj.select_set(True)
+    view_layer.objects.active = obj
 
 
 def _update_glyph_inputs(self, context):
@@ -118,6 +147,10 @@ class SymFramesSettings(bpy.types.PropertyGroup):
         name="Network", type=bpy.types.Collection,
         description="Collection whose curve objects form the singularity and feature network",
     )
+    curve_index: IntProperty(
+        name="Network Curve", default=0, min=0, update=_select_network_curve,
+        description="The network curve whose settings the Network Curves panel edits",
+    )
     node_tolerance: FloatProperty(
         name="Node Tolerance", default=0.0, min=0.0, soft_max=1.0, subtype="DISTANCE", precision=4,
         description="Curve endpoints closer than this meet at a node (0: a thousandth of the domain's size)",
@@ -143,13 +176,24 @@ class SymFramesSettings(bpy.types.PropertyGroup):
         name="Edge Length", default=0.2, min=1e-4, soft_max=10.0, subtype="DISTANCE", precision=3,
         description="Target tetrahedron edge length (smaller: finer mesh, slower)",
     )
+    target_tets: IntProperty(
+        name="Target Tets", default=15000, min=500, soft_max=200000, step=1000,
+        description="With Auto resolution: about how many tetrahedra to mesh the solid with (the edge length is "
+        "then also kept small enough to resolve the network's smallest features)",
+    )
     penalty: FloatProperty(
         name="Penalty", default=1000.0, min=1e-3, soft_max=1e5,
         description="Weight a of the structure-equation penalty (Eq. 23)",
     )
     max_iterations: IntProperty(name="Iterations", default=30, min=1, soft_max=200,
                                 description="Largest number of Levenberg-Marquardt iterations")
-    init: EnumProperty(name="Start", items=INITS, default="zero")
+    init: EnumProperty(name="Start", items=INITS, default="zero",
+                       description="Initial guess of Levenberg-Marquardt (the result should not depend on it)")
+    solve_seed: IntProperty(
+        name="Solve Seed", default=0, min=0,
+        description="Seed of the solver's random numbers (the Random start); the same seed and inputs repeat "
+        "the same solve, except for the tet mesh, which fTetWild does not make repeatable",
+    )
     # --------------------------------------------------------------- display
     glyph_count: IntProperty(name="Glyphs", default=2000, min=0, soft_max=50000,
                              description="Number of cross glyphs (their density): about this many are sampled")
@@ -157,7 +201,8 @@ class SymFramesSettings(bpy.types.PropertyGroup):
                               description="Length of a glyph's bars", update=_update_glyph_inputs)
     glyph_region: EnumProperty(name="Region", items=GLYPH_REGIONS, default="VOLUME",
                                description="Where glyphs are sampled")
-    glyph_colour: EnumProperty(name="Colour", items=GLYPH_COLOURS, default="AXES")
+    glyph_colour: EnumProperty(name="Color", items=GLYPH_COLORS, default="AXES",
+                               description="What the glyphs' colors show")
     error_scale: FloatProperty(
         name="Adaptation Scale", default=0.08726646259971647, min=1e-4, max=1.5707963267948966, subtype="ANGLE",
         description="Adaptation error shown in full red (glyphs and error slice)", update=_update_error_scales,
@@ -193,7 +238,9 @@ class SymFramesSettings(bpy.types.PropertyGroup):
     streamline_radius: FloatProperty(name="Radius", default=0.008, min=0.0, soft_max=0.1, subtype="DISTANCE",
                                      description="Tube radius of the streamlines",
                                      update=_update_streamline_radius)
-    seed: IntProperty(name="Random Seed", default=0, min=0)
+    seed: IntProperty(name="Random Seed", default=0, min=0,
+                      description="Seed of the display's random choices: glyph and streamline seed points, and "
+                      "which omega arrows are drawn beyond the Arrows limit (not the solve: see Solve Seed)")
     # ---------------------------------------------------------------- result
     field: PointerProperty(
         name="Field", type=bpy.types.Mesh,

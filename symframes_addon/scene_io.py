@@ -43,15 +43,16 @@ class Inputs:
 
     def mesh_key(self) -> str:
         """Fingerprint of what the tet mesh depends on (surface, curve
-        geometry and roles, node tolerance, edge length); equal keys allow
-        reusing the tet mesh."""
+        geometry and roles, node tolerance, edge length or, with Auto, the
+        target tet count); equal keys allow reusing the tet mesh."""
         h = hashlib.sha1()
         for a in (self.V, self.F):
             h.update(np.ascontiguousarray(a).tobytes())
         for c in self.network.curves:
             h.update(c.role.value.encode())
             h.update(np.ascontiguousarray(c.points).tobytes())
-        h.update(repr((self.options.edge_length, self.network.node_tolerance)).encode())
+        auto = self.options.target_tets if self.options.edge_length is None else None
+        h.update(repr((self.options.edge_length, auto, self.network.node_tolerance)).encode())
         return h.hexdigest()
 
 
@@ -190,6 +191,8 @@ def solver_options(settings) -> Options:
         penalty=float(settings.penalty),
         max_iterations=int(settings.max_iterations),
         init=settings.init,
+        seed=int(settings.solve_seed),
+        target_tets=int(settings.target_tets),
     )
 
 

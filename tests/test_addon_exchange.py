@@ -24,7 +24,7 @@ from symframes.solver import Curve, Network  # noqa: E402
 from symframes.solver.io import write_network, write_obj  # noqa: E402
 from symframes.solver.io.interchange import read_ovm, read_perm, read_qtn, write_ovm  # noqa: E402
 from symframes.solver.mesh.tetmesh import TetMesh  # noqa: E402
-from symframes.symframes_addon import exchange, storage  # noqa: E402
+from symframes.symframes_addon import menus, storage  # noqa: E402
 
 # isort: on
 
@@ -57,14 +57,13 @@ def scene_objects():
 
 
 def test_file_menus_hold_the_operators():
-    assert exchange.menu_export in bpy.types.TOPBAR_MT_file_export._dyn_ui_initialize()
-    assert exchange.menu_import in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
-    addon.unregister()
-    try:
-        assert exchange.menu_export not in bpy.types.TOPBAR_MT_file_export._dyn_ui_initialize()
-        assert exchange.menu_import not in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
-    finally:
-        addon.register()
+    assert ("symframes.export_field" in [e[0] for e in menus.EXPORT_ENTRIES]
+            and menus.operator_registered("symframes.export_field"))
+    assert ("symframes.import_network" in [e[0] for e in menus.IMPORT_ENTRIES]
+            and menus.operator_registered("symframes.import_network"))
+    assert menus.draw_export_menu in bpy.types.TOPBAR_MT_file_export._dyn_ui_initialize()
+    assert menus.draw_import_menu in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
+    assert "symframes.tet_mesh_object" in [e[0] for e in menus.OBJECT_ENTRIES if e]
 
 
 def test_export_without_a_field_is_refused():
