@@ -12,7 +12,6 @@ curves, one of them a Bezier spline).  Coarse meshes keep them to seconds.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import subprocess
 import sys
@@ -22,24 +21,14 @@ import bpy
 import numpy as np
 import pytest
 
+from tests.addon_package import load_addon
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PACKAGE = "symframes"
 
 GLYPHS = 600
 SEEDS = 25
 CUBE_EDGE = 0.4
 PLATE_EDGE = 0.2
-
-
-def load_addon():
-    """The repository's add-on package, imported as ``symframes``."""
-    if PACKAGE not in sys.modules:
-        spec = importlib.util.spec_from_file_location(PACKAGE, os.path.join(ROOT, "__init__.py"),
-                                                      submodule_search_locations=[ROOT])
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[PACKAGE] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[PACKAGE]
 
 
 addon = load_addon()

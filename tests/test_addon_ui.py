@@ -8,29 +8,13 @@ would show; the bpy module has no window to draw into.
 
 from __future__ import annotations
 
-import importlib.util
-import os
-import sys
 from types import SimpleNamespace
 
 import bpy
 import numpy as np
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PACKAGE = "symframes"
-
-
-def load_addon():
-    """The repository's add-on package, imported as ``symframes`` (as in test_addon.py)."""
-    if PACKAGE not in sys.modules:
-        spec = importlib.util.spec_from_file_location(PACKAGE, os.path.join(ROOT, "__init__.py"),
-                                                      submodule_search_locations=[ROOT])
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[PACKAGE] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[PACKAGE]
-
+from tests.addon_package import load_addon
 
 addon = load_addon()
 from symframes.solver import Options  # noqa: E402
