@@ -12,6 +12,8 @@ All are built procedurally (no downloaded data):
 * ``plate``       -- CAD-like part: a square plate with a round hole, sharp
                      edges everywhere, and the 4 index -1/4 curves around the
                      hole that a hex mesh aligned with all edges needs
+* ``prism``       -- CAD-like: an extruded pentagon whose outline turns by 47
+                     and 52 degrees at two corners (ambiguous, corners.py)
 """
 
 from __future__ import annotations
@@ -274,12 +276,78 @@ def plate_example():
     return V, F, Network(curves=curves, sharp_angle=30.0)
 
 
+def prism_surface(outline, height: float, n: int = 4):
+    """A convex planar outline (k, 2), counter-clockwise, extruded along z
+    over [0, height]: caps fanned from the centroid in n rings, walls split
+    into n x n quads (2 triangles each)."""
+    O = np.asarray(outline, float)
+    k = len(O)
+    c = O.mean(axis=0)
+    V, F = [], []
+    nv = 0
+    # walls
+    for i in range(k):
+        a, b = O[i], O[(i + 1) % k]
+        t = np.linspace(0.0, 1.0, n + 1)
+        z = np.linspace(0.0, height, n + 1)
+        tt, zz = np.meshgrid(t, z, indexing="ij")
+        P = np.c_[(a[0] + tt * (b[0] - a[0])).ravel(), (a[1] + tt * (b[1] - a[1])).ravel(), zz.ravel()]
+        idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + nv
+        q0, q1, q2, q3 = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+        F.append(np.vstack([np.c_[q0.ravel(), q1.ravel(), q2.ravel()], np.c_[q0.ravel(), q2.ravel(), q3.ravel()]]))
+        V.append(P)
+        nv += len(P)
+    # caps: rings from the outline (subdivided n per side) to the centroid
+    rim = np.vstack([O[i] + np.linspace(0, 1, n, endpoint=False)[:, None] * (O[(i + 1) % k] - O[i])
+                     for i in range(k)])
+    m = len(rim)
+    j = np.arange(m)
+    for top in (False, True):
+        z = height if top else 0.0
+        prev = None
+        for r in range(n):
+            ring = c + (1 - r / n) * (rim - c)
+            ids = nv + j
+            V.append(np.c_[ring, np.full(m, z)])
+            nv += m
+            if prev is not None:
+                tt = np.vstack([np.c_[prev[j], prev[(j + 1) % m], ids[(j + 1) % m]],
+                                np.c_[prev[j], ids[(j + 1) % m], ids[j]]])
+                F.append(tt if top else tt[:, [0, 2, 1]])
+            prev = ids
+        V.append(np.array([[c[0], c[1], z]]))
+        tt = np.c_[prev[j], prev[(j + 1) % m], np.full(m, nv)]
+        nv += 1
+        F.append(tt if top else tt[:, [0, 2, 1]])
+    return merge_vertices(np.vstack(V), np.vstack(F), tol=1e-9)
+
+
+def house_outline(left: float = 38.0, right: float = 43.0, width: float = 2.0, wall: float = 1.0):
+    """A pentagon: a 2 x 1 rectangle under a roof rising at `left` and `right`
+    degrees, so the outline turns by 180 - 90 - angle (52 and 47 degrees by
+    default) at the tops of the walls: corners of 128 and 133 degrees, which
+    rounding makes 90 and a CAD user may mean as smooth; 99 at the ridge."""
+    tl, tr = np.tan(np.radians(left)), np.tan(np.radians(right))
+    x = width * tr / (tl + tr)
+    return np.array([[0.0, 0.0], [width, 0.0], [width, wall], [x, wall + tl * x], [0.0, wall]])
+
+
+def prism_example():
+    """CAD-like: the house pentagon extruded (sharp edges everywhere, no
+    interior curves).  Its 133-degree corners are ambiguous, and
+    Poincare-Hopf on each cap needs one of the wall-top corners smooth
+    (corners.py chooses the 133-degree one: the smaller rounding)."""
+    V, F = prism_surface(house_outline(), 0.8)
+    return V, F, Network(curves=[], sharp_angle=30.0)
+
+
 EXAMPLES = {
     "cube": cube_example,
     "cylinder": cylinder_example,
     "torus": torus_example,
     "ball": ball_example,
     "plate": plate_example,
+    "prism": prism_example,
 }
 
 

@@ -77,6 +77,9 @@ class Network:
                      the surface's bounding-box diagonal)
     boundary_tolerance : endpoints closer than this to the surface end on the
                      boundary (default: 1e-2 of the diagonal)
+    corner_turns   : optional {surface vertex index or (x, y, z): quarter
+                     turns} fixing the turn of sharp corners (corners.py):
+                     0 = smooth, 1 = convex corner (index +1/4), -1 = concave
     """
 
     curves: list[Curve] = field(default_factory=list)
@@ -84,6 +87,7 @@ class Network:
     sharp_angle: float | None = None
     node_tolerance: float | None = None
     boundary_tolerance: float | None = None
+    corner_turns: dict | None = None
 
     @property
     def interior_curves(self) -> list[int]:
