@@ -23,7 +23,13 @@ takes it to 90 degrees (a corner), another tool to 180 (smooth).  Here
   other way, cheapest first, the cost of a sector being the growth of its
   rounding error |angle - k 90|, until the patch's sum matches: the choice
   with the smallest total rounding (per patch the sectors are independent,
-  so taking the cheapest is optimal);
+  so taking the cheapest is optimal).  Before rounding comes realisability:
+  a vertex with two sharp edges must be flat (sum k = 4) and one with three
+  a cube corner (3 or 5), or the field needs a singular curve ending there
+  that the network does not have (the house prism of examples.py with its
+  128-degree corner rounded to 90 between smooth walls: residual quarter
+  turns and a penalty of 5e3), so a change that makes a vertex realisable
+  goes first and one that makes it unrealisable last;
 * what was chosen is reported per corner (``CornerChoice``), and a failure
   names the corners and the amount missing.
 """
@@ -81,6 +87,15 @@ def corners_text(choices: list[CornerChoice]) -> str:
     if not shown:
         return ""
     return "\n".join(["sharp corners (ambiguous or chosen):"] + ["  " + c.text() for c in shown])
+
+
+def _realisable(degree, ksum):
+    """Whether a vertex with `degree` sharp edges and sector sum `ksum` is a
+    vertex of an axis-aligned (polycube) surface, i.e. needs no singular
+    curve inside the solid: two sharp edges bound a flat vertex (sum 4),
+    three a convex or concave cube corner (3 or 5); more are left alone."""
+    degree, ksum = np.asarray(degree), np.asarray(ksum)
+    return ((degree == 2) & (ksum == 4)) | ((degree == 3) & ((ksum == 3) | (ksum == 5))) | (degree >= 4)
 
 
 def _rounding_cost(theta, k):
@@ -170,6 +185,13 @@ def resolve_corners(S: TriSurface, G: FeatureGraph, face_sigma: np.ndarray, corn
         if len(cand) < abs(steps):
             continue  # reported below by the checks
         cost = _rounding_cost(theta[cand], k[cand] + delta) - _rounding_cost(theta[cand], k[cand])
+        # prefer making vertices realisable (REALISABLE) over rounding: a
+        # change that makes one unrealisable costs more than any rounding
+        ksum = np.bincount(sv, weights=k, minlength=len(S.V)).astype(int)
+        deg = G.degree[sv[cand]]
+        before = _realisable(deg, ksum[sv[cand]])
+        after = _realisable(deg, ksum[sv[cand]] + delta)
+        cost = cost + 2 * np.pi * (before & ~after) - 2 * np.pi * (~before & after)
         pick = cand[np.argsort(cost, kind="stable")[: abs(steps)]]
         k[pick] += delta
         chosen[pick] = True

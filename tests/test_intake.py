@@ -236,13 +236,15 @@ def corner_at(checked, xyz):
 def test_ambiguous_corners_are_chosen_to_satisfy_poincare_hopf(prism):
     """Rounded, each cap has five convex corners (+5/4 against its Euler
     characteristic 1); the cheaper ambiguous corner of each cap (133 degrees:
-    rounding error 43 -> 47) is made smooth, and both choices are reported."""
+    rounding error 43 -> 47, and two sharp edges there, so smooth is what a
+    field without singular curves can follow) is made smooth, and both
+    choices are reported."""
     V, F, net = prism
     checked = check_input(V, F, net)
     for z in (0.0, 0.8):
         c133 = corner_at(checked, (2.0, 1.0, z))
         assert c133.how == "chosen" and c133.turn == 0 and c133.rounded_turn == 1, c133.text()
-        assert max(c133.sector_deg) == pytest.approx(133.0, abs=0.01)
+        assert min(abs(a - 133.0) for a in c133.sector_deg) < 0.01, c133.text()
         c128 = corner_at(checked, (0.0, 1.0, z))
         assert c128.how == "rounded" and c128.turn == 1 and c128.ambiguous, c128.text()
     from solver.corners import corners_text
@@ -254,7 +256,7 @@ def test_corner_turns_override_the_choice(prism):
     """Fixing the 133-degree corners as convex corners (turn +1) makes the
     128-degree ones the smooth ones; by position or by vertex index alike."""
     V, F, net = prism
-    net2 = Network(curves=[], sharp_angle=30.0, corner_turns={(2.0, 1.0, 0.0): 1, (2.0, 1.0, 0.8): 1})
+    net2 = Network(curves=[], sharp_angle=50.0, corner_turns={(2.0, 1.0, 0.0): 1, (2.0, 1.0, 0.8): 1})
     checked = check_input(V, F, net2)
     for z in (0.0, 0.8):
         assert corner_at(checked, (2.0, 1.0, z)).how == "fixed"
@@ -262,7 +264,7 @@ def test_corner_turns_override_the_choice(prism):
         c128 = corner_at(checked, (0.0, 1.0, z))
         assert c128.how == "chosen" and c128.turn == 0, c128.text()
     v = corner_at(checked, (2.0, 1.0, 0.8)).vertex
-    net3 = Network(curves=[], sharp_angle=30.0, corner_turns={v: 1})
+    net3 = Network(curves=[], sharp_angle=50.0, corner_turns={v: 1})
     assert corner_at(check_input(V, F, net3), (2.0, 1.0, 0.8)).how == "fixed"
 
 
@@ -270,7 +272,7 @@ def test_impossible_corner_turns_name_the_corners_and_the_amount(prism):
     from solver import TopologyError
 
     V, F, net = prism
-    net2 = Network(curves=[], sharp_angle=30.0, corner_turns={(2.0, 1.0, 0.8): 1, (0.0, 1.0, 0.8): 1})
+    net2 = Network(curves=[], sharp_angle=50.0, corner_turns={(2.0, 1.0, 0.8): 1, (0.0, 1.0, 0.8): 1})
     with pytest.raises(TopologyError) as info:
         check_input(V, F, net2)
     msg = str(info.value)
@@ -288,3 +290,34 @@ def test_corner_turns_in_the_network_file(tmp_path):
     assert io.network_from_dict(io.network_to_dict(net))[0].corner_turns == net.corner_turns
     with pytest.raises(NetworkError, match="corner_turns"):
         io.network_from_dict({"curves": [], "corner_turns": [{"turns": 1}]})
+
+
+def test_prism_with_obtuse_corners_solves_with_defaults(prism):
+    """No singular curves; the chosen quantisation is carried onto the tet
+    mesh's boundary and the field is smooth: LM converges with a residual
+    penalty of a few thousandths (0.003 seen at h = 0.2), no omega-matched
+    singular face anywhere."""
+    V, F, net = prism
+    r = solve(V, F, net)
+    m = r.report.metrics
+    print(r.report.summary())
+    assert r.report.lm.converged, r.report.lm.reason
+    assert r.report.lm.final.penalty < 1.0, r.report.lm.final.penalty
+    assert m["omega_spurious_singular_faces"] == 0, m
+    assert m["normal_adaptation_mean_deg"] <= 1.0, m
+    assert "chosen for Poincare-Hopf" in r.report.summary()
+
+
+def test_genus2_example_ends_are_bent():
+    """The genus-2 block's slanted curves (25 degrees off the normal at both
+    ends) pass validation once bent; Poincare-Hopf holds per patch with the
+    holes' concave corners."""
+    V, F, net = load_example("genus2")
+    checked = check_input(V, F, net)
+    assert checked.surface.euler_characteristics().tolist() == [-2]
+    for rep in checked.repairs:
+        assert sorted(b.end for b in rep.ends) == ["end", "start"], rep.text()
+        assert all(abs(b.input_angle_deg - 25.0) < 1.0 for b in rep.ends), rep.text()
+        Q = checked.network.curves[rep.curve].points
+        assert end_normal_angle(checked.surface, Q) < 1.0
+        assert end_normal_angle(checked.surface, Q[::-1]) < 1.0
