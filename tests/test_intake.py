@@ -98,6 +98,24 @@ def test_zigzag_chain_is_faired(cylinder):
     assert "faired" in repairs_text(checked.repairs, h)
 
 
+def test_a_closed_zigzag_loop_is_faired_all_round():
+    """A loop of radius 1 drawn with 60 points alternating 0.03 in and out
+    (zig-zagging ~30 degrees; h = 0.15): faired into a round loop, its seam
+    included, no corner kept.  It shrinks by the Laplacian's 4.5 l^2 / R
+    (0.07 here: the price of removing the zig-zag of tet-edge chains)."""
+    from solver.intake import fair_curve
+
+    t = np.linspace(0.0, 2 * np.pi, 61)
+    r = 1.0 + 0.03 * np.where(np.arange(61) % 2 == 0, 1.0, -1.0)
+    r[-1] = r[0]
+    P = np.c_[r * np.cos(t), r * np.sin(t), np.zeros(61)]
+    Q, _, _, ncorner, _ = fair_curve(P, 0.15, True)
+    assert ncorner == 0 and np.allclose(Q[0], Q[-1])
+    rad = np.linalg.norm(Q[:, :2], axis=1)
+    assert rad.max() - rad.min() < 0.01 and 0.9 < rad.mean() < 1.0, (rad.min(), rad.max())
+    assert turning(Q, 0.075, True).max() < 15.0
+
+
 def test_a_real_corner_is_kept(cylinder):
     """A curve that turns 90 degrees between straight arms several h long
     is not smoothed into an acceptable curve: validation still names the
@@ -208,7 +226,9 @@ def test_tet_edge_network_solves_with_defaults(tet_edge_solves, name):
     _, ta = tangent_adaptation(r)
     assert na.mean() <= 0.5, na.mean()
     assert np.degrees(ta).mean() <= 1.0, np.degrees(ta).mean()
-    assert r.report.repairs and all(rep.max_displacement_h < 1.0 for rep in r.report.repairs)
+    # the source meshes' edges are 1.3-1.6 h long, and their shortest paths
+    # stray from the curve by up to about one of them (0.9 h seen)
+    assert r.report.repairs and all(rep.max_displacement_h < 1.5 for rep in r.report.repairs)
     # every boundary end now meets the surface along the normal (ends
     # faired to within BEND_MIN = 2 degrees of it are left as they are)
     net = r.problem.network
