@@ -113,9 +113,11 @@ def main(argv: list[str] | None = None) -> int:
             from .intake import repairs_text
 
             checked = check_input(V, F, net, opts.check_intersections, opts.edge_length, True, opts.target_tets)
-            rep = repairs_text(checked.repairs, checked.scale)
-            if rep:
-                print(rep)
+            from .corners import corners_text
+
+            for rep in (repairs_text(checked.repairs, checked.scale), corners_text(checked.corners)):
+                if rep:
+                    print(rep)
             print(f"input is valid: {len(checked.network.curves)} interior curves, {len(checked.network.nodes)} "
                   f"nodes, {checked.surface.n_components} boundary component(s)")
             return 0
