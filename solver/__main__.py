@@ -183,9 +183,15 @@ def main(argv: list[str] | None = None) -> int:
             _check_output(out)
         _check_exports(args.export)
         if args.check:
+            from .network.intake import repairs_text
             from .network.validation import check_input
 
-            checked = check_input(V, F, net, opts.check_intersections)
+            checked = check_input(V, F, net, opts.check_intersections, opts.edge_length, True, opts.target_tets)
+            from .surface.corners import corners_text
+
+            for rep in (repairs_text(checked.repairs, checked.scale), corners_text(checked.corners)):
+                if rep:
+                    print(rep)
             print(f"input is valid: {len(checked.network.curves)} interior curves, {len(checked.network.nodes)} "
                   f"nodes, {checked.surface.n_components} boundary component(s)")
             return 0

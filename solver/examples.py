@@ -12,6 +12,11 @@ All are built procedurally (no downloaded data):
 * ``plate``       -- CAD-like part: a square plate with a round hole, sharp
                      edges everywhere, and the 4 index -1/4 curves around the
                      hole that a hex mesh aligned with all edges needs
+* ``prism``       -- CAD-like: an extruded pentagon whose outline turns by 47
+                     and 52 degrees at two corners (ambiguous, corners.py),
+                     no interior curves
+* ``genus2``      -- a block with two square through-holes and two feature
+                     curves reaching the faces 25 degrees off the normal
 """
 
 from __future__ import annotations
@@ -274,12 +279,143 @@ def plate_example():
     return V, F, Network(curves=curves, sharp_angle=30.0)
 
 
+def prism_surface(outline, height: float, n: int = 4):
+    """A convex planar outline (k, 2), counter-clockwise, extruded along z
+    over [0, height]: caps fanned from the centroid in n rings, walls split
+    into n x n quads (2 triangles each)."""
+    O = np.asarray(outline, float)
+    k = len(O)
+    c = O.mean(axis=0)
+    V, F = [], []
+    nv = 0
+    # walls
+    for i in range(k):
+        a, b = O[i], O[(i + 1) % k]
+        t = np.linspace(0.0, 1.0, n + 1)
+        z = np.linspace(0.0, height, n + 1)
+        tt, zz = np.meshgrid(t, z, indexing="ij")
+        P = np.c_[(a[0] + tt * (b[0] - a[0])).ravel(), (a[1] + tt * (b[1] - a[1])).ravel(), zz.ravel()]
+        idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + nv
+        q0, q1, q2, q3 = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+        F.append(np.vstack([np.c_[q0.ravel(), q1.ravel(), q2.ravel()], np.c_[q0.ravel(), q2.ravel(), q3.ravel()]]))
+        V.append(P)
+        nv += len(P)
+    # caps: rings from the outline (subdivided n per side) to the centroid
+    rim = np.vstack([O[i] + np.linspace(0, 1, n, endpoint=False)[:, None] * (O[(i + 1) % k] - O[i])
+                     for i in range(k)])
+    m = len(rim)
+    j = np.arange(m)
+    for top in (False, True):
+        z = height if top else 0.0
+        prev = None
+        for r in range(n):
+            ring = c + (1 - r / n) * (rim - c)
+            ids = nv + j
+            V.append(np.c_[ring, np.full(m, z)])
+            nv += m
+            if prev is not None:
+                tt = np.vstack([np.c_[prev[j], prev[(j + 1) % m], ids[(j + 1) % m]],
+                                np.c_[prev[j], ids[(j + 1) % m], ids[j]]])
+                F.append(tt if top else tt[:, [0, 2, 1]])
+            prev = ids
+        V.append(np.array([[c[0], c[1], z]]))
+        tt = np.c_[prev[j], prev[(j + 1) % m], np.full(m, nv)]
+        nv += 1
+        F.append(tt if top else tt[:, [0, 2, 1]])
+    return merge_vertices(np.vstack(V), np.vstack(F), tol=1e-9)
+
+
+def house_outline(left: float = 38.0, right: float = 43.0, width: float = 2.0, wall: float = 1.0):
+    """A pentagon: a 2 x 1 rectangle under a roof rising at `left` and `right`
+    degrees, so the outline turns by 180 - 90 - angle (52 and 47 degrees by
+    default) at the tops of the walls: corners of 128 and 133 degrees, which
+    rounding makes 90 and a CAD user may mean as smooth; 99 at the ridge."""
+    tl, tr = np.tan(np.radians(left)), np.tan(np.radians(right))
+    x = width * tr / (tl + tr)
+    return np.array([[0.0, 0.0], [width, 0.0], [width, wall], [x, wall + tl * x], [0.0, wall]])
+
+
+def prism_example():
+    """CAD-like: the house pentagon extruded, no interior curves.  Edges
+    sharper than 50 degrees are sharp: the caps' outlines, the right-angled
+    vertical edges, the ridge (81 degrees) and the 52-degree wall-top edge;
+    the walls bend smoothly by 47 degrees at the other wall top.  The caps'
+    outline corners of 128 and 133 degrees are ambiguous; rounded, each cap
+    has five convex corners and Poincare-Hopf fails by 1/4 per cap;
+    corners.py makes the 133-degree one smooth: the smaller rounding, and
+    the one a field without singular curves can follow (two sharp edges
+    there; see corners.py).  With sharp_angle 30 (the 47-degree edge sharp
+    too) a smooth corner would end a crease in a flat cap and with 60 the
+    128-degree corner would be a corner between smooth walls: LM ended at
+    its cap with penalties of 3.0e3 and 5.0e3."""
+    V, F = prism_surface(house_outline(), 0.8)
+    return V, F, Network(curves=[], sharp_angle=50.0)
+
+
+def voxel_surface(occupied, cell: float = 1.0, n: int = 2):
+    """Boundary of a union of voxels (occupied: 3D bool array; voxel (i, j, k)
+    is [i, i+1] x [j, j+1] x [k, k+1] times cell), each voxel face split into
+    n x n quads of 2 triangles, outward oriented.  The union must be a
+    manifold solid (no voxels touching along an edge or a corner only)."""
+    occ = np.pad(np.asarray(occupied, bool), 1)
+    V, F = [], []
+    nv = 0
+    g = np.linspace(0.0, 1.0, n + 1)
+    for axis in range(3):
+        u, v = [a for a in range(3) if a != axis]
+        d = np.diff(occ.astype(np.int8), axis=axis)  # +1: empty -> full (face normal -axis)
+        for sign in (1, -1):
+            for idx in np.argwhere(d == sign):
+                base = idx - 1  # voxel coordinates of the lower cell (padding removed)
+                corner = base.astype(float)
+                corner[axis] += 1.0
+                uu, vv = np.meshgrid(g, g, indexing="ij")
+                P = np.zeros((n + 1, n + 1, 3))
+                P[..., axis] = corner[axis]
+                P[..., u] = corner[u] + uu
+                P[..., v] = corner[v] + vv
+                ids = np.arange((n + 1) ** 2).reshape(n + 1, n + 1) + nv
+                a, b, c, e = ids[:-1, :-1], ids[1:, :-1], ids[1:, 1:], ids[:-1, 1:]
+                tris = np.vstack([np.c_[a.ravel(), b.ravel(), c.ravel()], np.c_[a.ravel(), c.ravel(), e.ravel()]])
+                # (u, v) order has normal +axis when (axis, u, v) is cyclic;
+                # the outward normal is -axis where the full cell is above
+                outward_plus = sign == -1
+                if (((u - axis) % 3 == 1) != outward_plus):
+                    tris = tris[:, [0, 2, 1]]
+                V.append(P.reshape(-1, 3) * cell)
+                F.append(tris)
+                nv += (n + 1) ** 2
+    return merge_vertices(np.vstack(V), np.vstack(F), tol=1e-9 * cell)
+
+
+def genus2_example(slant: float = 25.0):
+    """A 2.5 x 1.5 x 0.5 block with two square through-holes (genus 2, sharp
+    edges everywhere) and two straight feature curves (sigma = 0) from the
+    bottom to the top, slanted by `slant` degrees off the normal: the
+    intake bends both ends of each onto the normals, and the field follows
+    their tangent.  (With a +1/4, -1/4 pair of singular curves there
+    instead, straight or slanted, LM ended at its cap, penalty ~4e4, while
+    the block alone solves exactly: not yet understood.)"""
+    occ = np.ones((5, 3, 1), bool)
+    occ[1, 1, 0] = occ[3, 1, 0] = False
+    V, F = voxel_surface(occ, 0.5)
+    t = 0.5 * np.tan(np.radians(slant))
+    curves = []
+    for k, x in enumerate((0.25, 2.25)):
+        a = np.array([x, 0.75 - t / 2, 0.0])
+        b = np.array([x, 0.75 + t / 2, 0.5])
+        curves.append(Curve(_segment(a, b, 6), sigma=0.0, role="feature", name=f"slanted {k}"))
+    return V, F, Network(curves=curves, sharp_angle=30.0)
+
+
 EXAMPLES = {
     "cube": cube_example,
     "cylinder": cylinder_example,
     "torus": torus_example,
     "ball": ball_example,
     "plate": plate_example,
+    "prism": prism_example,
+    "genus2": genus2_example,
 }
 
 

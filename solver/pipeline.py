@@ -32,6 +32,7 @@ from .mesh.tetwild import tetrahedralize
 from .mesh.tubes import build_tubes
 from .network.network import Network, PreparedNetwork
 from .network.validation import CheckedInput, check_input
+from .surface.corners import corners_text, transfer_quarters
 from .surface.features import FeatureGraph, check_poincare_hopf, transfer_features
 
 INITS = ("zero", "constant", "random", "linear")
@@ -113,6 +114,9 @@ class Report:
     lm: LMReport | None = None
     metrics: dict = field(default_factory=dict)
     edge_length: float = 0.0
+    repairs: list = field(default_factory=list)  # intake.CurveRepair per interior curve
+    repair_scale: float = 0.0  # the h the curves were repaired at
+    corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
 
     @property
     def total_seconds(self) -> float:
@@ -134,6 +138,14 @@ class Report:
             lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "
                          f"vertices moved" + (f", {kept:,} left where fTetWild put them (the move was too "
                                               f"long or would have flattened a tet)" if kept else ""))
+        from .network.intake import repairs_text
+
+        rep = repairs_text(self.repairs, self.repair_scale)
+        if rep:
+            lines.append(rep)
+        rep = corners_text(self.corners)
+        if rep:
+            lines.append(rep)
         for k, v in self.stage_seconds.items():
             lines.append(f"  {k:<12s} {v:8.2f} s")
         lines.append(f"  {'total':<12s} {self.total_seconds:8.2f} s")
@@ -148,7 +160,9 @@ class Report:
 
     def as_dict(self) -> dict:
         d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
-             "edge_length": self.edge_length}
+             "edge_length": self.edge_length, "repairs": [asdict(r) for r in self.repairs],
+             "repair_scale": self.repair_scale,
+             "corners": [asdict(c) for c in self.corners]}
         if self.lm is not None:
             d["lm"] = {"init": self.lm.init, "converged": self.lm.converged, "reason": self.lm.reason,
                        "iterations": [asdict(it) for it in self.lm.iterations]}
@@ -218,8 +232,15 @@ class FieldProblem:
         self.options = options or Options()
         self.report = Report()
         st = _Stages(self.report, progress, cancel)
+        # the curve intake (intake.py) repairs the network at the scale of
+        # the mesh: the edge length when given, else the budget edge length
+        # of the solid alone (the default h below depends on the network)
         self.checked: CheckedInput = st.run("validate", check_input, V, F, network,
-                                            self.options.check_intersections)
+                                            self.options.check_intersections, self.options.edge_length,
+                                            True, self.options.target_tets)
+        self.report.repairs = self.checked.repairs
+        self.report.repair_scale = self.checked.scale
+        self.report.corners = self.checked.corners
         h = self.options.edge_length or default_edge_length(self.checked, self.options.target_tets)
         self.edge_length = h
         self.report.edge_length = h
@@ -325,7 +346,9 @@ class FieldProblem:
             sharp = transfer_features(self.checked.features, B)
         else:
             sharp = np.zeros(len(B.edges), bool)
-        G = FeatureGraph(B, sharp)
+        # the corner quantisation chosen on the input (corners.py), not a
+        # new rounding of the remeshed boundary's angles
+        G = transfer_quarters(self.checked.features, FeatureGraph(B, sharp))
         fs = np.zeros(len(B.F))
         ends = self.embedding.boundary_end_faces
         if ends:
@@ -452,7 +475,8 @@ class FieldProblem:
             self._volume = None
             self.options = Options(**{**asdict(opts), "penalty": penalty})
         report = Report(stage_seconds=dict(self.report.stage_seconds), sizes=dict(self.report.sizes),
-                        edge_length=self.edge_length)
+                        edge_length=self.edge_length, repairs=self.report.repairs,
+                        repair_scale=self.report.repair_scale, corners=self.report.corners)
         st = _Stages(report, progress, cancel)
         st.done = 0.45
         # the volume problem's setup (assembly pattern, preconditioner

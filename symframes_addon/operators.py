@@ -136,7 +136,8 @@ class SYMFRAMES_OT_check_network(bpy.types.Operator):
         inp = None
         try:
             inp = scene_io.read_inputs(context)
-            checked = check_input(inp.V, inp.F, inp.network, inp.options.check_intersections)
+            checked = check_input(inp.V, inp.F, inp.network, inp.options.check_intersections,
+                                  inp.options.edge_length, True, inp.options.target_tets)
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e, inp))
             return {"CANCELLED"}
@@ -146,6 +147,13 @@ class SYMFRAMES_OT_check_network(bpy.types.Operator):
                f"{len(inp.F):,} triangles")
         if inp.ignored:
             msg += f"; ignored non-curve object(s): {', '.join(inp.ignored)}"
+        from ..solver.network.intake import repairs_text
+
+        repaired = repairs_text(checked.repairs, checked.scale)
+        if repaired:
+            # the first line counts the repaired curves; the rest goes to the console
+            msg += "; " + repaired.splitlines()[0]
+            print(repaired)
         self.report({"INFO"}, msg)
         return {"FINISHED"}
 

@@ -8,6 +8,8 @@ Network JSON (all keys but ``curves`` optional)::
       "sharp_edges": [[0, 1], [1, 5]],  # surface vertex pairs marked sharp
       "node_tolerance": 0.001,
       "boundary_tolerance": 0.01,
+      "corner_turns": [{"vertex": 12, "turns": 0},        # fix sharp corners' turns in
+                       {"position": [1, 0, 0], "turns": 1}], # quarter turns (corners.py)
       "curves": [
         {"name": "axis", "points": [[0, 0, -1], [0, 0, 1]],
          "sigma": 0.25, "role": "singular", "torsion": "free", "closed": false}
@@ -111,7 +113,7 @@ def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
 
 
 _NETWORK_KEYS = {"surface", "sharp_angle", "sharp_edges", "node_tolerance", "boundary_tolerance", "curves",
-                 "options"}
+                 "options", "corner_turns"}
 _CURVE_KEYS = {"name", "points", "sigma", "role", "torsion", "closed"}
 
 
@@ -144,8 +146,26 @@ def network_from_dict(d: dict) -> tuple[Network, dict]:
             raise E(f"curve {k} '{name}'{msg[len(label):]}" if msg.startswith(label) else f"curve {k}: {msg}") \
                 from None
     net = Network(curves=curves, sharp_edges=d.get("sharp_edges"), sharp_angle=d.get("sharp_angle"),
-                  node_tolerance=d.get("node_tolerance"), boundary_tolerance=d.get("boundary_tolerance"))
+                  node_tolerance=d.get("node_tolerance"), boundary_tolerance=d.get("boundary_tolerance"),
+                  corner_turns=_corner_turns(d.get("corner_turns")))
     return net, dict(checks.mapping("options", d.get("options", {}), OptionsError))
+
+
+def _corner_turns(items) -> dict | None:
+    """{vertex or (x, y, z): turns} from [{"vertex": i | "position": [x, y, z], "turns": q}, ...]."""
+    if items is None:
+        return None
+    out = {}
+    for k, it in enumerate(items if isinstance(items, list) else [items]):
+        if not isinstance(it, dict) or "turns" not in it or ("vertex" in it) == ("position" in it):
+            raise NetworkError(f"corner_turns[{k}]: must be an object with 'turns' and either 'vertex' or 'position'")
+        if "vertex" in it:
+            key = checks.integer(f"corner_turns[{k}].vertex", it["vertex"], NetworkError, low=0)
+        else:
+            key = tuple(checks.points3(f"corner_turns[{k}].position", [it["position"]], NetworkError,
+                                       min_points=1)[0].tolist())
+        out[key] = it["turns"]
+    return out
 
 
 def network_to_dict(net: Network, options: dict | None = None) -> dict:
@@ -159,6 +179,9 @@ def network_to_dict(net: Network, options: dict | None = None) -> dict:
     for key in ("node_tolerance", "boundary_tolerance"):
         if getattr(net, key) is not None:
             d[key] = getattr(net, key)
+    if net.corner_turns:
+        d["corner_turns"] = [{"vertex": int(k)} | {"turns": int(q)} if np.ndim(k) == 0 else
+                             {"position": [float(x) for x in k], "turns": int(q)} for k, q in net.corner_turns.items()]
     if options:
         d["options"] = options
     return d

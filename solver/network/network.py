@@ -73,6 +73,21 @@ class Curve:
         return f"'{self.name}'" if self.name else "(unnamed)"
 
 
+def _corner_turns(turns) -> dict:
+    """corner_turns checked: {vertex index (int >= 0) or (x, y, z): -2..2 quarter turns}."""
+    E = NetworkError
+    out = {}
+    for key, q in checks.mapping("corner_turns", turns, E).items():
+        if isinstance(key, tuple):
+            key = tuple(checks.points3(f"corner_turns key {key!r}", [key], E, min_points=1)[0].tolist())
+        else:
+            key = checks.integer(f"corner_turns key {key!r}", key, E, low=0,
+                                 fix="a surface vertex index, or an (x, y, z) position")
+        out[key] = checks.integer(f"corner_turns[{key!r}]", q, E, low=-2, high=2,
+                                  fix="quarter turns: 0 smooth, 1 convex corner, -1 concave")
+    return out
+
+
 @dataclass
 class Network:
     """The curve network and the sharp-feature settings of a domain.
@@ -85,6 +100,9 @@ class Network:
                      the surface's bounding-box diagonal)
     boundary_tolerance : endpoints closer than this to the surface end on the
                      boundary (default: 1e-2 of the diagonal)
+    corner_turns   : optional {surface vertex index or (x, y, z): quarter
+                     turns} fixing the turn of sharp corners (corners.py):
+                     0 = smooth, 1 = convex corner (index +1/4), -1 = concave
     """
 
     curves: list[Curve] = field(default_factory=list)
@@ -92,6 +110,7 @@ class Network:
     sharp_angle: float | None = None
     node_tolerance: float | None = None
     boundary_tolerance: float | None = None
+    corner_turns: dict | None = None
 
     def __post_init__(self):
         self.validate()
@@ -125,6 +144,8 @@ class Network:
                 raise E(f"node_tolerance = {self.node_tolerance:g} is more than half the size of the whole network "
                         f"({size:.4g}); it would join every curve end into one node. Give it in the units of the "
                         "curves, e.g. a thousandth of the model's size, or leave it unset")
+        if self.corner_turns is not None:
+            self.corner_turns = _corner_turns(self.corner_turns)
 
     @property
     def interior_curves(self) -> list[int]:

@@ -6,12 +6,13 @@ saying how to fix it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import NetworkError
+from ..errors import NetworkError, TopologyError
+from ..surface.corners import explain_failure, resolve_corners
 from ..surface.features import (
     FeatureGraph,
     check_poincare_hopf,
@@ -20,10 +21,11 @@ from ..surface.features import (
     sharp_edges_from_pairs,
 )
 from ..surface.trisurface import TriSurface, segment_crosses_triangle, validate_surface
+from .intake import MAX_KINK, repair_network, solid_scale, turning
 from .network import Network, PreparedNetwork, _fmt, prepare_network
 
 MAX_END_ANGLE = 30.0  # degrees between a curve's end tangent and the surface normal
-MAX_KINK = 45.0  # degrees a singular curve may turn at one polyline vertex
+CROSSING_TOLERANCE = 0.01  # curves closer than this times h touch
 
 
 @dataclass
@@ -35,6 +37,9 @@ class CheckedInput:
     features: FeatureGraph
     face_sigma: np.ndarray  # (#F,) index of curve ends per input triangle
     feature_size: float  # smallest distance the mesh must resolve
+    repairs: list = field(default_factory=list)  # intake.CurveRepair per interior curve
+    scale: float = 0.0  # the length h the curves were repaired and checked at
+    corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
 
 
 def _label(net_curves, k):
@@ -64,17 +69,31 @@ def sharp_feature_graph(S: TriSurface, net: Network) -> FeatureGraph:
     return FeatureGraph(S, sharp)
 
 
-def check_input(V, F, net: Network, check_intersections: bool = True) -> CheckedInput:
-    """Validate the surface and the network; raise with an actionable message."""
+def check_input(V, F, net: Network, check_intersections: bool = True, scale: float | None = None,
+                repair: bool = True, target_tets: int = 15000) -> CheckedInput:
+    """Validate the surface and the network; raise with an actionable message.
+
+    scale  : the length h at which curves are repaired and measured (kinks
+             over h, crossings closer than CROSSING_TOLERANCE * h); None:
+             intake.solid_scale(surface, target_tets), the budget edge length
+    repair : run the curve intake (intake.py) on the interior curves first
+    """
+
     S = validate_surface(V, F, check_intersections=check_intersections)
     diag = S.bbox_diagonal
+    h = float(scale) if scale is not None else solid_scale(S, target_tets)
     pn = prepare_network(net, diag)
     check_nodes(pn, lambda ci: _label(net.curves, pn.source[ci]))
     btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
-    names = [net.curves[i] for i in pn.source]
 
     def label(ci):
         return _label(net.curves, pn.source[ci])
+
+    repairs = []
+    if repair and pn.curves:
+        # a real crossing is refused before fairing could pull it apart
+        _check_crossings(pn, label, CROSSING_TOLERANCE * h)
+        pn, repairs = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol)
 
     face_sigma = np.zeros(len(S.F))
     end_points = []
@@ -126,9 +145,9 @@ def check_input(V, F, net: Network, check_intersections: bool = True) -> Checked
                 )
         _check_segments_inside(S, P, label(ci), pn, ci)
         if c.sigma != 0:
-            _check_kinks(P, c.closed, label(ci))
+            _check_kinks(P, c.closed, label(ci), h)
     # ------------------------------------------------------------- crossings
-    _check_crossings(pn, label, diag)
+    _check_crossings(pn, label, CROSSING_TOLERANCE * h)
     # ends on the boundary must be distinct and away from sharp features
     G = sharp_feature_graph(S, net)
     if len(end_points) > 1:
@@ -153,11 +172,14 @@ def check_input(V, F, net: Network, check_intersections: bool = True) -> Checked
                     f"{label(ci)} ends on a sharp edge at {_fmt(q)}; end it inside a face, away from sharp edges"
                 )
     # -------------------------------------------------------- Poincare-Hopf
-    check_poincare_hopf(S, G, face_sigma, "the boundary")
-    G.check_patches(face_sigma)
+    G, corners = resolve_corners(S, G, face_sigma, net.corner_turns)
+    try:
+        check_poincare_hopf(S, G, face_sigma, "the boundary")
+        G.check_patches(face_sigma)
+    except TopologyError as e:
+        explain_failure(S, G, corners, e, face_sigma)
     size = network_feature_size(S, pn)
-    del names
-    return CheckedInput(S, pn, G, face_sigma, size)
+    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners)
 
 
 def check_nodes(pn: PreparedNetwork, label) -> None:
@@ -255,27 +277,28 @@ def _segment_triangle_point(a, b, T):
     return a + t[:, None] * (b - a)
 
 
-def _check_kinks(P, closed, label):
-    seg = np.diff(P, axis=0)
-    seg = seg / np.linalg.norm(seg, axis=1, keepdims=True)
-    pairs = [(seg[:-1], seg[1:], P[1:-1])]
-    if closed:
-        pairs.append((seg[-1:], seg[:1], P[:1]))
-    for s0, s1, at in pairs:
-        if not len(s0):
-            continue
-        ang = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", s0, s1), -1, 1)))
-        bad = np.nonzero(ang > MAX_KINK)[0]
-        if len(bad):
-            k = bad[0]
-            raise NetworkError(
-                f"{label} turns by {ang[k]:.0f} degrees at {_fmt(at[k])}; a singular curve must be smooth (its "
-                "axis of rotation is its tangent), so round the corner or split the curve at a node"
-            )
+def _check_kinks(P, closed, label, h):
+    """The turn between chords of h/2 on either side of each vertex: a
+    segment far shorter than h carries no direction of its own."""
+
+    ang = turning(P, 0.5 * h, closed)
+    bad = np.nonzero(ang > MAX_KINK)[0]
+    if len(bad):
+        k = bad[np.argmax(ang[bad])]
+        raise NetworkError(
+            f"{label} turns by {ang[k]:.0f} degrees over a length {h:.3g} (the mesh scale h) at {_fmt(P[k])}; a "
+            "singular curve must be smooth (its axis of rotation is its tangent), so round the corner or split the "
+            "curve at a node"
+        )
 
 
-def _check_crossings(pn: PreparedNetwork, label, diag):
-    """Curves must not intersect themselves or each other (except at nodes)."""
+def _check_crossings(pn: PreparedNetwork, label, tol):
+    """Curves must not intersect themselves or each other (except at nodes).
+
+    tol : distance below which two segments touch.  Segments of one curve
+    closer along the curve than 4 tol apart are neighbours, not a
+    self-intersection (a segment shorter than tol made segments i and i + 2
+    touch)."""
     segs, owner, index = [], [], []
     for ci, c in enumerate(pn.curves):
         P = c.points
@@ -290,18 +313,23 @@ def _check_crossings(pn: PreparedNetwork, label, diag):
     nseg = np.array([len(c.points) - 1 for c in pn.curves])
     mid = S.mean(axis=1)
     half = 0.5 * np.linalg.norm(S[:, 1] - S[:, 0], axis=1)
-    pairs = cKDTree(mid).query_pairs(2 * half.max() + 1e-12, output_type="ndarray")
+    pairs = cKDTree(mid).query_pairs(2 * half.max() + tol + 1e-12, output_type="ndarray")
     if len(pairs) == 0:
         return
     i, j = pairs[:, 0], pairs[:, 1]
     same = own[i] == own[j]
-    adjacent = same & (np.abs(idx[i] - idx[j]) == 1)
+    # arc length between the two segments along their curve
+    seg_len = np.linalg.norm(S[:, 1] - S[:, 0], axis=1)
+    s_end = np.concatenate([np.cumsum(seg_len[own == o]) for o in range(len(pn.curves))])
+    s_start = s_end - seg_len
+    first, second = np.where(idx[i] < idx[j], i, j), np.where(idx[i] < idx[j], j, i)
+    gap = np.where(same, s_start[second] - s_end[first], np.inf)
+    adjacent = same & ((np.abs(idx[i] - idx[j]) == 1) | (gap < 4 * tol))
     closed = np.array([c.closed for c in pn.curves])
     wrap = same & closed[own[i]] & (np.abs(idx[i] - idx[j]) == nseg[own[i]] - 1)
     keep = ~adjacent & ~wrap
     i, j = i[keep], j[keep]
     d, pt = _segment_distance(S[i], S[j])
-    tol = 1e-4 * diag
     # segments meeting at a shared node are allowed to touch there
     node_pts = np.array([nd.position for nd in pn.nodes]) if pn.nodes else np.zeros((0, 3))
     if len(node_pts):

@@ -40,10 +40,13 @@ class FeatureGraph:
 
     S     : the surface
     sharp : (#E,) bool mask over S.edges
+    quarters : optional (#sectors,) k per sector, chosen by corners.py
+               (ambiguous corners, Network.corner_turns); None: rounded
     """
 
     S: TriSurface
     sharp: np.ndarray
+    quarters: np.ndarray | None = None
 
     @cached_property
     def degree(self) -> np.ndarray:
@@ -81,6 +84,8 @@ class FeatureGraph:
     def sector_quarters(self) -> np.ndarray:
         """Quantised sector angle in quarter turns, k >= 1 (only meaningful at
         feature vertices)."""
+        if self.quarters is not None:
+            return np.asarray(self.quarters, dtype=int)
         return np.maximum(1, np.round(self.sector_angle / (np.pi / 2))).astype(int)
 
     @cached_property

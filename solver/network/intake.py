@@ -1,0 +1,441 @@
+"""Curve intake: repair the polylines users bring instead of refusing them.
+
+Networks exported by other field tools are chains of tet-mesh edges (design
+notes §5): they zig-zag (consecutive edges 20-70 degrees apart), hold
+segments of 1e-6 next to normal ones and reach the surface along whatever
+edge the mesh had.  Measured at the scale of one polyline vertex such a
+chain "kinks" and "touches itself"; measured at the scale h of the tet mesh
+that will carry the field it is a smooth curve.  So every interior curve is
+cleaned and faired at a length tied to the mesh, never to the bounding box:
+
+1. *merge*: consecutive points closer than ``MERGE * h`` are dropped;
+2. *fairing length*: ``l = max(h, median segment length)`` -- a chain of
+   mesh edges carries no shape below its own edge length;
+3. *corners*: where the curve turns by more than ``MAX_KINK``
+   between chords of length ``CORNER_WINDOW * l`` on either side (both
+   fitting on the curve), and by less than 1.5 times that between chords
+   twice as long (a corner, not an arc), the input vertex nearest the
+   largest turn is kept as a knot (a real corner survives and validation reports it as it would
+   have);
+4. *resample* between ends and corners by arc length at spacing ``l / 2``;
+5. *fair*: ``SMOOTH_ITERATIONS`` = 72 steps of Laplacian smoothing
+   ``P_i += 1/2 (P_(i-1) + P_(i+1) - 2 P_i) / 2`` with ends, nodes and corners
+   fixed -- a Gaussian of width 3 l along the curve: the zig-zag of mesh
+   edges goes, and so does a bend shorter than a few l between fixed points
+   (a chain of 3-4 mesh edges carries no shape of its own), and an arc of
+   radius R moves inwards by about 4.5 l^2 / R (a loop of radius 6.7 h by
+   0.5 h; reported).  A curve whose faired points would leave the solid
+   keeps its resampled points;
+6. *ends*: a boundary end is projected onto the surface; where the faired
+   curve reaches it off the normal (by more than ``BEND_MIN`` degrees), its
+   last stretch of length ``Lb = min(BEND_LENGTH * h, BEND_FRACTION * L)``
+   is replaced by a cubic Hermite arc (tangent-continuous with the curve)
+   followed by a straight piece along the inward normal of length Lb / 4,
+   so that the curve meets the surface along the normal, as the frame there
+   must be adapted to both (§4.2.3, Eq. 20-21).  A bend that would leave the
+   solid is retried shorter; if none stays inside the input is refused with
+   the numbers.
+
+Every change is reported per curve (``CurveRepair``); displacements are in
+units of h.  Real crossings and self-intersections are not repaired:
+validation still refuses them, now at tolerances relative to h.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import NetworkError
+from ..surface.trisurface import TriSurface
+from .network import Curve, PreparedNetwork, _fmt
+
+MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of h/2 each side)
+MERGE = 0.05  # points closer than MERGE * h are merged
+CORNER_WINDOW = 2.0  # chords of CORNER_WINDOW * l on each side detect real corners
+SMOOTH_ITERATIONS = 72  # Laplacian steps of 1/2 at spacing l / 2: a Gaussian of width 3 l
+BEND_MIN = 2.0  # degrees: ends closer than this to the normal are left alone
+BEND_LENGTH = 3.0  # bent stretch, in units of h ...
+BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length
+TETS_PER_H3 = 15.0  # as pipeline.TETS_PER_H3
+
+
+def solid_scale(S: TriSurface, target_tets: int = 15000) -> float:
+    """The budget edge length ``(15 * volume / target_tets)^(1/3)``: the
+    scale h the intake and validation use when no edge length is given (the
+    pipeline's default h may be smaller where the network needs it, but it
+    is computed from the network, so the network is repaired at this one)."""
+    vol = float(np.sum(np.abs(S.signed_volumes())))
+    return float(max((TETS_PER_H3 * vol / target_tets) ** (1.0 / 3.0), 1e-3 * S.bbox_diagonal))
+
+
+@dataclass
+class EndBend:
+    """A curve end bent onto the surface normal."""
+
+    end: str  # 'start' or 'end'
+    angle_deg: float  # angle between the faired curve's end chord (length h) and the normal
+    length_h: float  # length of the bent stretch, in units of h
+    position: tuple = ()
+    input_angle_deg: float = 0.0  # the same for the curve as given (its last edge's angle can be larger)
+
+
+@dataclass
+class CurveRepair:
+    """What the intake changed on one interior curve.
+
+    curve : index in Network.curves;  points_in / points_out : sizes
+    merged : points dropped as closer than MERGE * h to their neighbour
+    max_displacement_h : largest distance between input and repaired curve
+    turn_in_deg / turn_out_deg : largest turning over a window of h
+    corners : input vertices kept as corners;  ends : EndBend list
+    """
+
+    curve: int
+    name: str
+    points_in: int
+    points_out: int
+    merged: int
+    faired: bool
+    max_displacement_h: float
+    turn_in_deg: float
+    turn_out_deg: float
+    corners: int = 0
+    ends: list = field(default_factory=list)
+    note: str = ""
+
+    @property
+    def changed(self) -> bool:
+        return self.max_displacement_h > 1e-6 or bool(self.ends) or self.merged > 0
+
+    def text(self) -> str:
+        label = f"curve {self.curve}" + (f" '{self.name}'" if self.name else "")
+        s = (f"{label}: {self.points_in} -> {self.points_out} points"
+             + (f", {self.merged} merged" if self.merged else "")
+             + (", faired" if self.faired else "")
+             + f", moved at most {self.max_displacement_h:.2f} h, turning over h {self.turn_in_deg:.0f} -> "
+               f"{self.turn_out_deg:.0f} deg")
+        if self.corners:
+            s += f", {self.corners} corner(s) kept"
+        for b in self.ends:
+            s += (f"; {b.end} bent onto the normal (given {b.input_angle_deg:.0f} deg off, faired "
+                  f"{b.angle_deg:.0f}, over {b.length_h:.2f} h)")
+        if self.note:
+            s += f"; {self.note}"
+        return s
+
+
+def repairs_text(repairs: list[CurveRepair], h: float) -> str:
+    """Lines for the CLI and the add-on; empty when nothing changed."""
+    changed = [r for r in repairs if r.changed]
+    if not changed:
+        return ""
+    lines = [f"curve intake at h = {h:.4g}: {len(changed)} of {len(repairs)} interior curve(s) repaired"]
+    lines += ["  " + r.text() for r in changed]
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------ geometry
+def arclength(P: np.ndarray) -> np.ndarray:
+    return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+
+
+def at_arclength(P: np.ndarray, s: np.ndarray, cum: np.ndarray | None = None) -> np.ndarray:
+    """Points of the polyline P at arc lengths s (clamped to the ends)."""
+    cum = arclength(P) if cum is None else cum
+    return np.stack([np.interp(s, cum, P[:, k]) for k in range(3)], axis=1)
+
+
+def turning(P: np.ndarray, window: float, closed: bool = False) -> np.ndarray:
+    """Angle (degrees) at each vertex between the chords to the points at arc
+    length ``window`` behind and ahead of it (clamped at open ends): the turn
+    of the curve over a length comparable to window, not across one segment."""
+    cum = arclength(P)
+    L = cum[-1]
+    s = cum
+    if closed:
+        back = at_arclength(P, np.mod(s - window, L), cum)
+        ahead = at_arclength(P, np.mod(s + window, L), cum)
+    else:
+        back = at_arclength(P, np.maximum(s - window, 0.0), cum)
+        ahead = at_arclength(P, np.minimum(s + window, L), cum)
+    u, v = P - back, ahead - P
+    nu, nv = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
+    ok = (nu > 1e-12 * max(L, 1e-300)) & (nv > 1e-12 * max(L, 1e-300))
+    c = np.einsum("ij,ij->i", u, v) / np.where(ok, nu * nv, 1.0)
+    out = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+    out[~ok] = 0.0
+    return out
+
+
+def merge_close(P: np.ndarray, tol: float, closed: bool) -> np.ndarray:
+    """Drop points closer than tol to the last kept one (ends are kept)."""
+    keep = [0]
+    for i in range(1, len(P) - 1):
+        if np.linalg.norm(P[i] - P[keep[-1]]) > tol:
+            keep.append(i)
+    last = len(P) - 1
+    if len(keep) > 1 and np.linalg.norm(P[last] - P[keep[-1]]) <= tol:
+        keep[-1] = last
+    else:
+        keep.append(last)
+    return P[keep]
+
+
+def resample(P: np.ndarray, spacing: float) -> np.ndarray:
+    """Uniform resampling by arc length (ends kept)."""
+    cum = arclength(P)
+    n = max(1, int(np.ceil(cum[-1] / spacing - 1e-9)))
+    return at_arclength(P, np.linspace(0.0, cum[-1], n + 1), cum)
+
+
+def hausdorff(A: np.ndarray, B: np.ndarray, step: float) -> float:
+    """Symmetric Hausdorff distance between two polylines, sampled at step."""
+    a = resample(A, step) if len(A) > 1 else A
+    b = resample(B, step) if len(B) > 1 else B
+    return float(max(cKDTree(b).query(a)[0].max(), cKDTree(a).query(b)[0].max()))
+
+
+def surface_normal_at(S: TriSurface, f: int, q: np.ndarray) -> np.ndarray:
+    """Angle-weighted pseudo-normal at q on face f: the face normal inside a
+    face, the mean of the faces around an edge or a vertex q lies on."""
+    tri = S.V[S.F[f]]
+    e = np.linalg.norm(tri - q, axis=1)
+    scale = np.linalg.norm(tri[1] - tri[0]) + 1e-300
+    near_v = np.nonzero(e < 1e-6 * scale)[0]
+    if len(near_v):
+        v = S.F[f, near_v[0]]
+        faces, corner = np.nonzero(S.F == v)
+        w = S.corner_angles[faces, corner]
+        n = (w[:, None] * S.face_normals[faces]).sum(axis=0)
+        return n / np.linalg.norm(n)
+    for k in range(3):
+        a, b = tri[k], tri[(k + 1) % 3]
+        t = np.clip((q - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+        if np.linalg.norm(a + t * (b - a) - q) < 1e-6 * scale:
+            i, j = S.F[f, k], S.F[f, (k + 1) % 3]
+            faces = np.nonzero(np.isin(S.F, [i, j]).sum(axis=1) == 2)[0]
+            n = S.face_normals[faces].sum(axis=0)
+            return n / np.linalg.norm(n)
+    return S.face_normals[f]
+
+
+# ------------------------------------------------------------------- fairing
+def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
+    """Indices of input vertices where the curve really turns: the turn
+    between chords of CORNER_WINDOW * ell exceeds MAX_KINK, at its largest."""
+
+    if len(P) < 3:
+        return np.zeros(0, int)
+    cum = arclength(P)
+    fine = resample(P, ell / 4.0)
+    sf = arclength(fine)
+    w = CORNER_WINDOW * ell
+    ang = turning(fine, w, closed)
+    # only where both chords fit: a curve shorter than two windows has no
+    # corner that can be told from a zig-zag of its own edges; and only
+    # where the turn is concentrated (chords twice as long see about the
+    # same turn), unlike an arc, whose turn doubles with the chords
+    big = (ang > MAX_KINK) & (turning(fine, 2.0 * w, closed) < 1.5 * ang)
+    if not closed:
+        big &= (sf >= w) & (sf <= sf[-1] - w)
+    knots = []
+    i = 0
+    while i < len(ang):
+        if not big[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(ang) and big[j + 1]:
+            j += 1
+        m = i + int(np.argmax(ang[i : j + 1]))
+        v = int(np.argmin(np.abs(cum - sf[m])))
+        if 0 < v < len(P) - 1:
+            knots.append(v)
+        i = j + 1
+    return np.unique(np.array(knots, int))
+
+
+def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: int) -> np.ndarray:
+    """Explicit Laplacian smoothing (step 1/2) with the fixed vertices held.
+    k steps at spacing s act like a Gaussian of width s sqrt(k / 2) along the
+    curve.  (Taubin's lambda|mu filter, tried first, keeps bends longer than
+    ~6 l: on tet-edge chains of 3-4 edges that is the zig-zag itself, and the
+    ball's LM then ended at its cap with a penalty of 956.)"""
+    Q = P.copy()
+    n = len(Q) - 1 if closed else len(Q)
+    core = Q[:n]
+    free = ~fixed[:n].copy()
+    if not closed:
+        free[[0, -1]] = False
+    for _ in range(iterations):
+        if closed:
+            lap = 0.5 * (np.roll(core, 1, axis=0) + np.roll(core, -1, axis=0)) - core
+        else:
+            lap = np.zeros_like(core)
+            lap[1:-1] = 0.5 * (core[:-2] + core[2:]) - core[1:-1]
+        core[free] += 0.5 * lap[free]
+    Q[:n] = core
+    if closed:
+        Q[-1] = Q[0]
+    return Q
+
+
+def fair_curve(P: np.ndarray, h: float, closed: bool):
+    """Steps 1-5 of the module docstring.  Returns (points, merged count,
+    fairing length l, corner count, fixed mask)."""
+    Pm = merge_close(P, MERGE * h, closed)
+    merged = len(P) - len(Pm)
+    seg = np.linalg.norm(np.diff(Pm, axis=0), axis=1)
+    ell = max(h, float(np.median(seg)))
+    L = float(seg.sum())
+    knots = _corner_knots(Pm, ell, closed)
+    cuts = np.r_[0, knots, len(Pm) - 1]
+    pieces, fixed = [], []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        R = resample(Pm[a : b + 1], 0.5 * min(ell, max(L / 4.0, 1e-300)))
+        pieces.append(R if not pieces else R[1:])
+        f = np.zeros(len(pieces[-1]), bool)
+        f[-1] = True
+        if len(fixed) == 0:
+            f[0] = True
+        fixed.append(f)
+    Q = np.vstack(pieces)
+    fx = np.concatenate(fixed)
+    if closed and not len(knots):
+        fx[[0, -1]] = False  # a loop's seam is no end
+    # (Tukey's twicing, adding back the smoothed residual, kept a loop of
+    # radius 6.7 h round (0.5 h of shrinking -> 0.01 h) but also the bow of
+    # tet-edge chains near their ends: on the tet-edge cylinder curves moved
+    # by up to 1.1 h, turned 19 degrees over h, and LM took 19 iterations to
+    # a penalty of 157, against 0.8 h, 9 degrees, 7-9 and 67 without)
+    Q = _laplacian_fair(Q, fx, closed, SMOOTH_ITERATIONS)
+    return Q, merged, ell, len(knots), fx
+
+
+# ------------------------------------------------------------------ end bend
+def end_chord_angle(S: TriSurface, P: np.ndarray, h: float) -> float:
+    """Angle (degrees) between the chord over the last min(h, L/2) of P and
+    the surface normal where P ends."""
+    _, f, q = S.closest_points(P[-1:])
+    n = surface_normal_at(S, int(f[0]), q[0])
+    cum = arclength(P)
+    L = cum[-1]
+    chord = P[-1] - at_arclength(P, np.array([max(L - min(h, 0.5 * L), 0.0)]), cum)[0]
+    chord /= np.linalg.norm(chord)
+    return float(np.degrees(np.arccos(np.clip(chord @ n, -1.0, 1.0))))
+
+
+def _hermite(p0, t0, p1, t1, n):
+    u = np.linspace(0.0, 1.0, n + 1)[:, None]
+    h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
+    h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
+    return h00 * p0 + h10 * t0 + h01 * p1 + h11 * t1
+
+
+def bend_end(S: TriSurface, P: np.ndarray, h: float, label: str, end_name: str):
+    """Bend the last stretch of P (which ends on the surface at P[-1]) so that
+    it reaches the surface along the normal.  Returns (new points, EndBend
+    or None)."""
+    d, f, q = S.closest_points(P[-1:])
+    q = q[0]
+    P = P.copy()
+    P[-1] = q
+    n = surface_normal_at(S, int(f[0]), q)  # outward
+    cum = arclength(P)
+    L = cum[-1]
+    chord = q - at_arclength(P, np.array([max(L - min(h, 0.5 * L), 0.0)]), cum)[0]
+    chord /= np.linalg.norm(chord)
+    angle = float(np.degrees(np.arccos(np.clip(chord @ n, -1.0, 1.0))))
+    if angle <= BEND_MIN:
+        return P, None
+    Lb0 = min(BEND_LENGTH * h, BEND_FRACTION * L)
+    for Lb in (Lb0, 0.6 * Lb0, 0.35 * Lb0):
+        s0 = L - Lb
+        p0 = at_arclength(P, np.array([s0]), cum)[0]
+        # tangent of the curve at p0, over a chord of l/2 behind it
+        back = at_arclength(P, np.array([max(s0 - 0.5 * h, 0.0)]), cum)[0]
+        t0 = p0 - back
+        if np.linalg.norm(t0) < 1e-12 * L:
+            t0 = chord
+        t0 /= np.linalg.norm(t0)
+        Ls = Lb / 4.0
+        p1 = q - Ls * n
+        m = np.linalg.norm(p1 - p0)
+        k = max(4, int(np.ceil((Lb - Ls) / (0.25 * h))))
+        arc = _hermite(p0, m * t0, p1, m * n, k)
+        ks = max(2, int(np.ceil(Ls / (0.25 * h))))
+        straight = p1 + np.linspace(0.0, Ls, ks + 1)[1:, None] * n
+        keep = cum < s0 - 1e-9 * L
+        newP = np.vstack([P[keep], arc, straight])
+        newP[-1] = q
+        # inside: every point strictly inside the solid except the end
+        test = resample(newP[np.sum(keep):], 0.2 * h)[:-1]
+        dd, _, _ = S.closest_points(test)
+        inside = S.winding_number(test) > 0.5
+        if np.all(inside) and np.all(dd[1:] > 1e-6 * h):
+            return newP, EndBend(end_name, angle, Lb / h, tuple(np.round(q, 6)))
+    raise NetworkError(
+        f"{label} reaches the surface at {_fmt(q)} at {angle:.0f} degrees from the normal, and bending its last "
+        f"{Lb0:.3g} ({Lb0 / h:.2f} h) onto the normal would leave the solid; move that end to where the curve can "
+        "meet the surface at right angles, or lengthen the curve's last straight stretch"
+    )
+
+
+# ------------------------------------------------------------------- driver
+def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
+                   boundary_tolerance: float) -> tuple[PreparedNetwork, list[CurveRepair]]:
+    """Repair every prepared interior curve at scale h (module docstring).
+
+    names[ci] : label of prepared curve ci for messages;  boundary ends
+    farther than boundary_tolerance from the surface are left as they are
+    (validation refuses them).  Returns the repaired network and one
+    CurveRepair per curve.
+    """
+    curves, repairs = [], []
+    for ci, c in enumerate(pn.curves):
+        P0 = c.points
+        if len(P0) > 2 and np.any(S.winding_number(P0[1:-1]) < 0.5):
+            # a curve that leaves the solid is refused as given (validation
+            # names where), not pulled back in by the fairing
+            repairs.append(CurveRepair(pn.source[ci], c.name, len(P0), len(P0), 0, False, 0.0, 0.0, 0.0,
+                                       note="not repaired: passes outside the solid"))
+            curves.append(c)
+            continue
+        Q, merged, ell, ncorner, fixed = fair_curve(P0, h, c.closed)
+        faired = True
+        note = ""
+        # the faired curve must stay inside the solid (a curve hugging a
+        # concave part of the surface could be pulled out of it)
+        inner = Q[1:-1]
+        if len(inner) and np.any(S.winding_number(inner) < 0.5):
+            Q = np.vstack([resample(P0, 0.5 * ell)])
+            faired = False
+            note = "not faired (fairing would leave the solid)"
+        ends = []
+        kinds = (pn.start_kind[ci], pn.end_kind[ci])
+        if not c.closed:
+            for end, kind in ((1, kinds[1]), (0, kinds[0])):
+                if kind != "boundary":
+                    continue
+                x = Q[-1] if end == 1 else Q[0]
+                d, _, _ = S.closest_points(x[None])
+                if d[0] > boundary_tolerance:
+                    continue
+                R = Q if end == 1 else Q[::-1]
+                R, bend = bend_end(S, R, h, names[ci], "end" if end == 1 else "start")
+                Q = R if end == 1 else R[::-1]
+                if bend is not None:
+                    P_in = merge_close(P0 if end == 1 else P0[::-1], 1e-9 * h, False)
+                    bend.input_angle_deg = end_chord_angle(S, P_in, h)
+                    ends.append(bend)
+        turn_in = float(turning(merge_close(P0, 1e-9 * h, c.closed), 0.5 * h, c.closed).max()) if len(P0) > 2 else 0.0
+        turn_out = float(turning(Q, 0.5 * h, c.closed).max()) if len(Q) > 2 else 0.0
+        disp = hausdorff(P0, Q, 0.05 * h) / h
+        curves.append(Curve(Q, c.sigma, c.role, c.torsion, c.name, c.closed))
+        repairs.append(CurveRepair(pn.source[ci], c.name, len(P0), len(Q), merged, faired, disp, turn_in, turn_out,
+                                   ncorner, ends[::-1], note))
+    out = PreparedNetwork(curves, list(pn.source), list(pn.start_kind), list(pn.end_kind), pn.nodes)
+    return out, repairs
