@@ -15,7 +15,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from solver import Curve, FieldProblem, Network, Options, solve
+from solver import solve
 from solver.analysis.measures import omega_matchings
 from solver.analysis.measures import tet_frames as karcher_tet_frames
 from solver.examples import load_example
@@ -42,8 +42,6 @@ from solver.io.interchange import (
 )
 from solver.io.tetnetwork import (
     chain_edges,
-    network_from_tagged_edges,
-    read_tagged_tet_mesh,
     read_tet_network,
     tag_sigma,
 )
@@ -498,24 +496,18 @@ def test_import_tagged_tet_mesh_and_solve(solved, tmp_path):
         assert np.array_equal(F2, F) and np.array_equal(V2, V)
         assert sorted(c.sigma for c in net2.curves) == sorted(c.sigma for c in net.curves)
         assert len(net2.sharp_edges) == len(net.sharp_edges)
-    # solve on the imported tet mesh (no remeshing).  The raw chains zig-zag
-    # and the validator refuses kinks over 45 degrees; their repair is separate
-    # work, so a few Laplacian steps straighten them here first.
-    tn = network_from_tagged_edges(read_tagged_tet_mesh(path_ovm, "singular_index"))
-    smooth = []
-    for c in tn.network.curves:
-        Q = c.points.copy()
-        for _ in range(10):
-            Q[1:-1] = 0.5 * Q[1:-1] + 0.25 * (Q[:-2] + Q[2:])
-        smooth.append(Curve(Q, sigma=c.sigma))
-    problem = FieldProblem(tn.V, tn.F, Network(curves=smooth, sharp_edges=tn.network.sharp_edges),
-                           Options(edge_length=H, max_iterations=10), mesh=tn.mesh)
-    res = problem.solve()
-    lm = res.report.lm
-    print(f"\nimported network: {len(smooth)} curves on {tn.mesh.n_tets} tets; LM {lm.n_iterations} iterations, "
-          f"{lm.reason}; converged {lm.converged}")
-    assert np.isfinite(lm.final.energy)
-    assert res.frames.shape == (tn.mesh.n_vertices, 3, 3) and np.all(np.isfinite(res.frames))
+    # the chains as read (zig-zag along tet edges, ends where the mesh had them)
+    # solve through the curve intake, and the field winds around them as the
+    # original network's did: omega-matched singular faces exactly on the curves
+    res = solve(V, F, net, edge_length=H)
+    m, lm = res.report.metrics, res.report.lm
+    print(f"\nimported network: {len(net.curves)} curves, {res.mesh.n_tets} tets; LM {lm.n_iterations} iterations, "
+          f"{lm.reason}; converged {lm.converged}; moved up to "
+          f"{max(r.max_displacement_h for r in res.report.repairs):.2f} h")
+    assert lm.converged
+    assert len(res.report.repairs) == len(curves)
+    assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0
+    assert m["normal_adaptation_mean_deg"] < 0.5 and m["tangent_adaptation_mean_deg"] < 1.0
 
 
 def test_cli_exports_every_format_and_refuses_a_bad_one_before_solving(tmp_path, capsys):
