@@ -324,7 +324,8 @@ def test_error_curve_leaves_domain():
     co = np.empty(4 * len(sp.points))
     sp.points.foreach_get("co", co)
     co = co.reshape(-1, 4)
-    co[len(co) // 2, 0] = 2.0  # a bulge through the cylinder wall
+    xy = co[len(co) // 2, :2]
+    co[len(co) // 2, :2] = 2.0 * xy / np.linalg.norm(xy)  # a bulge straight out through the cylinder wall
     sp.points.foreach_set("co", co.ravel())
     _fails("'axial 0' passes outside the solid")
 
