@@ -46,9 +46,12 @@ def run_one(example: str, tets: int) -> dict:
             "lm_iterations": rep.lm.n_iterations, "cg_iterations": rep.lm.cg_iterations,
             "lm_reason": rep.lm.reason, "energy": rep.lm.final.energy, "peak_mb": own, "mesher_peak_mb": child,
             "metrics": rep.metrics, "status": rep.status, "mesher_tets": rep.sizes.get("mesher_tets", 0),
-            "cpu": resource.getrusage(resource.RUSAGE_SELF).ru_utime + resource.getrusage(resource.RUSAGE_SELF).ru_stime,
-            "mesher_cpu": (resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
-                           + resource.getrusage(resource.RUSAGE_CHILDREN).ru_stime)}
+            "cpu": _cpu(resource.RUSAGE_SELF), "mesher_cpu": _cpu(resource.RUSAGE_CHILDREN)}
+
+
+def _cpu(who) -> float:
+    ru = resource.getrusage(who)
+    return ru.ru_utime + ru.ru_stime
 
 
 REAL_SHAPE = ("L-shaped prism (three unit squares, 0.5 thick; 18 sharp edges, one feature curve across the "

@@ -80,9 +80,7 @@ def test_automatic_resolution_keeps_the_budget():
 
 # ----------------------------------------------------------------- grading
 def test_bisection_is_conforming():
-    from solver.examples import icosphere
     from solver.tetmesh import TetMesh
-    from solver.trisurface import TriSurface
 
     # a structured cube mesh (Kuhn subdivision of 3^3 cells)
     g = np.linspace(0, 1, 4)
@@ -96,7 +94,6 @@ def test_bisection_is_conforming():
                 for path in ((0, 4, 6, 7), (0, 4, 5, 7), (0, 1, 5, 7), (0, 1, 3, 7), (0, 2, 3, 7), (0, 2, 6, 7)):
                     T.append([c[p] for p in path])
     mesh = TetMesh(P, np.array(T))
-    del icosphere, TriSurface
     vol = mesh.tet_volumes.sum()
     for _ in range(4):
         mark = np.linalg.norm(mesh.vertices[mesh.tets].mean(axis=1), axis=1) < 0.4
