@@ -8,6 +8,12 @@ solver/io/formats.py), solves, prints the report and writes the result (.npz).
     python -m solver --export-example ball out/   # write ball.obj + ball.json
     python -m solver part.json --export part.vtu --export part.mesh   # ParaView, CubeCover
     python -m solver --tet-network field.ovm --tag-convention valence  # a tagged tet mesh's network
+
+Exit status: 0 solved and converged; 1 bad input or settings (nothing
+written; this includes a mesh past the tet / memory limit, see --max-tets);
+2 usage; 3 solved but not converged (the result is written and the report
+says why: LM stopped at its cap or the structure penalty is above the
+discretisation level); 130 cancelled.
 """
 
 from __future__ import annotations
@@ -23,6 +29,9 @@ from .examples import EXAMPLES, load_example
 from .pipeline import INITS, FieldProblem
 
 TAG_CONVENTIONS = {"index": 1, "negated": -1, "valence": "valence"}
+
+
+EXIT_NOT_CONVERGED = 3
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -48,6 +57,8 @@ def _parser() -> argparse.ArgumentParser:
                    ".ovm (OpenVolumeMesh) or .qtn (AlgoHex); may be repeated")
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
     p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
+    p.add_argument("--max-tets", type=int, help="refuse meshes estimated past this many tets (default 1,000,000, "
+                   "or what fits in 3/4 of the memory); raise it to solve larger meshes on a big machine")
     p.add_argument("--refine", type=int, help="red-refinement levels after fTetWild (default: automatic, 0-2)")
     p.add_argument("--no-snap", action="store_true", help="keep fTetWild's boundary as it is (default: moved "
                    "back onto the input's sharp edges and patches)")
@@ -66,7 +77,7 @@ def _options(args, file_options: dict):
     d = dict(file_options)
     for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets),
                      ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init),
-                     ("refine", args.refine)):
+                     ("refine", args.refine), ("max_tets", args.max_tets)):
         if val is not None:
             d[key] = val
     if args.no_snap:
@@ -185,15 +196,16 @@ def main(argv: list[str] | None = None) -> int:
         if args.check:
             from .network.intake import repairs_text
             from .network.validation import check_input
-
-            checked = check_input(V, F, net, opts.check_intersections, opts.edge_length, True, opts.target_tets)
+            from .pipeline import resolution_plan
             from .surface.corners import corners_text
 
+            checked = check_input(V, F, net, opts.check_intersections, opts.edge_length, True, opts.target_tets)
             for rep in (repairs_text(checked.repairs, checked.scale), corners_text(checked.corners)):
                 if rep:
                     print(rep)
             print(f"input is valid: {len(checked.network.curves)} interior curves, {len(checked.network.nodes)} "
                   f"nodes, {checked.surface.n_components} boundary component(s)")
+            print(f"resolution: {resolution_plan(checked, opts).describe()}")
             return 0
         progress = _progress(args.quiet)
         profiler = None
@@ -221,6 +233,9 @@ def main(argv: list[str] | None = None) -> int:
             data = field_export(result)
             for path in args.export:
                 print("wrote " + ", ".join(io.export_field(result, path, data=data)))
+        if not result.report.converged:
+            print(f"warning: not converged: {result.report.status_reason}", file=sys.stderr)
+            return EXIT_NOT_CONVERGED
         return 0
     except (SymFramesError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)

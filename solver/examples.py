@@ -408,6 +408,55 @@ def genus2_example(slant: float = 25.0):
     return V, F, Network(curves=curves, sharp_angle=30.0)
 
 
+def extruded_cells_surface(cells, height: float = 0.5, n: int = 4):
+    """Closed surface of a prism over a union of unit squares (cells: (i, j)
+    pairs), extruded along z from 0 to height; every unit of the outline is
+    split into n, the height into ceil(n * height) (quads split into two
+    triangles, outward)."""
+    cells = {tuple(c) for c in cells}
+    nz = max(1, int(np.ceil(n * height)))
+    quads = []
+    for i, j in cells:
+        for u in range(n):
+            for v in range(n):
+                x0, y0 = i + u / n, j + v / n
+                x1, y1 = x0 + 1 / n, y0 + 1 / n
+                quads.append([(x0, y0, 0), (x0, y1, 0), (x1, y1, 0), (x1, y0, 0)])  # bottom, normal -z
+                quads.append([(x0, y0, height), (x1, y0, height), (x1, y1, height), (x0, y1, height)])
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            if (i + di, j + dj) in cells:
+                continue
+            for u in range(n):
+                for w in range(nz):
+                    t0, t1 = u / n, (u + 1) / n
+                    z0, z1 = w * height / nz, (w + 1) * height / nz
+                    if di:
+                        x = i + (1 if di > 0 else 0)
+                        a, b = (x, j + t0), (x, j + t1)
+                        if di < 0:
+                            a, b = b, a
+                    else:
+                        y = j + (1 if dj > 0 else 0)
+                        a, b = (i + t1, y), (i + t0, y)
+                        if dj < 0:
+                            a, b = b, a
+                    quads.append([(*a, z0), (*b, z0), (*b, z1), (*a, z1)])
+    Q = np.array(quads, float)
+    V = Q.reshape(-1, 3)
+    idx = np.arange(len(V)).reshape(-1, 4)
+    F = np.vstack([idx[:, [0, 1, 2]], idx[:, [0, 2, 3]]])
+    return merge_vertices(V, F)
+
+
+def l_prism_example(height: float = 0.5):
+    """CAD-like part: an L-shaped prism (three unit squares) with sharp edges
+    everywhere and one feature curve across its thickness in the corner
+    square (bench/run_bench.py's real-shape row)."""
+    V, F = extruded_cells_surface([(0, 0), (1, 0), (0, 1)], height)
+    curve = Curve(_segment((0.5, 0.5, 0.0), (0.5, 0.5, height), 4), sigma=0.0, role="feature", name="corner post")
+    return V, F, Network(curves=[curve], sharp_angle=30.0)
+
+
 EXAMPLES = {
     "cube": cube_example,
     "cylinder": cylinder_example,

@@ -26,6 +26,7 @@ from .field.volume3d import LMReport, VolumeProblem
 from .linalg.rotations import exp_so3
 from .mesh.embed import Embedding, embed_network
 from .mesh.refine import red_refine
+from .mesh.resolution import Plan, check_resolution, plan_resolution, uniform_tets
 from .mesh.snapping import snap_to_features
 from .mesh.tetmesh import TetMesh
 from .mesh.tetwild import tetrahedralize
@@ -53,7 +54,12 @@ class Options:
                      edge_length
     node_radius    : radius of node regions, relative to edge_length
     epsilon        : fTetWild envelope, relative to the bounding-box diagonal
-    target_tets    : tet count aimed at when edge_length is None
+    target_tets    : tet budget when edge_length is None: the mesh is graded
+                     (fine only where the network needs it, resolution.py)
+                     and stays within 1.5x of it whatever the network
+    max_tets       : refuse a solve whose estimated tet count exceeds this;
+                     None: 1,000,000 tets, or fewer if their estimated
+                     memory exceeds 3/4 of this machine's (resolution.py)
     refine         : red refinement levels (refine.py): fTetWild meshes at
                      edge_length * 2**refine and each level splits every tet
                      into eight; None picks 0-2 so that fTetWild's mesh keeps
@@ -77,6 +83,7 @@ class Options:
     check_intersections: bool = True
     refine: int | None = None
     snap_features: bool = True
+    max_tets: int | None = None
 
     def __post_init__(self):
         # types and ranges in one place (checks.py): a bad value is refused
@@ -103,6 +110,8 @@ class Options:
         self.refine = checks.integer("option 'refine'", self.refine, E, low=0, high=3, allow_none=True,
                                      fix="0-3 red-refinement levels, or null/None for automatic")
         self.snap_features = checks.boolean("option 'snap_features'", self.snap_features, E)
+        self.max_tets = checks.integer("option 'max_tets'", self.max_tets, E, low=1, allow_none=True,
+                                       fix="a tet count, or null/None for the default limit (mesh/resolution.py)")
 
 
 @dataclass
@@ -117,6 +126,12 @@ class Report:
     repairs: list = field(default_factory=list)  # intake.CurveRepair per interior curve
     repair_scale: float = 0.0  # the h the curves were repaired at
     corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
+    status: str = ""  # 'converged' or 'not converged' (solution_status)
+    status_reason: str = ""
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
 
     @property
     def total_seconds(self) -> float:
@@ -125,6 +140,15 @@ class Report:
     def summary(self) -> str:
         lines = [f"tets {self.sizes.get('tets', 0):,}  vertices {self.sizes.get('vertices', 0):,}  "
                  f"edges {self.sizes.get('edges', 0):,}  (edge length {self.edge_length:.4g})"]
+        if self.status:
+            lines.insert(0, f"status: {self.status} ({self.status_reason})")
+        if self.sizes.get("graded_tets"):
+            lines.append(f"  graded towards the network: {self.sizes['graded_tets']:,} tets added by bisection, "
+                         f"edges down to {self.sizes['edge_length_min']:.4g}")
+        if self.sizes.get("resolution_floor"):
+            lines.append(f"  the network asked for edges down to {self.sizes['edge_length_needed']:.3g} "
+                         f"(~{self.sizes['needed_tets']:,} tets): held at {self.sizes['resolution_floor']:.3g} to keep "
+                         f"the tet budget; raise target_tets to resolve it")
         if self.sizes.get("refine_levels"):
             lines.append(f"  fTetWild meshed {self.sizes['mesher_tets']:,} tets, refined "
                          f"{self.sizes['refine_levels']}x (each tet into 8)")
@@ -162,7 +186,8 @@ class Report:
         d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
              "edge_length": self.edge_length, "repairs": [asdict(r) for r in self.repairs],
              "repair_scale": self.repair_scale,
-             "corners": [asdict(c) for c in self.corners]}
+             "corners": [asdict(c) for c in self.corners], "status": self.status, "converged": self.converged,
+             "status_reason": self.status_reason}
         if self.lm is not None:
             d["lm"] = {"init": self.lm.init, "converged": self.lm.converged, "reason": self.lm.reason,
                        "iterations": [asdict(it) for it in self.lm.iterations]}
@@ -198,6 +223,33 @@ class _Stages:
 TETS_PER_H3 = 15.0  # fTetWild meshes hold about 15 tets per h^3 of volume
 
 
+# A solve is "converged" when LM met its stopping rule and the structure
+# penalty of Eq. 23 sits at the discretisation level: at most
+# PENALTY_ABS + PENALTY_REL * smoothness.  Calibration (default meshes of
+# the built-in examples): cube 3e-26, cylinder 0.002, ball 0.16, plate
+# ~0.1, against smoothness 0-120; the torus, whose twist the second-order
+# structure equation cannot represent exactly, 13.8 at smoothness 117.6
+# (an exactly integrable twisted field scores 37-65 there, README).  Runs
+# that failed to embed the network (curves without tubes, folded
+# boundaries) ended at 24-2180.
+PENALTY_ABS = 1.0
+PENALTY_REL = 0.25
+
+
+def solution_status(lm: LMReport) -> tuple[str, str]:
+    """('converged' | 'not converged', why) of a Levenberg-Marquardt run."""
+    f = lm.final
+    allowed = PENALTY_ABS + PENALTY_REL * f.smoothness
+    if not lm.converged:
+        return "not converged", f"Levenberg-Marquardt {lm.reason}"
+    if f.penalty > allowed:
+        return "not converged", (f"the structure penalty {f.penalty:.3g} is above the discretisation level "
+                                 f"({PENALTY_ABS:g} + {PENALTY_REL:g} x smoothness {f.smoothness:.3g} = "
+                                 f"{allowed:.3g}): the network is not resolved or the field cannot wind as "
+                                 f"prescribed; try a finer mesh")
+    return "converged", f"{lm.reason}; penalty {f.penalty:.3g} <= {allowed:.3g}"
+
+
 def _volume(checked: CheckedInput) -> float:
     return float(np.sum(np.abs(checked.surface.signed_volumes())))
 
@@ -211,12 +263,31 @@ def length_unit(checked: CheckedInput) -> float:
 
 
 def default_edge_length(checked: CheckedInput, target_tets: int) -> float:
-    """An edge length giving about target_tets tets, reduced to resolve the
-    network."""
-    h = (TETS_PER_H3 * _volume(checked) / target_tets) ** (1.0 / 3.0)
-    if np.isfinite(checked.feature_size):
-        h = min(h, checked.feature_size / 3.0)
-    return float(max(h, 1e-3 * checked.surface.bbox_diagonal))
+    """The automatic bulk edge length for a budget of target_tets tets
+    (resolution.plan_resolution; the mesh is finer near the network where
+    it needs it).  It used to be reduced everywhere to a third of the
+    network's smallest feature, which could mean millions of tets."""
+    return plan_resolution(_volume(checked), checked.surface, checked.network, target_tets).edge_length
+
+
+def resolution_plan(checked: CheckedInput, opts: Options) -> Plan:
+    """The resolution of a solve (resolution.py): a uniform edge length if
+    one is given, else a graded mesh for the tet budget.  Raises
+    resolution.ResolutionError, before any meshing, when it is past the
+    tet / memory limit (Options.max_tets)."""
+    vol = _volume(checked)
+    if opts.edge_length:
+        h = float(opts.edge_length)
+        plan = Plan(edge_length=h, tets=uniform_tets(vol, h))
+        what = f"edge length {h:.4g} over a volume of {vol:.4g}"
+    else:
+        target = int(opts.target_tets)
+        check_resolution(target, opts.max_tets, f"target_tets = {target:,}")
+        plan = plan_resolution(vol, checked.surface, checked.network, target)
+        what = f"target_tets = {target:,}"
+    k = 0 if opts.refine is None else int(opts.refine)
+    check_resolution(plan.tets, opts.max_tets, what, mesher_tets=plan.tets / 8.0**k, volume=vol)
+    return plan
 
 
 class FieldProblem:
@@ -241,15 +312,18 @@ class FieldProblem:
         self.report.repairs = self.checked.repairs
         self.report.repair_scale = self.checked.scale
         self.report.corners = self.checked.corners
-        h = self.options.edge_length or default_edge_length(self.checked, self.options.target_tets)
+        self.plan = self._plan()
+        h = self.plan.edge_length
         self.edge_length = h
         self.report.edge_length = h
         self.network: PreparedNetwork = self.checked.network
         self.hierarchy = []  # refine.Refinement per level, coarse to fine
         if mesh is None:
+            if progress is not None:
+                progress("tetmesh", st.done, f"tetmesh: {self.plan.describe()}")
             mesh = st.run("tetmesh", self._mesh, h, cancel)
         self.mesh = mesh
-        node_r = self._node_radius(h)
+        node_r = self._node_radius(self._node_h(h))
         self.embedding: Embedding = st.run("embed", embed_network, mesh, self.network, node_r)
         self.boundary: BoundaryField = st.run("boundary2d", self._boundary)
         self.constraints: AffineOmega = st.run("constraints", build_constraints, mesh, self.network,
@@ -259,7 +333,15 @@ class FieldProblem:
                              "curves": len(self.network.curves), "nodes": len(self.network.nodes),
                              # kept in mesh.info, so a reused mesh still says how it was made
                              "refine_levels": int(mesh.info.get("refine_levels", 0)),
-                             "mesher_tets": int(mesh.info.get("mesher_tets", mesh.n_tets))}
+                             "mesher_tets": int(mesh.info.get("mesher_tets", mesh.n_tets)),
+                             "estimated_tets": int(round(self.plan.tets))}
+        if mesh.info.get("graded_tets"):
+            self.report.sizes["graded_tets"] = int(mesh.info["graded_tets"])
+            self.report.sizes["edge_length_min"] = float(self.plan.finest)
+        if self.plan.floor > 0:
+            self.report.sizes["resolution_floor"] = self.plan.floor
+            self.report.sizes["edge_length_needed"] = self.plan.need_min
+            self.report.sizes["needed_tets"] = int(round(self.plan.needed_tets))
         flat = mesh.info.get("flat_tets")
         if flat is not None and flat["flat_tets"]:
             self.report.sizes["flat_tets"] = flat["flat_tets"]
@@ -273,6 +355,40 @@ class FieldProblem:
         self._volume = None
 
     # --------------------------------------------------------------- stages
+    def _plan(self) -> Plan:
+        return resolution_plan(self.checked, self.options)
+
+    def _node_h(self, h):
+        """The edge length around the nodes (finer than h on a graded mesh)."""
+        if not self.plan.graded or not self.network.nodes:
+            return h
+        return float(min(h, self.plan.sizing(np.array([nd.position for nd in self.network.nodes])).min()))
+
+    def _grade(self, mesh: TetMesh) -> TetMesh:
+        """Bisect the tets longer than 1.5x the sizing field at their
+        centroid (fTetWild's longest edges are ~1.2 h), pass after pass,
+        keeping within 1.5x the tet budget."""
+        from .mesh.bisection import bisect
+
+        cap = int(1.5 * self.options.target_tets)
+        n0 = mesh.n_tets
+        for _ in range(60):
+            X = mesh.vertices[mesh.tets]
+            longest = np.max(np.linalg.norm(X[:, [0, 0, 0, 1, 1, 2]] - X[:, [1, 2, 3, 2, 3, 3]], axis=2), axis=1)
+            ratio = longest / (1.5 * self.plan.sizing(X.mean(axis=1)))
+            mark = ratio > 1.0
+            if not np.any(mark):
+                break
+            room = (cap - mesh.n_tets) // 3  # a cut tet and its closure: ~3 more tets
+            if room <= 0:
+                break
+            if mark.sum() > room:
+                mark = np.zeros(len(mark), bool)
+                mark[np.argsort(-ratio)[:room]] = True
+            mesh = bisect(mesh, mark, self.checked.surface)
+        mesh.info["graded_tets"] = mesh.n_tets - n0
+        return mesh
+
     def _node_radius(self, h):
         r = self.options.node_radius * h
         nodes = [nd.position for nd in self.network.nodes]
@@ -323,6 +439,8 @@ class FieldProblem:
             ref = red_refine(mesh, self.checked.surface)
             self.hierarchy.append(ref)
             mesh = ref.fine
+        if self.plan.graded:
+            mesh = self._grade(mesh)
         return mesh
 
     def _topology_change(self, mesh: TetMesh) -> str | None:
@@ -497,6 +615,7 @@ class FieldProblem:
                        False, lm_progress, cancel)
         report.stage_seconds["volume3d"] += t_setup
         report.lm = lm
+        report.status, report.status_reason = solution_status(lm)
         omega = self.constraints.omega(x)
         self._last_x, self._root_frame = x, None
         root, E_root = self.default_root(x) if root is None else (root, None)

@@ -1,0 +1,297 @@
+"""How fine the tet mesh is, where, and whether this machine can hold it
+(issues 27d and 28).
+
+Three things, all decided before any heavy work:
+
+* **The estimate.**  fTetWild meshes hold about ``TETS_PER_H3`` = 15 tets per
+  h^3 of volume; a graded mesh adds the integral of 15 (h(x)^-3 - H^-3)
+  over the region where the sizing field h(x) is finer than the bulk edge
+  length H.  Peak memory is the larger of the solver's and fTetWild's:
+  ``SOLVER_KB_PER_TET`` = 18.5 KB per tet plus 100 MB (a linear fit of the
+  benchmark's peaks, bench/RESULTS.md: 383 MB at 18.6k tets, 1,689 MB at
+  97k, 3,557 MB at 195k), and ``MESHER_KB_PER_TET`` = 8.5 KB per tet of
+  fTetWild's own mesh (the 1.5M-tet run of issue 27 peaked at 12.4 GB;
+  fTetWild on a bare cube needs far less, 220 MB for 411k tets).
+* **The guard.**  A solve is refused when the estimate exceeds
+  ``DEFAULT_MAX_TETS`` = 1,000,000 tets or its memory exceeds
+  ``RAM_FRACTION`` = 3/4 of the machine's physical memory (on a 24 GB,
+  2-core machine the two coincide: 1M tets need ~18 GB and take the LM
+  ten minutes or more).  ``Options.max_tets`` (CLI ``--max-tets``) replaces
+  both limits with an explicit tet count.
+* **The budget and the grading.**  With the edge length automatic, the
+  mesh aims at ``Options.target_tets`` tets whatever the network: the bulk
+  gets the edge length H that the budget leaves once the network's needs
+  are paid for, and the sizing field
+  h(x) = min(H, min_i (h_i + GRADING |x - p_i|)) is fine only near
+  network sample points p_i that need it: h_i = (local feature size) / 3,
+  where the local feature size is the length of a curve between nodes,
+  the distance of a curve to another or to the surface (as in
+  validation.network_feature_size, but per point).  When the network's
+  needs alone exceed the budget, h_i are floored (the report says so and
+  by how much the budget would have to grow).  bisection.py refines the
+  bulk mesh to this field after meshing.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import MeshingError
+from ..network.network import PreparedNetwork
+from ..surface.trisurface import TriSurface
+
+TETS_PER_H3 = 15.0
+SOLVER_KB_PER_TET = 18.5
+SOLVER_BASE_MB = 100.0
+MESHER_KB_PER_TET = 8.5
+DEFAULT_MAX_TETS = 1_000_000
+RAM_FRACTION = 0.75
+GRADING = 0.5  # growth of the sizing field per unit distance
+BULK_SHARE_MIN = 0.5  # the bulk keeps at least half of the budget's tets
+# bisected tets are less regular than fTetWild's: grading a ball's mesh
+# from 0.2 down to a point of 0.02 (bisection.py, longest edges <= 1.5 h)
+# added 1,925 tets where the integral of 15 (h^-3 - H^-3) says 1,160
+GRADED_FACTOR = 1.7
+
+
+class ResolutionError(MeshingError):
+    """The requested resolution would need more tets or memory than allowed."""
+
+
+def physical_memory_mb() -> float:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**20
+    except (ValueError, OSError, AttributeError):
+        return 16384.0
+
+
+def memory_mb(tets: float, mesher_tets: float | None = None) -> float:
+    """Estimated peak memory (MB) of a solve with this many tets, fTetWild
+    having meshed mesher_tets of them (default: all)."""
+    mesher = tets if mesher_tets is None else mesher_tets
+    return max(SOLVER_BASE_MB + SOLVER_KB_PER_TET * tets / 1024.0, SOLVER_BASE_MB + MESHER_KB_PER_TET * mesher / 1024.0)
+
+
+def uniform_tets(volume: float, h: float) -> float:
+    return TETS_PER_H3 * volume / h**3
+
+
+@dataclass
+class Plan:
+    """The resolution of a solve, decided before meshing.
+
+    edge_length : bulk edge length H
+    tets        : estimated tet count (bulk + graded)
+    graded_tets : the part of it due to the grading
+    sources     : (n, 3) network points where the mesh is finer, sizes (n,)
+                  their edge lengths (after the floor); empty when uniform
+    floor       : edge length below which the network's needs were not
+                  met to keep the budget (0: all met)
+    needed_tets : the estimate had every need been met (== tets if floor 0)
+    """
+
+    edge_length: float
+    tets: float
+    graded_tets: float = 0.0
+    sources: np.ndarray | None = None
+    sizes: np.ndarray | None = None
+    floor: float = 0.0
+    needed_tets: float = 0.0
+    finest: float = 0.0
+    need_min: float = 0.0
+
+    @property
+    def graded(self) -> bool:
+        return self.sizes is not None and len(self.sizes) > 0
+
+    def sizing(self, X: np.ndarray) -> np.ndarray:
+        """Edge length h(x) wanted at points X (n, 3)."""
+        return sizing_field(X, self.sources, self.sizes, self.edge_length)
+
+    def describe(self) -> str:
+        s = f"edge length {self.edge_length:.4g}"
+        if self.graded:
+            s += f" in the bulk, down to {self.finest:.4g} near the network"
+        s += f"; expected ~{self.tets:,.0f} tets, ~{memory_mb(self.tets):,.0f} MB"
+        if self.floor > 0:
+            s += (f" (the network asks for edges down to {self.need_min:.3g}, ~{self.needed_tets:,.0f} "
+                  f"tets: held at {self.floor:.3g} to keep the budget)")
+        return s
+
+
+def sizing_field(X, sources, sizes, H, k: int = 24) -> np.ndarray:
+    X = np.asarray(X, float)
+    out = np.full(len(X), float(H))
+    if sources is None or len(sources) == 0:
+        return out
+    tree = cKDTree(sources)
+    d, j = tree.query(X, k=min(k, len(sources)))
+    if d.ndim == 1:
+        d, j = d[:, None], j[:, None]
+    return np.minimum(out, np.min(sizes[j] + GRADING * d, axis=1))
+
+
+# ----------------------------------------------------------- network needs
+def network_needs(S: TriSurface, pn: PreparedNetwork) -> tuple[np.ndarray, np.ndarray]:
+    """Points along the network and the local feature size at each (inf
+    where nothing is close): the per-point version of
+    validation.network_feature_size.  The edge length wanted there is a
+    third of it (as the uniform default had for the smallest)."""
+    diag = S.bbox_diagonal
+    dense = []
+    for ci, c in enumerate(pn.curves):
+        P = c.points
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        L = float(seg.sum())
+        n = max(8, int(np.ceil(L / (0.005 * diag))) + 1)
+        s = np.linspace(0.0, 1.0, n)
+        cum = np.r_[0.0, np.cumsum(seg)] / L
+        X = np.stack([np.interp(s, cum, P[:, k]) for k in range(3)], axis=1)
+        need = np.full(n, np.inf)
+        if "node" in (pn.start_kind[ci], pn.end_kind[ci]):
+            need[:] = L if pn.start_kind[ci] == pn.end_kind[ci] else 2.0 * L
+        dense.append([ci, X, s * L, L, need])
+    for ci, X, s, L, need in dense:
+        to_end = np.full(len(X), np.inf)
+        if pn.start_kind[ci] == "boundary":
+            to_end = np.minimum(to_end, s)
+        if pn.end_kind[ci] == "boundary":
+            to_end = np.minimum(to_end, L - s)
+        keep = to_end > 0.1 * L
+        if np.any(keep):
+            d, _, _ = S.closest_points(X[keep])
+            close = d < 0.5 * to_end[keep]
+            idx = np.nonzero(keep)[0][close]
+            need[idx] = np.minimum(need[idx], d[close])
+    node_pts = np.array([nd.position for nd in pn.nodes]).reshape(-1, 3)
+    for a in range(len(dense)):
+        for b in range(a + 1, len(dense)):
+            Xa, Xb = dense[a][1], dense[b][1]
+            for (A, B, needA) in ((Xa, Xb, dense[a][4]), (Xb, Xa, dense[b][4])):
+                d, _ = cKDTree(B).query(A)
+                ok = np.ones(len(A), bool)
+                for p in node_pts:
+                    ok &= d < 0.5 * np.linalg.norm(A - p, axis=1)
+                needA[ok] = np.minimum(needA[ok], d[ok])
+    if not dense:
+        return np.zeros((0, 3)), np.zeros(0)
+    return np.vstack([x[1] for x in dense]), np.concatenate([x[4] for x in dense])
+
+
+# ------------------------------------------------------------------ budget
+_UNIT_BALL = None
+
+
+def _unit_ball(n: int = 4000) -> np.ndarray:
+    global _UNIT_BALL
+    if _UNIT_BALL is None or len(_UNIT_BALL) != n:
+        rng = np.random.default_rng(12345)
+        u = rng.normal(size=(n, 3))
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        _UNIT_BALL = (u * rng.uniform(0, 1, n)[:, None] ** (1.0 / 3.0), rng.uniform(0, 1, n))
+    return _UNIT_BALL
+
+
+def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float) -> float:
+    """Monte Carlo estimate of the tets the sizing field adds to a uniform
+    mesh at H: the integral of 15 (h^-3 - H^-3) over the union of the balls
+    where h < H (each sample weighted by 1 / the number of balls holding it,
+    so overlaps count once; the part outside the solid is counted too, so
+    the estimate errs high)."""
+    sel = sizes < H
+    if not np.any(sel):
+        return 0.0
+    P, h = sources[sel], sizes[sel]
+    R = (H - h) / GRADING
+    vol = 4.0 / 3.0 * np.pi * R**3
+    U, w = _unit_ball()
+    cdf = np.cumsum(vol) / vol.sum()
+    pick = np.minimum(np.searchsorted(cdf, w), len(P) - 1)
+    X = P[pick] + R[pick, None] * U
+    pairs = cKDTree(X).sparse_distance_matrix(cKDTree(P), R.max(), output_type="coo_matrix")
+    row, flat, d = pairs.row, pairs.col, pairs.data
+    inside = d < R[flat]
+    c = np.bincount(row[inside], minlength=len(X)).astype(float)
+    hx = np.full(len(X), H)
+    np.minimum.at(hx, row[inside], h[flat[inside]] + GRADING * d[inside])
+    f = TETS_PER_H3 * (hx**-3 - H**-3)
+    return float(GRADED_FACTOR * vol.sum() / len(X) * np.sum(f / np.maximum(c, 1.0)))
+
+
+def plan_resolution(volume: float, S: TriSurface, pn: PreparedNetwork, target_tets: int,
+                    graded: bool = True) -> Plan:
+    """The automatic resolution: a bulk edge length and a sizing field whose
+    estimated tet count is target_tets (module docstring)."""
+    H0 = (TETS_PER_H3 * volume / target_tets) ** (1.0 / 3.0)
+    pts, need = network_needs(S, pn) if graded else (np.zeros((0, 3)), np.zeros(0))
+    h = need / 3.0
+    sel = h < H0
+    if not np.any(sel):
+        return Plan(edge_length=H0, tets=uniform_tets(volume, H0))
+    pts, h = pts[sel], h[sel]
+    need_min = float(h.min())
+    total = lambda H, hh: uniform_tets(volume, H) + graded_extra_tets(pts, hh, H)  # noqa: E731
+    H_max = H0 / BULK_SHARE_MIN ** (1.0 / 3.0)
+    needed = total(H0, h)
+    floor = 0.0
+    if total(H_max, h) <= target_tets:
+        lo, hi = H0, H_max
+        for _ in range(8):
+            mid = np.sqrt(lo * hi)
+            lo, hi = (mid, hi) if total(mid, h) > target_tets else (lo, mid)
+        H = hi
+    else:
+        # the network's needs alone exceed what the budget leaves: floor them
+        H = H_max
+        lo, hi = need_min, H
+        for _ in range(14):
+            mid = np.sqrt(lo * hi)
+            lo, hi = (mid, hi) if total(H, np.maximum(h, mid)) > target_tets else (lo, mid)
+        floor = hi
+    hh = np.maximum(h, floor)
+    extra = graded_extra_tets(pts, hh, H)
+    p = Plan(edge_length=float(H), tets=uniform_tets(volume, H) + extra, graded_tets=extra, sources=pts,
+             sizes=hh, floor=float(floor), needed_tets=float(needed), finest=float(hh.min()), need_min=need_min)
+    return p
+
+
+# ------------------------------------------------------------------- guard
+def tet_limit(max_tets: int | None) -> tuple[int, str]:
+    """The tet count past which a solve is refused, and why that number."""
+    if max_tets is not None:
+        return int(max_tets), f"max_tets = {int(max_tets):,}"
+    ram = physical_memory_mb()
+    fits = int((RAM_FRACTION * ram - SOLVER_BASE_MB) * 1024.0 / SOLVER_KB_PER_TET)
+    if fits < DEFAULT_MAX_TETS:
+        return fits, (f"{fits:,} tets, what fits in {RAM_FRACTION:.0%} of this machine's {ram / 1024:.0f} GB of "
+                      f"memory")
+    return DEFAULT_MAX_TETS, f"the default limit of {DEFAULT_MAX_TETS:,} tets"
+
+
+def refusal(tets: float, max_tets: int | None, what: str, mesher_tets: float | None = None,
+            volume: float | None = None) -> str | None:
+    """The message refusing a solve of ~tets tets, or None if it is allowed.
+
+    what   : how the size came about (the edge length, the budget)
+    volume : the solid's, to suggest the smallest edge length allowed"""
+    limit, why = tet_limit(max_tets)
+    hint = f" (at least {(TETS_PER_H3 * volume / limit) ** (1 / 3):.3g})" if volume else ""
+    if not np.isfinite(tets) or tets > limit:
+        gb = memory_mb(tets, mesher_tets) / 1024.0
+        mem_s = (f"{gb:.1f} GB" if gb < 10 else f"{gb:,.0f} GB" if gb < 1e6 else f"{gb:.2g} GB") if np.isfinite(gb) \
+            else "unbounded memory"
+        return (f"the tet mesh would have ~{tets:,.3g} tets ({what}) and need ~{mem_s} of memory, past {why}. "
+                f"Use a larger edge length{hint} or a smaller target_tets, or, on a machine that can hold it, "
+                f"raise the limit: Options(max_tets=N) (command line: --max-tets N).")
+    return None
+
+
+def check_resolution(tets: float, max_tets: int | None, what: str, mesher_tets: float | None = None,
+                     volume: float | None = None) -> None:
+    msg = refusal(tets, max_tets, what, mesher_tets, volume)
+    if msg is not None:
+        raise ResolutionError(msg)
