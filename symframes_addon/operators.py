@@ -109,8 +109,9 @@ def finish_job(scene, j: job.SolveJob) -> tuple[str, str]:
     if not r.get("converged", True):
         # written all the same (it may help to see where it fails), but said
         # plainly: an unconverged field can be far from the minimiser
-        warnings.append(f"the solve did not converge ({r.get('lm_reason', '')}), so the field may be wrong: "
-                        "try a smaller edge length or more iterations")
+        warnings.append(f"not converged ({r.get('status_reason') or r.get('lm_reason', '')}), so the field may be "
+                        "wrong: check the network's validity (Check Network), then try a finer resolution near "
+                        "its short curves (a smaller Edge Length or more Tets) or more iterations")
     if j.outcome.streamlines is not None and not j.outcome.streamlines[0]:
         warnings.append("no streamline could be traced")
     return ("WARNING", "; ".join([msg] + warnings)) if warnings else ("INFO", msg)

@@ -192,6 +192,13 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
         col.label(text=f"Edge length {r.get('edge_length', 0):.3g}" + ("" if r.get("remeshed", True)
                                                                        else "  (mesh reused)"))
         col.label(text=f"Iterations {r.get('iterations', 0)}   time {r.get('seconds', 0):.1f} s")
+        if not r.get("converged", True):
+            col.label(text="Not converged: see the status bar's advice", icon="ERROR")
+        moved = [c for c in r.get("repairs", []) if c.get("max_displacement_h", 0) > 0]
+        if moved:
+            worst = max(moved, key=lambda c: c["max_displacement_h"])
+            col.label(text=f"{len(moved)} curve(s) repaired, up to {worst['max_displacement_h']:.2f} h "
+                           f"('{worst['name']}')", icon="INFO")
         col = layout.column(align=True)
         col.label(text="Integrability (monodromy)")
         col.label(text=f"   mean {m.get('monodromy_mean_deg', 0):.3g}°   max {m.get('monodromy_max_deg', 0):.3g}°")
