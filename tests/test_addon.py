@@ -317,6 +317,14 @@ def test_error_curve_outside_domain():
     _fails("'axial 0'")
 
 
+def test_error_resolution_past_the_limit():
+    """The Edge Length slider's minimum on the cube asks for ~1e11 tets: refused
+    before meshing, naming the estimate and the override, the scene unchanged."""
+    s = add_example("cube", 1e-4)
+    s.auto_resolution = False
+    _fails(r"would have ~.* tets .*larger edge length")
+
+
 def test_error_curve_leaves_domain():
     add_example("cylinder")
     obj = bpy.data.objects["axial 0"]
