@@ -188,7 +188,7 @@ def main(argv=None) -> int:
 
 
 def _real_shape_report(rows, failed, write) -> int:
-    from solver.parallel import threads
+    from solver.linalg.parallel import threads
 
     text = f"{REAL_SHAPE}:\n\n" + real_shape_table(rows)
     for _, err in failed:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from solver.validation import check_input
 
 from solver import Curve, FieldProblem, Network, Options, solve
 from solver.__main__ import EXIT_NOT_CONVERGED
@@ -13,6 +12,7 @@ from solver.__main__ import main as cli_main
 from solver.examples import ball_example, box, cube_example
 from solver.mesh.bisection import bisect
 from solver.mesh.resolution import ResolutionError, refusal, tet_limit
+from solver.network.validation import check_input
 from solver.pipeline import resolution_plan
 
 
