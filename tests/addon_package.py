@@ -1,9 +1,13 @@
 """The repository's add-on, imported as the package ``symframes`` (as Blender
-imports an installed extension: its modules use relative imports)."""
+imports an installed extension: its modules use relative imports), and the
+fixtures every add-on test module uses: import them by name."""
 
 import importlib.util
 import os
 import sys
+
+import bpy
+import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = "symframes"
@@ -18,3 +22,19 @@ def load_addon():
         sys.modules[PACKAGE] = mod
         spec.loader.exec_module(mod)
     return sys.modules[PACKAGE]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def registered():
+    """The add-on registered for the test module that imports this fixture."""
+    addon = load_addon()
+    addon.register()
+    yield
+    addon.unregister()
+
+
+@pytest.fixture(autouse=True)
+def empty_scene(registered):
+    """Every test starts from an empty factory scene."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    yield

@@ -21,6 +21,7 @@ import bpy
 import numpy as np
 import pytest
 
+from tests import addon_package
 from tests.addon_package import load_addon
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -53,21 +54,11 @@ from symframes.symframes_addon import (  # noqa: E402
     streamline_curves,
 )
 
+registered = addon_package.registered  # fixtures shared by the add-on tests
+empty_scene = addon_package.empty_scene
+
 
 # ------------------------------------------------------------------ helpers
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    addon.register()
-    yield
-    addon.unregister()
-
-
-@pytest.fixture(autouse=True)
-def empty_scene(registered):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    yield
-
-
 def scene():
     return bpy.context.scene
 

@@ -17,8 +17,9 @@ import pytest
 
 # the add-on is loaded as the package 'symframes' by tests.test_addon, so it comes first
 # isort: off
+from tests import addon_package
 from tests.meshes import box_mesh
-from tests.test_addon import add_example, addon, open_blend
+from tests.test_addon import add_example, open_blend
 
 from symframes.solver import Curve, Network  # noqa: E402
 from symframes.solver.io import write_network, write_obj  # noqa: E402
@@ -28,18 +29,8 @@ from symframes.symframes_addon import menus, storage  # noqa: E402
 
 # isort: on
 
-
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    addon.register()
-    yield
-    addon.unregister()
-
-
-@pytest.fixture(autouse=True)
-def empty_scene(registered):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    yield
+registered = addon_package.registered  # fixtures shared by the add-on tests
+empty_scene = addon_package.empty_scene
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,7 @@ import bpy
 import numpy as np
 import pytest
 
+from tests import addon_package
 from tests.addon_package import load_addon
 
 addon = load_addon()
@@ -33,21 +34,11 @@ from symframes.symframes_addon import (  # noqa: E402
     storage,
 )
 
+registered = addon_package.registered  # fixtures shared by the add-on tests
+empty_scene = addon_package.empty_scene
+
 DEFAULT_DIFFUSE = tuple(bpy.types.Material.bl_rna.properties["diffuse_color"].default_array)
 BLENDER_MENUS = ("VIEW3D_MT_object", "VIEW3D_MT_add", "TOPBAR_MT_file_import", "TOPBAR_MT_file_export")
-
-
-@pytest.fixture(scope="module", autouse=True)
-def registered():
-    addon.register()
-    yield
-    addon.unregister()
-
-
-@pytest.fixture(autouse=True)
-def empty_scene(registered):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    yield
 
 
 def scene():

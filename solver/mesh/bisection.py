@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..surface.trisurface import TriSurface
+from .refine import project_onto_surface
 from .tetmesh import TET_EDGES, TetMesh
 
 
@@ -124,18 +125,4 @@ def _project(P, T, nv0, smooth, surface, min_ratio):
     ids = ends[ends >= nv0]
     if len(ids) == 0:
         return P
-    _, _, q = surface.closest_points(P[ids])
-    vol0 = TetMesh._signed_volumes(P, T)
-    Pn = P.copy()
-    Pn[ids] = q
-    moved = np.zeros(len(P), bool)
-    moved[ids] = True
-    for _ in range(5):
-        bad = (TetMesh._signed_volumes(Pn, T) * np.sign(vol0) < min_ratio * np.abs(vol0)) & moved[T].any(axis=1)
-        if not np.any(bad):
-            break
-        undo = np.unique(T[bad])
-        undo = undo[moved[undo]]
-        Pn[undo] = P[undo]
-        moved[undo] = False
-    return Pn
+    return project_onto_surface(P, T, ids, surface, min_ratio)

@@ -128,22 +128,28 @@ def _project_boundary_midpoints(coarse, Pf, Tf, surface, crease_deg, min_ratio):
     mids = len(coarse.vertices) + coarse.edge_index(be[:, 0], be[:, 1])
     if len(mids) == 0:
         return Pf
-    _, _, q = surface.closest_points(Pf[mids])
-    # the child tets are not oriented yet (TetMesh flips them): compare
-    # signed volumes after the move with those before
-    vol0 = TetMesh._signed_volumes(Pf, Tf)
-    Pn = Pf.copy()
-    Pn[mids] = q
-    moved = np.zeros(len(Pf), bool)
-    moved[mids] = True
+    return project_onto_surface(Pf, Tf, mids, surface, min_ratio)
+
+
+def project_onto_surface(P: np.ndarray, T: np.ndarray, ids: np.ndarray, surface: TriSurface,
+                         min_ratio: float) -> np.ndarray:
+    """P with the vertices ids moved onto their closest points of surface,
+    undoing moves that would leave a tet of T below min_ratio of its signed
+    volume (T need not be oriented: volumes are compared before and after)."""
+    _, _, q = surface.closest_points(P[ids])
+    vol0 = TetMesh._signed_volumes(P, T)
+    Pn = P.copy()
+    Pn[ids] = q
+    moved = np.zeros(len(P), bool)
+    moved[ids] = True
     for _ in range(5):
-        bad_t = TetMesh._signed_volumes(Pn, Tf) * np.sign(vol0) < min_ratio * np.abs(vol0)
-        bad_t &= moved[Tf].any(axis=1)
-        if not np.any(bad_t):
+        bad = TetMesh._signed_volumes(Pn, T) * np.sign(vol0) < min_ratio * np.abs(vol0)
+        bad &= moved[T].any(axis=1)
+        if not np.any(bad):
             break
-        undo = np.unique(Tf[bad_t])
+        undo = np.unique(T[bad])
         undo = undo[moved[undo]]
-        Pn[undo] = Pf[undo]
+        Pn[undo] = P[undo]
         moved[undo] = False
     return Pn
 
