@@ -26,7 +26,7 @@ Three things, all decided before any heavy work:
   network sample points p_i that need it: h_i = (local feature size) / 3,
   where the local feature size is the length of a curve between nodes,
   the distance of a curve to another or to the surface (as in
-  validation.network_feature_size, but per point).  When the network's
+  network.validation.network_needs).  When the network's
   needs alone exceed the budget, h_i are floored (the report says so and
   by how much the budget would have to grow).  bisection.py refines the
   bulk mesh to this field after meshing.
@@ -42,6 +42,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import MeshingError
 from ..network.network import PreparedNetwork
+from ..network.validation import network_needs
 from ..surface.trisurface import TriSurface
 
 TETS_PER_H3 = 15.0
@@ -133,53 +134,6 @@ def sizing_field(X, sources, sizes, H, k: int = 24) -> np.ndarray:
     if d.ndim == 1:
         d, j = d[:, None], j[:, None]
     return np.minimum(out, np.min(sizes[j] + GRADING * d, axis=1))
-
-
-# ----------------------------------------------------------- network needs
-def network_needs(S: TriSurface, pn: PreparedNetwork) -> tuple[np.ndarray, np.ndarray]:
-    """Points along the network and the local feature size at each (inf
-    where nothing is close): the per-point version of
-    validation.network_feature_size.  The edge length wanted there is a
-    third of it (as the uniform default had for the smallest)."""
-    diag = S.bbox_diagonal
-    dense = []
-    for ci, c in enumerate(pn.curves):
-        P = c.points
-        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
-        L = float(seg.sum())
-        n = max(8, int(np.ceil(L / (0.005 * diag))) + 1)
-        s = np.linspace(0.0, 1.0, n)
-        cum = np.r_[0.0, np.cumsum(seg)] / L
-        X = np.stack([np.interp(s, cum, P[:, k]) for k in range(3)], axis=1)
-        need = np.full(n, np.inf)
-        if "node" in (pn.start_kind[ci], pn.end_kind[ci]):
-            need[:] = L if pn.start_kind[ci] == pn.end_kind[ci] else 2.0 * L
-        dense.append([ci, X, s * L, L, need])
-    for ci, X, s, L, need in dense:
-        to_end = np.full(len(X), np.inf)
-        if pn.start_kind[ci] == "boundary":
-            to_end = np.minimum(to_end, s)
-        if pn.end_kind[ci] == "boundary":
-            to_end = np.minimum(to_end, L - s)
-        keep = to_end > 0.1 * L
-        if np.any(keep):
-            d, _, _ = S.closest_points(X[keep])
-            close = d < 0.5 * to_end[keep]
-            idx = np.nonzero(keep)[0][close]
-            need[idx] = np.minimum(need[idx], d[close])
-    node_pts = np.array([nd.position for nd in pn.nodes]).reshape(-1, 3)
-    for a in range(len(dense)):
-        for b in range(a + 1, len(dense)):
-            Xa, Xb = dense[a][1], dense[b][1]
-            for (A, B, needA) in ((Xa, Xb, dense[a][4]), (Xb, Xa, dense[b][4])):
-                d, _ = cKDTree(B).query(A)
-                ok = np.ones(len(A), bool)
-                for p in node_pts:
-                    ok &= d < 0.5 * np.linalg.norm(A - p, axis=1)
-                needA[ok] = np.minimum(needA[ok], d[ok])
-    if not dense:
-        return np.zeros((0, 3)), np.zeros(0)
-    return np.vstack([x[1] for x in dense]), np.concatenate([x[4] for x in dense])
 
 
 # ------------------------------------------------------------------ budget

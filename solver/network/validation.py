@@ -371,24 +371,31 @@ def _segment_distance(A, B):
 def network_feature_size(S: TriSurface, pn: PreparedNetwork) -> float:
     """The smallest length the mesh must resolve: distances between curves
     away from shared nodes, from curves to the boundary away from their ends,
-    and the length of curves between nodes."""
-    sizes = [np.inf]
+    and the length of curves between nodes (inf for no curve)."""
+    _, need = network_needs(S, pn)
+    return float(need.min()) if len(need) else float("inf")
+
+
+def network_needs(S: TriSurface, pn: PreparedNetwork) -> tuple[np.ndarray, np.ndarray]:
+    """Points along the network and the local feature size at each (inf
+    where nothing is close): network_feature_size is their
+    smallest, and mesh/resolution.py grades the mesh by them.  The edge length wanted there is a
+    third of it (as the uniform default had for the smallest)."""
+    diag = S.bbox_diagonal
     dense = []
     for ci, c in enumerate(pn.curves):
         P = c.points
-        L = np.linalg.norm(np.diff(P, axis=0), axis=1).sum()
-        if "node" in (pn.start_kind[ci], pn.end_kind[ci]):
-            # a node region must fit on the curve with room to spare
-            sizes.append(L if pn.start_kind[ci] == pn.end_kind[ci] else 2.0 * L)
-        n = max(2, int(np.ceil(L / (0.01 * S.bbox_diagonal))))
-        s = np.linspace(0, 1, n)
-        cum = np.r_[0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))] / L
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        L = float(seg.sum())
+        n = max(8, int(np.ceil(L / (0.005 * diag))) + 1)
+        s = np.linspace(0.0, 1.0, n)
+        cum = np.r_[0.0, np.cumsum(seg)] / L
         X = np.stack([np.interp(s, cum, P[:, k]) for k in range(3)], axis=1)
-        dense.append((ci, X, s * L, L))
-    for ci, X, s, L in dense:
-        # arc length to the nearest end on the boundary: a curve meeting the
-        # surface along its normal is that far from it, which needs no
-        # resolution; only coming closer than half of it does
+        need = np.full(n, np.inf)
+        if "node" in (pn.start_kind[ci], pn.end_kind[ci]):
+            need[:] = L if pn.start_kind[ci] == pn.end_kind[ci] else 2.0 * L
+        dense.append([ci, X, s * L, L, need])
+    for ci, X, s, L, need in dense:
         to_end = np.full(len(X), np.inf)
         if pn.start_kind[ci] == "boundary":
             to_end = np.minimum(to_end, s)
@@ -398,20 +405,18 @@ def network_feature_size(S: TriSurface, pn: PreparedNetwork) -> float:
         if np.any(keep):
             d, _, _ = S.closest_points(X[keep])
             close = d < 0.5 * to_end[keep]
-            if np.any(close):
-                sizes.append(d[close].min())
-    node_pts = [nd.position for nd in pn.nodes]
+            idx = np.nonzero(keep)[0][close]
+            need[idx] = np.minimum(need[idx], d[close])
+    node_pts = np.array([nd.position for nd in pn.nodes]).reshape(-1, 3)
     for a in range(len(dense)):
         for b in range(a + 1, len(dense)):
-            ca, Xa, _, _ = dense[a]
-            cb, Xb, _, _ = dense[b]
-            d, ia = cKDTree(Xb).query(Xa)
-            ok = np.ones(len(Xa), bool)
-            for p in node_pts:
-                # curves leaving a node approach each other in proportion to
-                # the distance to it, which needs no resolution; only coming
-                # closer than half of it does
-                ok &= d < 0.5 * np.linalg.norm(Xa - p, axis=1)
-            if np.any(ok):
-                sizes.append(d[ok].min())
-    return float(min(sizes))
+            Xa, Xb = dense[a][1], dense[b][1]
+            for (A, B, needA) in ((Xa, Xb, dense[a][4]), (Xb, Xa, dense[b][4])):
+                d, _ = cKDTree(B).query(A)
+                ok = np.ones(len(A), bool)
+                for p in node_pts:
+                    ok &= d < 0.5 * np.linalg.norm(A - p, axis=1)
+                needA[ok] = np.minimum(needA[ok], d[ok])
+    if not dense:
+        return np.zeros((0, 3)), np.zeros(0)
+    return np.vstack([x[1] for x in dense]), np.concatenate([x[4] for x in dense])
