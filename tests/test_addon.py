@@ -383,9 +383,10 @@ def test_threaded_solve_then_finish():
     assert storage.stored_report(scene())["remeshed"] is True
     # a solve that stopped without converging is written, but reported as a warning
     assert j.outcome.report["converged"] is True
-    j.outcome.report.update(converged=False, lm_reason="stopped after 30 iterations")
+    j.outcome.report.update(converged=False, status_reason="Levenberg-Marquardt stopped after 30 iterations")
     level, msg = operators.finish_job(scene(), j)
-    assert level == "WARNING" and "did not converge (stopped after 30 iterations)" in msg
+    assert level == "WARNING" and "not converged (Levenberg-Marquardt stopped after 30 iterations)" in msg
+    assert "Check Network" in msg and "Edge Length" in msg  # what to try
 
 
 # ------------------------------------------------------------------ results
