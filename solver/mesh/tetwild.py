@@ -75,14 +75,53 @@ def tetrahedralize(
 # angles no worse), the torus at h = 0.1 33k tets in 141 s against 31k in 21 s.
 TETWILD_PASSES = 10
 
+# The fTetWild bindings the worker runs: pytetwild (wheels for Linux x64 and
+# Windows x64) or, where it has no wheel, wildmeshing (macOS arm64 and x64).
+# Both are fTetWild and get the same parameters; SYMFRAMES_MESHER=pytetwild
+# or =wildmeshing forces one (tests run both).
+MESHERS = ("pytetwild", "wildmeshing")
+
 _TETWILD_WORKER = r"""
-import sys, numpy as np, pytetwild
+import os, sys, numpy as np
 z = np.load(sys.argv[1])
-P, T = pytetwild.tetrahedralize(z["V"], z["F"].astype(np.int32), edge_length_abs=float(z["h"]),
-                                epsilon=float(z["eps"]), optimize=True, disable_filtering=True, quiet=True,
-                                num_opt_iter=int(z["passes"]))
+V, F = z["V"], z["F"].astype(np.int32)
+h, eps, passes = float(z["h"]), float(z["eps"]), int(z["passes"])
+forced = os.environ.get("SYMFRAMES_MESHER", "")
+try:
+    if forced == "wildmeshing":
+        raise ImportError("SYMFRAMES_MESHER=wildmeshing")
+    import pytetwild
+except ImportError:
+    if forced == "pytetwild":
+        raise
+    import wildmeshing
+    # the same fTetWild run: relative edge length, envelope, passes, no
+    # coarsening, and all tets kept (all_mesh: the unfiltered background mesh)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    t = wildmeshing.Tetrahedralizer(stop_quality=10.0, max_its=passes, epsilon=eps, edge_length_r=h / diag,
+                                    coarsen=False)
+    t.set_log_level(6)
+    t.set_mesh(V, F)
+    t.tetrahedralize()
+    P, T = t.get_tet_mesh(all_mesh=True)[:2]
+else:
+    P, T = pytetwild.tetrahedralize(V, F, edge_length_abs=h, epsilon=eps, optimize=True, disable_filtering=True,
+                                    quiet=True, num_opt_iter=passes)
 np.savez(sys.argv[2], P=np.asarray(P), T=np.asarray(T))
 """
+
+
+def mesher_name() -> str:
+    """The fTetWild bindings the worker will use here ('pytetwild' or
+    'wildmeshing'), honouring SYMFRAMES_MESHER; '' when neither imports."""
+    import importlib.util
+    import os
+
+    forced = os.environ.get("SYMFRAMES_MESHER", "")
+    for name in ([forced] if forced in MESHERS else MESHERS):
+        if importlib.util.find_spec(name) is not None:
+            return name
+    return ""
 
 
 def run_tetwild(V, F, edge_length, epsilon, cancel=None):
