@@ -76,7 +76,8 @@ def tetrahedralize(
 TETWILD_PASSES = 10
 
 # The fTetWild bindings the worker runs: pytetwild (wheels for Linux x64 and
-# Windows x64) or, where it has no wheel, wildmeshing (macOS arm64 and x64).
+# Windows x64; from 0.4.2 also Linux arm64) or, where it has no wheel,
+# wildmeshing (macOS arm64 and x64).
 # Both are fTetWild and get the same parameters; SYMFRAMES_MESHER=pytetwild
 # or =wildmeshing forces one (tests run both).
 MESHERS = ("pytetwild", "wildmeshing")
@@ -90,6 +91,12 @@ forced = os.environ.get("SYMFRAMES_MESHER", "")
 try:
     if forced == "wildmeshing":
         raise ImportError("SYMFRAMES_MESHER=wildmeshing")
+    import importlib.util, types
+    if importlib.util.find_spec("pyvista") is None:
+        # pytetwild >= 0.3 (0.4.2: the linux-arm64 wheels) imports pyvista at
+        # package import, only to register an accessor that it skips when
+        # pyvista lacks register_dataset_accessor: an empty stand-in will do
+        sys.modules["pyvista"] = types.ModuleType("pyvista")
     import pytetwild
 except ImportError:
     if forced == "pytetwild":
