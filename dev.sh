@@ -30,5 +30,5 @@ case "$cmd" in
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
     matrix) exec "$VENV/bin/python" scripts/matrix.py "$@" ;;
     python) exec "$VENV/bin/python" "$@" ;;
-    *) sed -n '2,11p' "$0"; exit 1 ;;
+    *) sed -n '2,9p' "$0"; exit 1 ;;
 esac
