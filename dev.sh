@@ -5,6 +5,7 @@
 #   ./dev.sh test [ARGS]   lint (ruff), then run the test suite (pytest ARGS)
 #   ./dev.sh lint [ARGS]   ruff check (ARGS e.g. --fix)
 #   ./dev.sh bench [ARGS]  run the benchmarks
+#   ./dev.sh matrix [ARGS] install and run the built extension in every supported Blender (bpy module) release
 #   ./dev.sh python ...    run the venv's python
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")" && pwd)"
@@ -27,6 +28,7 @@ case "$cmd" in
             exec "$VENV/bin/python" -m pytest -q "$@" ;;
     lint)   exec "$VENV/bin/ruff" check "$ROOT" "$@" ;;
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
+    matrix) exec "$VENV/bin/python" scripts/matrix.py "$@" ;;
     python) exec "$VENV/bin/python" "$@" ;;
-    *) sed -n '2,10p' "$0"; exit 1 ;;
+    *) sed -n '2,9p' "$0"; exit 1 ;;
 esac

@@ -462,7 +462,8 @@ class FieldProblem:
             # fTetWild's envelope (tubes.py)
             flat = 0.01 * self.options.epsilon * self.checked.surface.bbox_diagonal
             tubes = build_tubes(self.network, self.checked.surface, r, r * np.sqrt(3.0), self._node_radius(H), flat)
-            mesh = tetrahedralize(self.checked.surface, H, (tubes.V, tubes.F), self.options.epsilon, cancel)
+            mesh = tetrahedralize(self.checked.surface, H, (tubes.V, tubes.F), self.options.epsilon, cancel,
+                                  sharp=bool(np.any(self.checked.features.sharp)))
             problem = self._topology_change(mesh)
             if problem is None or k == 0 or self.options.refine is not None:
                 return mesh, k, H, problem

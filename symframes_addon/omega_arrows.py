@@ -151,7 +151,7 @@ def sync_modifier(scene) -> None:
     values = {"Length per Radian": float(scene.symframes.omega_scale) * h, "Width": WIDTH * h}
     for item in mod.node_group.interface.items_tree:
         if getattr(item, "in_out", None) == "INPUT" and item.name in values:
-            mod[item.identifier] = values[item.name]
+            storage.set_modifier_input(mod, item.identifier, values[item.name])
     obj.update_tag()
 
 

@@ -404,3 +404,26 @@ def clear_results(scene) -> bool:
         if c.get(ROLE_KEY) == "results" and not c.all_objects:
             bpy.data.collections.remove(c)
     return removed
+
+
+
+def modifier_input(mod, identifier: str):
+    """A Geometry Nodes modifier's input value (see set_modifier_input)."""
+    inputs = _modifier_inputs(mod)
+    return getattr(inputs, identifier).value if inputs is not None else mod[identifier]
+
+
+def set_modifier_input(mod, identifier: str, value) -> None:
+    """Set a Geometry Nodes modifier's input: an ID property of the modifier
+    up to Blender 5.1, the ``value`` of ``mod.properties.inputs.<identifier>``
+    from 5.2 on (where ``mod[identifier] = value`` raises TypeError)."""
+    inputs = _modifier_inputs(mod)
+    if inputs is not None:
+        getattr(inputs, identifier).value = value
+    else:
+        mod[identifier] = value
+
+
+def _modifier_inputs(mod):
+    props = getattr(mod, "properties", None)
+    return getattr(props, "inputs", None)

@@ -645,7 +645,7 @@ def test_glyphs_coloured_by_adaptation_error(plate):
     assert mean == pytest.approx(plate.report["metrics"]["normal_adaptation_mean_deg"], rel=1e-3)
     mod = g.modifiers[glyphs.MODIFIER]
     by_error = next(i for i in mod.node_group.interface.items_tree if getattr(i, "name", "") == "Color by Error")
-    assert bool(mod[by_error.identifier]) is True
+    assert bool(storage.modifier_input(mod, by_error.identifier)) is True
     geo = g.evaluated_get(bpy.context.evaluated_depsgraph_get()).evaluated_geometry()
     inst = geo.instances_pointcloud()  # valid while geo lives
     fac = np.array([d.value for d in inst.attributes[glyphs.ERROR_FACTOR].data])
@@ -834,7 +834,7 @@ def test_glyphs_coloured_by_monodromy(plate):
     np.testing.assert_allclose(err, expect, atol=1e-7)
     assert err.max() > 0
     mod = g.modifiers[glyphs.MODIFIER]
-    values = {i.name: mod[i.identifier] for i in mod.node_group.interface.items_tree
+    values = {i.name: storage.modifier_input(mod, i.identifier) for i in mod.node_group.interface.items_tree
               if getattr(i, "in_out", None) == "INPUT" and i.name != "Geometry"}
     assert values["Color by Error"] and values["Error Attribute"] == glyphs.MONODROMY_ATTRIBUTE
     assert values["Error Scale"] == pytest.approx(1e-4)

@@ -3,12 +3,17 @@
 The zip is built by scripts/build_extension.py for linux-x64 only (the
 wheels of the other platforms would only make it bigger), then installed
 with bpy.ops.extensions.package_install_files -- what Install from Disk
-calls -- in a separate Python process whose Blender user resources
-(BLENDER_USER_RESOURCES) are a temporary folder: the extension and the
-wheels it unpacks land there, never in the home folder or the venv.  In
-that process the extensions' site-packages comes first on sys.path, so the
-installed add-on runs on the bundled scipy and pytetwild (numpy is the
-venv's, standing in for Blender's own).
+calls -- by scripts/extension_smoke.py in a separate Python process whose
+Blender user resources (BLENDER_USER_RESOURCES) are a temporary folder: the
+extension and the wheels it unpacks land there, never in the home folder or
+the venv.  In that process the extensions' site-packages comes first on
+sys.path, so the installed add-on runs on the bundled scipy and mesher
+(numpy is the venv's, standing in for Blender's own).
+
+The venv's bpy 5.0.1 gets the 4.5 variant (Blender 4.5-5.0).  One other
+release runs too: Blender 4.2 LTS (bpy 4.2.23 with numpy 1.24.3, in a venv
+cached under .matrix/ that scripts/matrix.py creates from PyPI on first
+use) with the 4.2 variant; ``./dev.sh matrix`` runs every release.
 """
 
 from __future__ import annotations
@@ -23,41 +28,12 @@ import zipfile
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+import build_extension  # noqa: E402
+import matrix  # noqa: E402
 
-INSTALL_AND_RUN = r'''
-import json, os, sys
-res = os.environ["BLENDER_USER_RESOURCES"]
-site = os.path.join(res, "extensions", ".local", "lib", "python3.11", "site-packages")
-os.makedirs(site, exist_ok=True)
-sys.path.insert(0, site)  # as in Blender: the bundled wheels, not the venv's copies
-import bpy
-
-out = {}
-out["install"] = sorted(bpy.ops.extensions.package_install_files(
-    filepath=sys.argv[1], repo="user_default", enable_on_install=True))
-mod = sys.modules["bl_ext.user_default.symframes"]
-import scipy, pytetwild
-out["files"] = {"addon": mod.__file__, "scipy": scipy.__file__, "pytetwild": pytetwild.__file__}
-out["ops"] = [hasattr(bpy.ops.symframes, n) for n in ("compute", "check_network", "show_glyphs",
-                                                      "trace_streamlines", "show_singular_faces", "clear")]
-scene = bpy.context.scene
-bpy.ops.symframes.add_example(example="cube")
-s = scene.symframes
-s.edge_length, s.glyph_count, s.streamline_seeds = 0.4, 300, 10
-out["check"] = sorted(bpy.ops.symframes.check_network())
-out["compute"] = sorted(bpy.ops.symframes.compute(streamlines=True))
-out["glyphs_op"] = sorted(bpy.ops.symframes.show_glyphs())
-out["trace_op"] = sorted(bpy.ops.symframes.trace_streamlines())
-out["singular_op"] = sorted(bpy.ops.symframes.show_singular_faces())
-roles = {o.get("symframes_role"): o for o in scene.objects if o.get("symframes_role")}
-out["roles"] = sorted(roles)
-out["glyphs"] = len(roles["glyphs"].data.vertices)
-out["streamlines"] = len(roles["streamlines"].data.splines)
-out["tets"] = json.loads(s.field["symframes_report"])["sizes"]["tets"]
-out["clear"] = sorted(bpy.ops.symframes.clear())
-out["left"] = sorted(o.name for o in scene.objects if o.get("symframes_role"))
-print("RESULT " + json.dumps(out))
-'''
+# the Blender release run besides the venv's (CI budget: README, Supported versions)
+OTHER_BLENDER = "4.2.23"
 
 
 def venv_site_packages() -> list[str]:
@@ -71,20 +47,33 @@ def test_manifest_is_honest():
     with open(os.path.join(ROOT, "blender_manifest.toml"), "rb") as fh:
         m = tomllib.load(fh)
     assert m["schema_version"] == "1.0.0" and m["type"] == "add-on" and m["id"] == "symframes"
-    assert tuple(int(x) for x in m["blender_version_min"].split(".")) >= (4, 5, 0)  # 4.2-4.4: numpy 1.24 (README)
+    # the union of the variants; each zip gets its own range (build_extension.VARIANTS)
+    assert m["blender_version_min"] == min(v.blender_min for v in build_extension.VARIANTS.values())
+    assert "blender_version_max" not in m
     assert all(lic.startswith("SPDX:") for lic in m["license"])
     assert set(m["permissions"]) == {"files"}  # Export Field / Import Network, nothing else
     assert len(m["tagline"]) <= 64
     wheels = [os.path.basename(w) for w in m["wheels"]]
     assert not any(w.startswith("numpy") for w in wheels)  # Blender's own
-    # every platform has both wheels, and there is no wheel for an unlisted platform
-    tags = {"linux-x64": "x86_64", "windows-x64": "win_amd64", "linux-arm64": "aarch64",
-            "windows-arm64": "win_arm64", "macos-arm64": "macosx", "macos-x64": "macosx"}
+    # every variant has a scipy and a mesher wheel for every listed platform,
+    # and no wheel serves an unlisted platform
     for platform in m["platforms"]:
-        for pkg in ("scipy", "pytetwild"):
-            assert any(w.startswith(pkg + "-") and tags[platform] in w for w in wheels), (platform, pkg)
+        for v in build_extension.VARIANTS.values():
+            assert any(build_extension.wheel_fits(w, "scipy", v.scipy, platform, v.python) for w in wheels), \
+                (v.name, platform)
+            assert any(build_extension.wheel_fits(w, pkg, version, platform, v.python)
+                       for w in wheels for pkg, version in build_extension.MESHER_WHEELS), (v.name, platform)
     for w in wheels:
-        assert any(tags[p] in w for p in m["platforms"]), w
+        assert any(build_extension.wheel_fits(w, w.split("-")[0], w.split("-")[1], p, v.python)
+                   for p in m["platforms"] for v in build_extension.VARIANTS.values()), w
+
+
+def test_variants_cover_the_supported_releases_without_gaps():
+    vs = sorted(build_extension.VARIANTS.values(), key=lambda v: v.blender_min)
+    assert vs[0].blender_min == "4.2.0" and vs[-1].blender_max is None
+    assert all(a.blender_max == b.blender_min for a, b in zip(vs, vs[1:]))
+    assert build_extension.variant_for("4.4.0").name == "4.2" and build_extension.variant_for("5.0.1").name == "4.5"
+    assert build_extension.variant_for("5.3.0").python == "3.13"
 
 
 @pytest.fixture(scope="module")
@@ -92,11 +81,11 @@ def linux_zip(tmp_path_factory):
     out = tmp_path_factory.mktemp("dist")
     # downloads the two linux wheels into ./wheels if they are not there yet
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "build_extension.py"),
-                           "--platform", "linux-x64", "--output-dir", str(out)],
+                           "--blender", "4.5", "--platform", "linux-x64", "--output-dir", str(out)],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     zips = sorted(out.glob("*.zip"))
-    assert [z.name for z in zips] == ["symframes-0.1.0-linux_x64.zip"]
+    assert [z.name for z in zips] == ["symframes-0.1.0-blender4.5-linux_x64.zip"]
     return zips[0]
 
 
@@ -112,31 +101,44 @@ def test_zip_holds_the_addon_the_solver_and_the_linux_wheels(linux_zip):
     assert [w.split("/")[1].split("-")[0] for w in wheels] == ["pytetwild", "scipy"]
     assert all("x86_64" in w for w in wheels)
     assert manifest["platforms"] == ["linux-x64"]
+    assert (manifest["blender_version_min"], manifest["blender_version_max"]) == ("4.5.0", "5.1.0")
+
+
+def _check_smoke(out: dict, res_dir=None):
+    assert out["steps"] == {s: "ok" for s in matrix.STEPS}, out.get("traceback") or out.get("error")
+    if res_dir is not None:
+        installed = res_dir / "extensions" / "user_default" / "symframes"
+        py = "python{}.{}".format(*sys.version_info[:2])
+        site = res_dir / "extensions" / ".local" / "lib" / py / "site-packages"
+        assert out["files"]["addon"] == str(installed / "__init__.py")
+        # the add-on ran on the wheels the zip bundles
+        assert out["files"]["scipy"].startswith(str(site)) and out["files"]["mesher"].startswith(str(site))
+    assert out["mesher"] == "pytetwild"
+    assert out["roles"] == ["error_slice", "glyphs", "singular_faces", "streamlines"]
+    assert out["glyphs"] == 300 and 27 <= out["streamlines"] <= 30 and out["tets"] > 100
+    assert out["left"] == []
 
 
 def test_install_from_disk_and_run_the_installed_operators(linux_zip, tmp_path):
     res = tmp_path / "blender-user"
     res.mkdir()
-    script = tmp_path / "install_and_run.py"
-    script.write_text(INSTALL_AND_RUN)
     env = {**os.environ, "BLENDER_USER_RESOURCES": str(res)}
     before = venv_site_packages()
-    proc = subprocess.run([sys.executable, str(script), str(linux_zip)], capture_output=True, text=True,
-                          timeout=600, env=env, cwd=str(tmp_path))
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "extension_smoke.py"), str(linux_zip)],
+                          capture_output=True, text=True, timeout=600, env=env, cwd=str(tmp_path))
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
     assert line, proc.stdout[-3000:] + proc.stderr[-3000:]
     out = json.loads(line[-1][len("RESULT "):])
-    assert out["install"] == ["FINISHED"]
-    installed = res / "extensions" / "user_default" / "symframes"
-    site = res / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
-    assert out["files"]["addon"] == str(installed / "__init__.py")
-    # the add-on ran on the wheels the zip bundles
-    assert out["files"]["scipy"].startswith(str(site)) and out["files"]["pytetwild"].startswith(str(site))
-    assert all(out["ops"])
-    for key in ("check", "compute", "glyphs_op", "trace_op", "singular_op", "clear"):
-        assert out[key] == ["FINISHED"], key
-    assert out["roles"] == ["glyphs", "singular_faces", "streamlines"]
-    assert out["glyphs"] == 300 and 27 <= out["streamlines"] <= 30 and out["tets"] > 100
-    assert out["left"] == []
+    _check_smoke(out, res)
+    assert out["scipy"] == build_extension.PINS["scipy"]
     assert venv_site_packages() == before  # nothing was installed into the venv
+
+
+def test_blender_4_2_lts_installs_and_runs_its_zip():
+    """Blender 4.2 LTS (numpy 1.24.3) with the 4.2 variant's scipy 1.15.3;
+    the first run downloads bpy 4.2.23 (335 MB) into .matrix/."""
+    out = matrix.run_row(OTHER_BLENDER)
+    assert out["blender"].startswith("4.2.") and out["numpy"] == "1.24.3" and out["python"].startswith("3.11.")
+    _check_smoke(out)
+    assert out["scipy"] == build_extension.VARIANTS["4.2"].scipy

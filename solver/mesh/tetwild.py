@@ -26,6 +26,7 @@ def tetrahedralize(
     internal: tuple[np.ndarray, np.ndarray] | None = None,
     epsilon: float = 1e-3,
     cancel=None,
+    sharp: bool = False,
 ) -> TetMesh:
     """Tetrahedralise the solid bounded by ``surface`` with fTetWild (§5.1).
 
@@ -33,6 +34,7 @@ def tetrahedralize(
     internal    : optional (V, F) triangles to embed inside the solid (the
                   curve tubes of tubes.py); they never decide inside/outside.
     epsilon     : envelope size relative to the bounding-box diagonal.
+    sharp       : the surface has sharp features (see wants_simplify).
 
     fTetWild's own inside/outside filter uses the winding number of all input
     triangles, so crossing internal surfaces can carve spurious cavities.  We
@@ -52,7 +54,7 @@ def tetrahedralize(
     # instead, so the result does not depend on the units.
     centre, unit = _normalisation(surface)
     P, T = run_tetwild((V - centre) / unit, F, edge_length / unit, epsilon, cancel=cancel,
-                       simplify=wants_simplify(surface, edge_length))
+                       simplify=wants_simplify(surface, edge_length, sharp))
     P = np.asarray(P, float) * unit + centre
     if len(T) == 0:
         raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
@@ -101,15 +103,30 @@ TETWILD_PASSES = 10
 # against 8.7k simplified): simplify when the surface has over
 # SIMPLIFY_DENSITY times the triangles an h-mesh of it has (the cylinder at
 # the default h = 0.18 is 3.5x denser, and still simplified).
+# Only where the surface has sharp features (CAD parts, where meshing
+# dominated): the smooth solid torus at h = 0.15 meshed unsimplified ended
+# LM at its cap (penalty 7.7e4) on 2 of 3 meshes, against 3 of 3 converged in
+# 14-15 iterations simplified.
 SIMPLIFY_DENSITY = 3.0
 
 
-def wants_simplify(surface: TriSurface, edge_length: float) -> bool:
+def wants_simplify(surface: TriSurface, edge_length: float, sharp: bool = False) -> bool:
     """Whether fTetWild should simplify this surface before meshing at
-    edge_length (see SIMPLIFY_DENSITY)."""
+    edge_length: always for a smooth surface, and for one with sharp
+    features when it has over SIMPLIFY_DENSITY times the triangles of an
+    h-mesh of it."""
+    if not sharp:
+        return True
     per_h_mesh = float(surface.face_areas.sum()) / (np.sqrt(3.0) / 4.0 * edge_length**2)
     return len(surface.F) > SIMPLIFY_DENSITY * max(per_h_mesh, 1.0)
 
+
+# The fTetWild bindings the worker runs: pytetwild (wheels for Linux x64 and
+# Windows x64; from 0.4.2 also Linux arm64) or, where it has no wheel,
+# wildmeshing (macOS arm64 and x64).
+# Both are fTetWild and get the same parameters; SYMFRAMES_MESHER=pytetwild
+# or =wildmeshing forces one (tests run both).
+MESHERS = ("pytetwild", "wildmeshing")
 
 _TETWILD_WORKER = r"""
 import os, sys
@@ -130,11 +147,41 @@ if not sys.platform.startswith("linux"):
             except OSError:
                 os._exit(3)
     threading.Thread(target=watch, daemon=True).start()
-import numpy as np, pytetwild
+import numpy as np
 z = np.load(sys.argv[1])
-P, T = pytetwild.tetrahedralize(z["V"], z["F"].astype(np.int32), edge_length_abs=float(z["h"]),
-                                epsilon=float(z["eps"]), optimize=True, disable_filtering=True, quiet=True,
-                                num_opt_iter=int(z["passes"]), simplify=bool(z["simplify"]))
+V, F = z["V"], z["F"].astype(np.int32)
+h, eps, passes, simplify = float(z["h"]), float(z["eps"]), int(z["passes"]), bool(z["simplify"])
+forced = os.environ.get("SYMFRAMES_MESHER", "")
+try:
+    if forced == "wildmeshing":
+        raise ImportError("SYMFRAMES_MESHER=wildmeshing")
+    import importlib.util, types
+    if importlib.util.find_spec("pyvista") is None:
+        # pytetwild >= 0.3 (0.4.2: the linux-arm64 wheels) imports pyvista at
+        # package import, only to register an accessor that it skips when
+        # pyvista lacks register_dataset_accessor: an empty stand-in will do
+        sys.modules["pyvista"] = types.ModuleType("pyvista")
+    import pytetwild
+except ImportError:
+    if forced == "pytetwild":
+        raise
+    import wildmeshing
+    # the same fTetWild run: relative edge length, envelope, passes, no
+    # coarsening, and all tets kept (all_mesh: the unfiltered background mesh)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    t = wildmeshing.Tetrahedralizer(stop_quality=10.0, max_its=passes, epsilon=eps, edge_length_r=h / diag,
+                                    coarsen=False)
+    t.set_log_level(6)
+    t.set_mesh(V, F)
+    t.tetrahedralize()
+    P, T = t.get_tet_mesh(all_mesh=True)[:2]
+else:
+    kw = dict(edge_length_abs=h, epsilon=eps, optimize=True, disable_filtering=True, quiet=True,
+              num_opt_iter=passes)
+    try:
+        P, T = pytetwild.tetrahedralize(V, F, simplify=simplify, **kw)
+    except TypeError:  # a pytetwild without the simplify switch
+        P, T = pytetwild.tetrahedralize(V, F, **kw)
 np.savez(sys.argv[2], P=np.asarray(P), T=np.asarray(T))
 """
 
@@ -216,6 +263,19 @@ def _kill_live_children() -> None:
             proc.kill()
             proc.wait()
         _LIVE_CHILDREN.discard(proc)
+
+
+def mesher_name() -> str:
+    """The fTetWild bindings the worker will use here ('pytetwild' or
+    'wildmeshing'), honouring SYMFRAMES_MESHER; '' when neither imports."""
+    import importlib.util
+    import os
+
+    forced = os.environ.get("SYMFRAMES_MESHER", "")
+    for name in ([forced] if forced in MESHERS else MESHERS):
+        if importlib.util.find_spec(name) is not None:
+            return name
+    return ""
 
 
 def run_tetwild(V, F, edge_length, epsilon, cancel=None, simplify=True):

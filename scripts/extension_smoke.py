@@ -1,0 +1,149 @@
+"""Install a SymFrames extension zip as a user does and run the add-on.
+
+Run with the Python of a venv holding the bpy module of the Blender release
+to test, with BLENDER_USER_RESOURCES set to an empty temporary folder::
+
+    BLENDER_USER_RESOURCES=/tmp/res python scripts/extension_smoke.py dist/symframes-....zip [cube|cylinder]
+
+The zip is installed with bpy.ops.extensions.package_install_files (what
+Install from Disk calls) and enabled; Blender unpacks the wheels the zip
+bundles for this platform and Python into the user resources'
+extensions/.local site-packages, which comes first on sys.path as in
+Blender.  Then: an example's compute, glyphs, streamlines, the diagnostics
+(singular faces, error slice), save the .blend and reload it, glyphs again
+from the reloaded file, and clear.  Each step runs only if the previous
+ones passed; the last stdout line is ``RESULT {json}`` with a result per
+step (``ok`` or the error) and the versions that ran.  Used by
+tests/test_extension.py and scripts/matrix.py.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import json
+import os
+import sys
+import time
+import traceback
+
+STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "save_reload", "clear")
+ADDON = "bl_ext.user_default.symframes"
+
+
+class _Stop(Exception):
+    pass
+
+
+def main(argv: list[str]) -> int:
+    zip_path = os.path.abspath(argv[0])
+    example = argv[1] if len(argv) > 1 else "cube"
+    res = os.environ["BLENDER_USER_RESOURCES"]
+    py = f"python{sys.version_info[0]}.{sys.version_info[1]}"
+    site = os.path.join(res, "extensions", ".local", "lib", py, "site-packages")
+    os.makedirs(site, exist_ok=True)
+    sys.path.insert(0, site)  # as in Blender: the bundled wheels, not the venv's copies
+    import bpy
+    import numpy
+
+    out: dict = {"blender": bpy.app.version_string, "python": ".".join(map(str, sys.version_info[:3])),
+                 "numpy": numpy.__version__, "example": example, "steps": {}, "seconds": {}}
+
+    def step(name, fn):
+        t0 = time.perf_counter()
+        try:
+            value = fn()
+        except Exception as ex:  # the step's failure is the result
+            msg = f"{type(ex).__name__}: {ex}".strip().splitlines()
+            out["steps"][name] = msg[-1][:300] if msg else type(ex).__name__
+            out["traceback"] = traceback.format_exc()[-3000:]
+            raise _Stop() from None
+        out["seconds"][name] = round(time.perf_counter() - t0, 2)
+        out["steps"][name] = "ok"
+        return value
+
+    def finished(result, what):
+        if set(result) != {"FINISHED"}:
+            raise RuntimeError(f"{what} returned {sorted(result)}")
+
+    def install():
+        finished(bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default",
+                                                          enable_on_install=True), "package_install_files")
+
+    def enable():
+        if ADDON not in sys.modules:
+            importlib.import_module(ADDON)  # raises the error enabling met (e.g. scipy vs numpy)
+            raise RuntimeError("installed but not enabled")
+        mod = sys.modules[ADDON]
+        import scipy
+
+        tetwild = importlib.import_module(ADDON + ".solver.mesh.tetwild")
+        mesher = tetwild.mesher_name()
+        spec = importlib.util.find_spec(mesher) if mesher else None  # found, not imported (the worker does)
+        out["files"] = {"addon": mod.__file__, "scipy": scipy.__file__, "mesher": spec.origin if spec else ""}
+        out["scipy"], out["mesher"] = scipy.__version__, mesher
+        if not mesher:
+            raise RuntimeError("no fTetWild bindings (pytetwild or wildmeshing) were installed")
+        ops = ("compute", "check_network", "show_glyphs", "trace_streamlines", "show_singular_faces",
+               "show_slice", "clear")
+        missing = [n for n in ops if not hasattr(bpy.ops.symframes, n)]
+        if missing:
+            raise RuntimeError(f"operators missing: {missing}")
+
+    scene = bpy.context.scene
+
+    def roles():
+        return {o.get("symframes_role"): o for o in bpy.context.scene.objects if o.get("symframes_role")}
+
+    def compute():
+        bpy.ops.symframes.add_example(example=example)
+        s = scene.symframes
+        s.glyph_count, s.streamline_seeds = 300, 10
+        if example == "cube":
+            s.edge_length = 0.4
+        finished(bpy.ops.symframes.check_network(), "check_network")
+        finished(bpy.ops.symframes.compute(streamlines=False), "compute")
+        report = json.loads(s.field["symframes_report"])
+        out["tets"] = report["sizes"]["tets"]
+        out["lm_iterations"] = sum(1 for it in report.get("lm", {}).get("iterations", []) if it["iteration"] > 0)
+
+    def glyphs():
+        finished(bpy.ops.symframes.show_glyphs(), "show_glyphs")
+        out["glyphs"] = len(roles()["glyphs"].data.vertices)
+
+    def streamlines():
+        finished(bpy.ops.symframes.trace_streamlines(), "trace_streamlines")
+        out["streamlines"] = len(roles()["streamlines"].data.splines)
+
+    def diagnostics():
+        finished(bpy.ops.symframes.show_singular_faces(), "show_singular_faces")
+        finished(bpy.ops.symframes.show_slice(), "show_slice")
+        out["roles"] = sorted(roles())
+
+    def save_reload():
+        path = os.path.join(os.getcwd(), "smoke.blend")
+        finished(bpy.ops.wm.save_as_mainfile(filepath=path), "save_as_mainfile")
+        finished(bpy.ops.wm.open_mainfile(filepath=path), "open_mainfile")
+        if sorted(roles()) != out["roles"]:
+            raise RuntimeError(f"after reload: {sorted(roles())} != {out['roles']}")
+        finished(bpy.ops.symframes.show_glyphs(), "show_glyphs after reload")
+        if len(roles()["glyphs"].data.vertices) != out["glyphs"]:
+            raise RuntimeError("glyphs differ after reload")
+
+    def clear():
+        finished(bpy.ops.symframes.clear(), "clear")
+        out["left"] = sorted(roles())
+        if out["left"]:
+            raise RuntimeError(f"left behind: {out['left']}")
+
+    try:
+        for name in STEPS:
+            step(name, locals()[name])
+    except _Stop:
+        pass
+    print("RESULT " + json.dumps(out), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
