@@ -26,17 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..linalg.rotations import hat
 
-def _cross_mat(v):
-    """[v]_x for v (n, 3) -> (n, 3, 3)."""
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1] = -v[..., 2]
-    out[..., 0, 2] = v[..., 1]
-    out[..., 1, 0] = v[..., 2]
-    out[..., 1, 2] = -v[..., 0]
-    out[..., 2, 0] = -v[..., 1]
-    out[..., 2, 1] = v[..., 0]
-    return out
+_cross_mat = hat  # [v]_x for v (n, 3) -> (n, 3, 3)
 
 
 @dataclass

@@ -20,7 +20,7 @@ from ..surface.features import (
     sharp_edges_by_angle,
     sharp_edges_from_pairs,
 )
-from ..surface.trisurface import TriSurface, segment_crosses_triangle, validate_surface
+from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
 from .intake import MAX_KINK, repair_network, solid_scale, turning
 from .network import Network, PreparedNetwork, _fmt, prepare_network
 
@@ -348,24 +348,7 @@ def _check_crossings(pn: PreparedNetwork, label, tol):
 def _segment_distance(A, B):
     """Closest distance between segments A[k] and B[k] ((k, 2, 3) each), and
     the midpoint of the closest pair."""
-    p, q = A[:, 0], B[:, 0]
-    u, v = A[:, 1] - p, B[:, 1] - q
-    w = p - q
-    a = np.einsum("ij,ij->i", u, u)
-    b = np.einsum("ij,ij->i", u, v)
-    c = np.einsum("ij,ij->i", v, v)
-    d = np.einsum("ij,ij->i", u, w)
-    e = np.einsum("ij,ij->i", v, w)
-    den = a * c - b * b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(den > 1e-300, (b * e - c * d) / den, 0.0)
-    s = np.clip(s, 0, 1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.clip((b * s + e) / c, 0, 1)
-        s = np.clip((b * t - d) / a, 0, 1)
-    x = p + s[:, None] * u
-    y = q + t[:, None] * v
-    return np.linalg.norm(x - y, axis=1), 0.5 * (x + y)
+    return segments_distance(A[:, 0], A[:, 1], B[:, 0], B[:, 1])
 
 
 def network_feature_size(S: TriSurface, pn: PreparedNetwork) -> float:

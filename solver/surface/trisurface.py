@@ -633,7 +633,7 @@ def _contact(S: TriSurface, f, g):
             best[better], where[better] = d[better], x[better]
     for i in range(3):
         for j in range(3):
-            d, x = _segments_distance(P[f, i], P[f, (i + 1) % 3], P[g, j], P[g, (j + 1) % 3])
+            d, x = segments_distance(P[f, i], P[f, (i + 1) % 3], P[g, j], P[g, (j + 1) % 3])
             better = d < best
             best[better], where[better] = d[better], x[better]
     hit = np.nonzero(best <= tol)[0]
@@ -643,7 +643,7 @@ def _contact(S: TriSurface, f, g):
     return None
 
 
-def _segments_distance(p0, p1, q0, q1):
+def segments_distance(p0, p1, q0, q1):
     """Distance between segments p0-p1 and q0-q1 (k, 3) each, and the
     midpoint of the closest pair (Ericson, clamped)."""
     u, v, w = p1 - p0, q1 - q0, p0 - q0
