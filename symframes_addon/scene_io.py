@@ -163,6 +163,9 @@ def read_network(collection, settings, max_segment: float) -> tuple[Network, lis
     for obj in objs:
         cs = obj.symframes
         splines = list(obj.data.splines)
+        if not splines:
+            raise InputError(f"curve object '{obj.name}' in the network has no spline (no points): draw the "
+                             "curve, or move the object out of the network collection")
         for k, sp in enumerate(splines):
             name = obj.name if len(splines) == 1 else f"{obj.name}[{k}]"
             try:

@@ -316,6 +316,13 @@ def test_error_resolution_past_the_limit():
     _fails(r"would have ~.* tets .*larger edge length")
 
 
+def test_error_curve_object_without_splines():
+    add_example("cylinder")
+    cu = bpy.data.curves.new("empty", "CURVE")
+    scene().symframes.network.objects.link(bpy.data.objects.new("empty curve", cu))
+    _fails("'empty curve' in the network has no spline", bpy.ops.symframes.check_network)
+
+
 def test_error_curve_leaves_domain():
     add_example("cylinder")
     obj = bpy.data.objects["axial 0"]
