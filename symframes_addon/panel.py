@@ -213,6 +213,9 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
         col.label(text=f"Singular faces {m.get('singular_faces', 0)}",
                   icon="CHECKMARK" if spurious == 0 and missing == 0 else "ERROR")
         col.label(text=f"   spurious {spurious}   missing {missing}")
+        row = layout.row(align=True)
+        row.operator("symframes.export_field", text="Export Field…", icon="EXPORT")
+        row.operator("symframes.tet_mesh_object", text="Tet Mesh", icon="MESH_ICOSPHERE")
 
 
 class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
