@@ -132,16 +132,21 @@ def text(name: str, value, error=SymFramesError) -> str:
     _fail(error, name, value, "a string")
 
 
+def _rows(name: str, value, error, expected: str) -> list:
+    """The items of a list-like value, or the error saying what was expected."""
+    try:
+        return list(value)
+    except TypeError:
+        _fail(error, name, value, expected)
+
+
 def points3(name: str, value, error=SymFramesError, *, min_points=2) -> np.ndarray:
     """An (n, 3) float array of finite points, n >= min_points."""
     expected = f"a list of at least {min_points} points [x, y, z] (an (n, 3) array of finite numbers)"
     if isinstance(value, (str, bytes, dict)) or value is None:
         _fail(error, name, value, expected)
     if not isinstance(value, np.ndarray):
-        try:
-            rows = list(value)
-        except TypeError:
-            _fail(error, name, value, expected)
+        rows = _rows(name, value, error, expected)
         for k, row in enumerate(rows):
             if isinstance(row, (str, bytes, dict)) or not hasattr(row, "__len__") or len(row) != 3 or not all(
                     _is_real(x) for x in (row.tolist() if isinstance(row, np.ndarray) else row)):
@@ -167,10 +172,7 @@ def index_pairs(name: str, value, error=SymFramesError) -> np.ndarray:
     if isinstance(value, (str, bytes, dict)):
         _fail(error, name, value, expected)
     if not isinstance(value, np.ndarray):
-        try:
-            rows = list(value)
-        except TypeError:
-            _fail(error, name, value, expected)
+        rows = _rows(name, value, error, expected)
         for k, row in enumerate(rows):
             ok = isinstance(row, (list, tuple, np.ndarray)) and len(row) == 2
             vals = list(row) if ok else []
