@@ -27,7 +27,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from run_bench import machine  # noqa: E402  (bench/ is the script's directory, on sys.path)
+from run_bench import machine, write_results_block  # noqa: E402  (bench/ is the script's directory, on sys.path)
 
 
 def _lu_child(vp, x0, conn):
@@ -104,16 +104,8 @@ def main(argv=None) -> int:
              f"Python {platform.python_version()}.")
     print(text)
     if args.write:
-        path = os.path.join(ROOT, "bench", "RESULTS.md")
-        old = open(path).read()
-        start, end = "<!-- lu-baseline -->", "<!-- /lu-baseline -->"
-        block = f"{start}\n{args.example} (`./dev.sh python bench/lu_baseline.py --write`):\n\n{text}\n{end}"
-        if start in old:
-            new = old[:old.index(start)] + block + old[old.index(end) + len(end):]
-        else:
-            new = old.rstrip() + "\n\n## Against a sparse-LU LM (issue 5)\n\n" + block + "\n"
-        with open(path, "w") as fh:
-            fh.write(new)
+        write_results_block("lu-baseline", f"{args.example} (`./dev.sh python bench/lu_baseline.py --write`):"
+                                           f"\n\n{text}", "Against a sparse-LU LM")
     return 0
 
 

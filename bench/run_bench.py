@@ -174,17 +174,23 @@ def main(argv=None) -> int:
              f"{threads()} threads for sparse products.")
     print(text)
     if args.write:
-        path = os.path.join(ROOT, "bench", "RESULTS.md")
-        old = open(path).read() if os.path.exists(path) else ""
-        start, end = "<!-- solver-bench -->", "<!-- /solver-bench -->"
-        block = f"{start}\n{args.example} (`./dev.sh bench --write`):\n\n{text}\n{end}"
-        if start in old:
-            new = old[:old.index(start)] + block + old[old.index(end) + len(end):]
-        else:
-            new = (old.rstrip() + "\n\n" if old else "# Benchmark results\n\n") + block + "\n"
-        with open(path, "w") as fh:
-            fh.write(new)
+        write_results_block("solver-bench", f"{args.example} (`./dev.sh bench --write`):\n\n{text}")
     return 1 if failed else 0
+
+
+def write_results_block(marker: str, text: str, heading: str = "") -> None:
+    """Replace the block between <!-- marker --> and <!-- /marker --> in
+    bench/RESULTS.md with text; a missing block is appended under heading."""
+    path = os.path.join(ROOT, "bench", "RESULTS.md")
+    old = open(path).read() if os.path.exists(path) else "# Benchmark results\n"
+    start, end = f"<!-- {marker} -->", f"<!-- /{marker} -->"
+    block = f"{start}\n{text}\n{end}"
+    if start in old:
+        new = old[:old.index(start)] + block + old[old.index(end) + len(end):]
+    else:
+        new = old.rstrip() + "\n\n" + (f"## {heading}\n\n" if heading else "") + block + "\n"
+    with open(path, "w") as fh:
+        fh.write(new)
 
 
 def _real_shape_report(rows, failed, write) -> int:
@@ -197,17 +203,7 @@ def _real_shape_report(rows, failed, write) -> int:
              f"{threads()} threads for sparse products.")
     print(text)
     if write:
-        path = os.path.join(ROOT, "bench", "RESULTS.md")
-        old = open(path).read()
-        start, end = "<!-- real-shape-bench -->", "<!-- /real-shape-bench -->"
-        block = f"{start}\n{text}\n{end}"
-        if start in old:
-            new = old[:old.index(start)] + block + old[old.index(end) + len(end):]
-        else:
-            i = old.index("<!-- /solver-bench -->") + len("<!-- /solver-bench -->")
-            new = old[:i] + "\n\n## Real shape\n\n" + block + old[i:]
-        with open(path, "w") as fh:
-            fh.write(new)
+        write_results_block("real-shape-bench", text, "Real shape")
     return 1 if failed else 0
 
 

@@ -102,6 +102,15 @@ def _rounding_cost(theta, k):
     return np.abs(theta - k * (np.pi / 2))
 
 
+def _nearest_quarters(G: FeatureGraph):
+    """Per sector of G: its vertex, angle, nearest quarter count k0 >= 1,
+    whether its vertex is on a sharp feature, and the rounding error in
+    degrees."""
+    sv, theta = G.sector_vertex, G.sector_angle
+    q = np.round(theta / (np.pi / 2))
+    return sv, theta, np.maximum(1, q).astype(int), G.degree[sv] > 0, np.degrees(np.abs(theta - q * (np.pi / 2)))
+
+
 def _distribute(theta: np.ndarray, k: np.ndarray, total: int) -> np.ndarray:
     """k (>= 1) closest to the angles theta (in rounding error) summing to total."""
     k = k.copy()
@@ -149,11 +158,7 @@ def resolve_corners(S: TriSurface, G: FeatureGraph, face_sigma: np.ndarray, corn
     if not np.any(G.sharp):
         return G, []
     ns, slab = G.sectors
-    sv = G.sector_vertex
-    theta = G.sector_angle
-    k0 = np.maximum(1, np.round(theta / (np.pi / 2))).astype(int)
-    feat_sec = G.degree[sv] > 0
-    err = np.degrees(np.abs(theta - np.round(theta / (np.pi / 2)) * (np.pi / 2)))
+    sv, theta, k0, feat_sec, err = _nearest_quarters(G)
     ambiguous = feat_sec & (err > AMBIGUOUS)
     k = k0.copy()
     fixed = np.zeros(ns, bool)
@@ -264,11 +269,7 @@ def transfer_quarters(src: FeatureGraph, dst: FeatureGraph) -> FeatureGraph:
     if src.quarters is None or not np.any(dst.sharp):
         return dst
     ns, _ = src.sectors
-    sv = src.sector_vertex
-    theta = src.sector_angle
-    k0 = np.maximum(1, np.round(theta / (np.pi / 2))).astype(int)
-    feat_sec = src.degree[sv] > 0
-    err = np.degrees(np.abs(theta - np.round(theta / (np.pi / 2)) * (np.pi / 2)))
+    sv, theta, k0, feat_sec, err = _nearest_quarters(src)
     special = np.unique(sv[feat_sec & ((src.quarters != k0) | (err > AMBIGUOUS))])
     if not len(special):
         return dst
