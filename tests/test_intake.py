@@ -130,11 +130,15 @@ def test_a_real_corner_is_kept(cylinder):
 
 
 # --------------------------------------------------------------- oblique end
-def test_oblique_end_is_bent_onto_the_normal(cylinder):
+def test_oblique_end_is_turned_onto_the_normal(cylinder):
     """The last 0.4 of a curve runs 30 degrees off the cap's normal: refused
-    before ("must reach the surface at right angles"), bent now: the curve
-    meets the cap along its normal, the report gives the angle and the
-    length bent, and the curve stays inside."""
+    before ("must reach the surface at right angles"), turned now: the end
+    slides along the cap while the curve is faired (at most SLIDE_MAX h)
+    and what is left is bent; the curve meets the cap along its normal, the
+    report gives the angle, the slide and the length bent, and the curve
+    stays inside."""
+    from solver.network.intake import SLIDE_MAX
+
     V, F, net = cylinder
     t = np.tan(np.radians(30))
     pts = np.vstack([axial(-0.35, -0.35, 9)[:7] * [1, 1, 0.8],
@@ -148,12 +152,31 @@ def test_oblique_end_is_bent_onto_the_normal(cylinder):
     bend = [b for b in rep.ends if b.end == "end"]
     assert len(bend) == 1, rep.text()
     assert 29.0 <= bend[0].input_angle_deg <= 31.0, rep.text()
-    assert 0.5 <= bend[0].length_h <= 3.01, rep.text()
+    assert 0.0 < bend[0].slid_h <= SLIDE_MAX + 0.01 and bend[0].length_h <= 3.01, rep.text()
     S = checked.surface
     Q = checked.network.curves[0].points
     assert end_normal_angle(S, Q) < 1.0
     assert np.all(S.winding_number(Q[1:-1]) > 0.5)
-    assert "bent onto the normal" in rep.text()
+    assert "end turned onto the normal (given 30 deg off): slid" in rep.text()
+
+
+def test_a_long_oblique_stretch_is_slid_then_bent(cylinder):
+    """45 degrees off the normal over the whole curve: sliding alone
+    (capped at SLIDE_MAX h) cannot turn it, so the rest is bent."""
+    from solver.network.intake import SLIDE_MAX
+
+    V, F, net = cylinder
+    # square to the bottom cap, then 45 degrees off the top cap's normal for its last 1.1
+    pts = np.vstack([np.linspace([-0.6, -0.35, -1.0], [-0.6, -0.35, 0.2], 7),
+                     np.linspace([-0.6, -0.35, 0.2], [0.2, -0.35, 1.0], 7)[1:]])
+    checked = check_input(V, F, with_curve(net, 0, pts))
+    rep = checked.repairs[0]
+    bend = [b for b in rep.ends if b.end == "end"]
+    assert len(bend) == 1 and 40.0 <= bend[0].input_angle_deg <= 50.0, rep.text()
+    assert SLIDE_MAX - 0.01 <= bend[0].slid_h <= SLIDE_MAX + 0.01 and bend[0].length_h > 0.5, rep.text()
+    Q = checked.network.curves[0].points
+    assert end_normal_angle(checked.surface, Q) < 1.0
+    assert "then bent over" in rep.text()
 
 
 # ------------------------------------------------ real defects still refused
@@ -219,7 +242,10 @@ def test_tet_edge_network_solves_with_defaults(tet_edge_solves, name):
     tn, r = tet_edge_solves(name)
     m = r.report.metrics
     print(name, r.report.summary())
-    assert r.report.lm.converged, r.report.lm.reason
+    # the structure penalty at the discretisation level (pipeline.solution_status):
+    # measured 0.006-0.008 (cylinder) and 0.35-0.40 (ball), against 0.002 and 0.18
+    # for the clean networks at the same h
+    assert r.report.converged, r.report.status_reason
     assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0, m
     fixed = r.problem.boundary.is_feature_vertex
     na = np.degrees(normal_adaptation(r.mesh, r.frames))[~fixed]
@@ -328,9 +354,9 @@ def test_prism_with_obtuse_corners_solves_with_defaults(prism):
     assert "chosen for Poincare-Hopf" in r.report.summary()
 
 
-def test_genus2_example_ends_are_bent():
+def test_genus2_example_ends_are_turned():
     """The genus-2 block's slanted feature curves (25 degrees off the normal
-    at both ends) are bent at both ends; Poincare-Hopf holds per patch with
+    at both ends) are turned onto the normal at both ends; Poincare-Hopf holds per patch with
     the holes' concave corners.  (Solved at h = 0.15: 7 LM iterations,
     penalty 0.09, normal adaptation 0.001 degrees, tangent 0.02.)"""
     V, F, net = load_example("genus2")
@@ -342,3 +368,23 @@ def test_genus2_example_ends_are_bent():
         Q = checked.network.curves[rep.curve].points
         assert end_normal_angle(checked.surface, Q) < 1.0
         assert end_normal_angle(checked.surface, Q[::-1]) < 1.0
+
+
+def test_a_smoothly_bent_singular_curve_converges(cylinder):
+    """Four quarter-turn curves bowed outwards by 0.15 (curvature up to 0.74,
+    square to the caps): a curve as a user draws it.  With Omega's axis
+    along each segment and the ends bent by a Hermite arc, LM ended with a
+    penalty of 65 against 0.002 for the straight curves; with the smooth
+    tangent and sliding ends it sits at the discretisation level."""
+    V, F, net = cylinder
+    z = np.linspace(-1.0, 1.0, 81)
+    curves = []
+    for c in net.curves:
+        x, y = c.points[0, :2]
+        P = np.c_[x + np.sign(x) * 0.15 * (1 + np.cos(np.pi * z)) / 2, np.full_like(z, y), z]
+        curves.append(Curve(P, sigma=c.sigma, name=c.name))
+    r = solve(V, F, Network(curves=curves, sharp_angle=net.sharp_angle))
+    m = r.report.metrics
+    assert r.report.converged, r.report.status_reason
+    assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0, m
+    assert m["tangent_adaptation_mean_deg"] <= 1.0 and m["normal_adaptation_mean_deg"] <= 0.5, m

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import MeshingError, NetworkError
-from ..network.network import PreparedNetwork
+from ..network.network import PreparedNetwork, polyline_tangents
 from .tetmesh import TetMesh
 
 
@@ -41,7 +41,7 @@ class CurveTrace:
 
     tets     : (k,) tets visited, in order
     faces    : (k-1,) + ends: interior faces pierced between consecutive tets
-    tangents : (len(faces), 3) unit curve tangent at each pierce
+    tangents : (len(faces), 3) unit curve tangent at each pierce (vertex tangents interpolated)
     points   : (len(faces), 3) pierce points
     start_face, end_face : boundary face ids where the curve starts / ends
                            (-1 if it starts / ends at a node or is a loop)
@@ -94,6 +94,10 @@ class Embedding:
         for f, _ in self.boundary_end_faces:
             m[f] = True
         return np.nonzero(m)[0]
+
+
+def _unit(T: np.ndarray) -> np.ndarray:
+    return T / np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-300)
 
 
 class _Degenerate(Exception):
@@ -175,7 +179,8 @@ def _project_to_boundary(mesh: TetMesh, x: np.ndarray):
 
 
 def trace_curve(mesh: TetMesh, loc: TetLocator, P: np.ndarray, start_tet: int, start_face: int,
-                end_at_boundary: bool, label: str, tol: float, strict: bool = True) -> CurveTrace:
+                end_at_boundary: bool, label: str, tol: float, strict: bool = True,
+                closed: bool = False) -> CurveTrace:
     """Walk the polyline P through the mesh starting in start_tet.
 
     start_face : boundary face the curve enters through (or -1)
@@ -195,13 +200,19 @@ def trace_curve(mesh: TetMesh, loc: TetLocator, P: np.ndarray, start_tet: int, s
     end_face = -1
     nseg = len(P) - 1
     max_steps = 50 * mesh.n_tets + 1000
+    # the tangent at a pierce is the curve's smooth tangent there (vertex
+    # tangents interpolated, as for the tube edges' T_e in constraints.py),
+    # not its segment's direction: on a curve of curvature k sampled at
+    # spacing ds the two differ by ~ k ds / 2, and every degree of error in
+    # the axis of Omega_f costs 1.6 degrees of residual on a quarter-turn
+    # face, which no field can remove (Eq. 19)
+    Tv = polyline_tangents(P, closed) if len(P) > 1 else np.zeros((len(P), 3))
     steps = 0
     for s in range(nseg):
         q = P[s + 1]
         seglen = np.linalg.norm(q - P[s])
         if seglen == 0:
             continue
-        tangent = (q - P[s]) / seglen
         last = s == nseg - 1
         while True:
             steps += 1
@@ -238,7 +249,8 @@ def trace_curve(mesh: TetMesh, loc: TetLocator, P: np.ndarray, start_tet: int, s
                     "inside the domain mesh and end them on its boundary or at a node"
                 )
             faces.append(f)
-            tangents.append(tangent)
+            u = min(max(np.linalg.norm(x - P[s]) / seglen, 0.0), 1.0)
+            tangents.append((1.0 - u) * Tv[s] + u * Tv[s + 1])
             points.append(x)
             entry = f
             t = int(nb)
@@ -252,7 +264,7 @@ def trace_curve(mesh: TetMesh, loc: TetLocator, P: np.ndarray, start_tet: int, s
     return CurveTrace(
         tets=np.array(tets, dtype=np.int64),
         faces=np.array(faces, dtype=np.int64),
-        tangents=np.array(tangents).reshape(-1, 3),
+        tangents=_unit(np.array(tangents).reshape(-1, 3)),
         points=np.array(points).reshape(-1, 3),
         start_face=int(start_face),
         end_face=int(end_face),
@@ -330,7 +342,7 @@ def _embed_once(mesh, net: PreparedNetwork, loc: TetLocator, rng, amp: float, no
             # overshoot slightly so the walk leaves through the boundary
             d = x - P[-2]
             P[-1] = x + 1e-3 * h * d / max(np.linalg.norm(d), 1e-300)
-        tr = trace_curve(mesh, loc, P, t0, start_face, ekind == "boundary", label, tol, strict)
+        tr = trace_curve(mesh, loc, P, t0, start_face, ekind == "boundary", label, tol, strict, c.closed)
         if c.closed and tr.tets[-1] != tr.tets[0]:
             raise MeshingError(f"closed curve {label} did not return to its start tet")
         traces.append(tr)

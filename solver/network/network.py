@@ -313,7 +313,7 @@ def polyline_tangents(P: np.ndarray, closed: bool) -> np.ndarray:
     """Unit tangents at polyline vertices: the normalised sum of the adjacent
     unit segment directions."""
     seg = np.diff(P, axis=0)
-    seg = seg / np.linalg.norm(seg, axis=1, keepdims=True)
+    seg = seg / np.maximum(np.linalg.norm(seg, axis=1, keepdims=True), 1e-300)  # a repeated point adds nothing
     T = np.zeros_like(P)
     T[:-1] += seg
     T[1:] += seg

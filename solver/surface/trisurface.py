@@ -193,16 +193,22 @@ class TriSurface:
             out[s : s + step] = 2.0 * np.arctan2(det, den).sum(axis=1) / (4 * np.pi)
         return out
 
+    @cached_property
+    def _face_tree(self):
+        """(triangle corners, centroids, radii, k-d tree of the centroids)
+        for closest_points, built once per surface."""
+        P = self.V[self.F]
+        cent = P.mean(axis=1)
+        rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
+        return P, cent, rad, cKDTree(cent)
+
     def closest_points(self, X: np.ndarray):
         """Closest surface point to each of X (k, 3).
 
         Returns (distance (k,), face index (k,), closest point (k, 3)).
         """
         X = np.atleast_2d(np.asarray(X, float))
-        P = self.V[self.F]
-        cent = P.mean(axis=1)
-        rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
-        tree = cKDTree(cent)
+        P, cent, rad, tree = self._face_tree
         kq = min(len(self.F), 16)
         best_d = np.full(len(X), np.inf)
         best_f = np.zeros(len(X), int)
