@@ -384,12 +384,19 @@ class FieldProblem:
             if not np.any(mark):
                 break
             room = (cap - mesh.n_tets) // 3  # a cut tet and its closure: ~3 more tets
-            if room <= 0:
+            finer = None
+            while room > 0:
+                if mark.sum() > room:
+                    mark = np.zeros(len(mark), bool)
+                    mark[np.argsort(-ratio)[:room]] = True
+                finer = bisect(mesh, mark, self.checked.surface)
+                if finer.n_tets <= cap:
+                    break
+                # the closure cut more than ~3 per tet: fewer tets, or none
+                finer, room = None, room // 2
+            if finer is None:
                 break
-            if mark.sum() > room:
-                mark = np.zeros(len(mark), bool)
-                mark[np.argsort(-ratio)[:room]] = True
-            mesh = bisect(mesh, mark, self.checked.surface)
+            mesh = finer
         mesh.info["graded_tets"] = mesh.n_tets - n0
         return mesh
 
@@ -519,8 +526,17 @@ class FieldProblem:
                 for v in B.F[np.searchsorted(mesh.boundary_faces, f)]:
                     override[int(v)] = t
         bf = solve_boundary_field(B, G, fs, normal_override=override)
-        extra = self._generator_parity(bf)
-        if extra:
+        # generators that bound in the solid: their turns must be what the
+        # singular curves through the spanning chain prescribe; a first
+        # correction, then once more with the opposite sense of rotation
+        # for any the first did not fix (_generator_turns)
+        extra = {}
+        for flip in (1, -1):
+            wrong = self._generator_turns(bf)
+            if not wrong:
+                break
+            for key, t in wrong.items():
+                extra[key] = extra.get(key, 0) + flip * t * (2 if flip < 0 else 1)
             bf = solve_boundary_field(B, G, fs, generator_turns=extra, normal_override=override)
         self._check_lift(bf)
         return bf
@@ -540,17 +556,23 @@ class FieldProblem:
                 f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}): the tet mesh's surface is probably folded there (a "
                 f"curve tube or feature close to the surface). Try another edge length (now {self.edge_length:.4g})")
 
-    def _generator_parity(self, bf: BoundaryField) -> dict:
-        """Full turns the boundary field needs around generators that bound in
-        the solid (the meridians of a solid torus).
+    def _generator_turns(self, bf: BoundaryField) -> dict:
+        """Quarter turns the boundary field's holonomy is off by around the
+        generators that bound in the solid (the meridians of a handle).
 
-        Rotations form SO(3), whose loops come in two homotopy classes; a loop
-        of frames on the rim of a disk inside the solid extends over the disk
-        without singularity only in the trivial class (+1 in SU(2)).  Along a
-        meridian the frame adapted to the boundary and parallel-transported
-        turns once about the torus core -- the nontrivial class -- so the 2D
-        field must add a full twist there.  Singular curves crossing the disk
-        contribute their quarter turns to the expected class.
+        Along such a loop the frames of the 3D lift (adapted to the boundary)
+        return rotated about the normal at the base by k quarter turns, read
+        in SU(2) so that k is known modulo 8: rotations form SO(3), whose
+        loops come in two homotopy classes, and only the trivial class
+        (+1 in SU(2)) extends over a disk without singularity.  The frames
+        extend over the spanning chain inside the solid only if k equals the
+        quarter turns of the singular curves crossing it (either sense; 0
+        without curves).  The 2D field's generator holonomy (Eq. 14) is
+        otherwise taken as the nearest quarter turn of the smoothest field,
+        which can be a quarter or a full turn off; LM then ends at its cap
+        with a penalty of 1e4 or more (a +-1/4 pair of curves through the
+        genus-2 block).  Returns {generator key: quarter turns to add}, in
+        the sense of the base vertex's normal.
         """
         import scipy.sparse.linalg as spla
 
@@ -559,9 +581,17 @@ class FieldProblem:
             return {}
         B = mesh.boundary
         bv = mesh.boundary_vertices
-        d1t = mesh.d1.T.tocsr()
-        flux = np.einsum("ij,ij->i", self.embedding.face_omega, mesh.face_normals) / (2 * np.pi)
-        extra = {}
+        # chains of interior faces only: a curve's end face on the surface
+        # carries its singularity in the 2D field, not a flux
+        inner = np.ones(mesh.n_faces, bool)
+        inner[mesh.boundary_faces] = False
+        d1t = mesh.d1.T.tocsr()[:, np.nonzero(inner)[0]]
+        # turns of the curves through each face, with the sign of the face's
+        # normal: |Omega_f| / 2 pi = sigma however obliquely the curve
+        # pierces it (Omega . N would count sigma cos(angle))
+        Om = self.embedding.face_omega
+        flux = np.sign(np.einsum("ij,ij->i", Om, mesh.face_normals)) * np.linalg.norm(Om, axis=1) / (2 * np.pi)
+        out = {}
         for key, ids, signs in bf.generators:
             ge = mesh.edge_index(bv[B.edges[ids, 0]], bv[B.edges[ids, 1]])
             eta = np.zeros(mesh.n_edges)
@@ -570,14 +600,20 @@ class FieldProblem:
             chain = sol[0]
             if np.linalg.norm(d1t @ chain - eta) > 1e-6 * np.linalg.norm(eta):
                 continue  # does not bound in the solid: any class is allowed
-            quarter_turns = int(np.round(4 * float(chain @ flux)))
-            expected = np.cos(quarter_turns * np.pi / 4)
-            if abs(expected) < 0.5:
-                continue  # a half turn: both lifts are possible
+            through = int(np.round(4 * float(chain @ flux[inner])))
             q = _su2_holonomy(bf.omega0[ids] * signs[:, None])
-            if np.sign(q[0]) != np.sign(expected):
-                extra[key] = 4
-        return extra
+            base = B.edges[ids[0], 0] if signs[0] > 0 else B.edges[ids[0], 1]
+            # the sense from the base vertex's normal (at a sharp corner the
+            # axis is one face's normal, and the vertex normal their mean)
+            sense = 1.0 if float(q[1:] @ bf.normals[base]) >= 0 else -1.0
+            k = 2.0 * np.arctan2(sense * np.linalg.norm(q[1:]), float(q[0])) / (np.pi / 2)  # in (-4, 4]
+            if abs(k - np.round(k)) > 0.25:
+                continue  # not a whole number of quarter turns: nothing to read
+            k = int(np.round(k))
+            best = min((((t - k + 4) % 8) - 4 for t in (through, -through)), key=abs)
+            if best:
+                out[key] = int(best)
+        return out
 
     # ----------------------------------------------------------------- solve
     @property
