@@ -32,7 +32,13 @@ from .field.develop import develop
 from .linalg.rotations import cross_distance
 from .pipeline import INITS, FieldProblem, Options
 
-DEFAULT_EXAMPLES = [("cube", 0.2), ("cylinder", 0.2), ("torus", 0.15), ("ball", 0.15), ("plate", 0.1)]
+DEFAULT_EXAMPLES = [("cube", 0.2), ("cylinder", 0.2), ("torus", 0.15), ("ball", 0.15), ("plate", 0.1),
+                    ("cylinder/tet-edge", 0.2), ("ball/tet-edge", 0.15), ("plate/tet-edge", 0.1)]
+TET_EDGE_SOURCE = 1.5
+"""An example named ``NAME/tet-edge`` is NAME's network routed along the
+edges of an independent fTetWild mesh at TET_EDGE_SOURCE times the row's
+edge length (``solver/tetedge.py``: zig-zags, 1e-6 segments, oblique ends),
+repaired by the curve intake and solved like the clean one."""
 DEFAULT_REFINE = [("cylinder", [0.3, 0.22, 0.16, 0.12]), ("ball", [0.2, 0.15, 0.12, 0.1])]
 """Target edge lengths whose fTetWild meshes have clearly different mean edge
 lengths (cylinder: 0.24 .. 0.12; ball: 0.17 .. 0.10).  Coarser targets give
@@ -69,6 +75,7 @@ COLUMNS = [
     ("tets", "tets", "{:,}"),
     ("time s", "time", "{:.0f}"),
     ("LM it", "lm_iterations", "{}"),
+    ("penalty", "penalty", "{:.3g}"),
     ("mono mean°", "mono_mean", "{:.2e}"),
     ("mono max°", "mono_max", "{:.2e}"),
     ("resid mean", "res_mean", "{:.2e}"),
@@ -95,7 +102,10 @@ COLUMNS = [
 
 COLUMN_NOTES = """\
 * **h**: target edge length; **tets**, **time** (meshing + all stages of the zero-start solve, wall clock),
-  **LM it**: Levenberg–Marquardt iterations of the zero start.
+  **LM it**: Levenberg–Marquardt iterations of the zero start; **penalty**: its structure term a·R(ω) (Eq. 23),
+  which `solver/pipeline.py` calls converged at ≤ 1 + 0.25 × smoothness.
+  **NAME/tet-edge**: NAME's curves routed along the edges of an independent fTetWild mesh at 1.5 h
+  (`solver/tetedge.py`) and repaired by the curve intake; tangent adaptation is to the repaired curves.
 * **mono mean/max°**: per-face monodromy angle (Eq. 9) over the *regular* faces: interior, not pierced by a curve,
   not in a node region or curve end.
 * **resid mean/max**: |dω − ω∧ω − Ω| per face (Eq. 17, the BCH-consistent form of `solver/field/structure.py`), over all
@@ -163,6 +173,7 @@ def measure(result, others: dict | None = None, smoothing_iterations: int = SMOO
     lm = result.report.lm
     row["lm_iterations"] = lm.n_iterations
     row["lm_converged"] = lm.converged
+    row["penalty"] = lm.final.penalty
     row["time"] = result.report.total_seconds
     row["lm_seconds"] = lm.seconds
     # integrability
@@ -263,7 +274,14 @@ MESH_ATTEMPTS = 3
 def make_problem(name: str, h: float, log=print) -> FieldProblem:
     """FieldProblem of an example; fTetWild is not deterministic, so a
     meshing/embedding failure is retried (and logged) up to MESH_ATTEMPTS."""
-    V, F, net = load_example(name)
+    base, _, variant = name.partition("/")
+    V, F, net = load_example(base)
+    if variant == "tet-edge":
+        from .tetedge import tet_edge_network
+
+        net, _ = tet_edge_network(V, F, net, TET_EDGE_SOURCE * h, seed=0)
+    elif variant:
+        raise ValueError(f"unknown variant {variant!r} of {base!r} (known: tet-edge)")
     for attempt in range(1, MESH_ATTEMPTS + 1):
         try:
             return FieldProblem(V, F, net, Options(edge_length=h))
