@@ -62,6 +62,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--refine", type=int, help="red-refinement levels after fTetWild (default: automatic, 0-2)")
     p.add_argument("--no-snap", action="store_true", help="keep fTetWild's boundary as it is (default: moved "
                    "back onto the input's sharp edges and patches)")
+    p.add_argument("--mesher", choices=("auto", "TetGen", "fTetWild"),
+                   help="tet mesher (default auto: TetGen where the tetgen package is installed and the surface "
+                        "is no denser than the mesh, else fTetWild; fTetWild meshes where TetGen fails)")
     p.add_argument("--penalty", type=float, help="penalty a of Eq. 23 (default 1000)")
     p.add_argument("--iterations", type=int, help="maximum Levenberg-Marquardt iterations (default 30)")
     p.add_argument("--init", choices=INITS, help="initial guess (default zero)")
@@ -77,7 +80,7 @@ def _options(args, file_options: dict):
     d = dict(file_options)
     for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets),
                      ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init),
-                     ("refine", args.refine), ("max_tets", args.max_tets)):
+                     ("refine", args.refine), ("max_tets", args.max_tets), ("mesher", args.mesher)):
         if val is not None:
             d[key] = val
     if args.no_snap:

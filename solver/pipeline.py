@@ -39,6 +39,9 @@ from .surface.features import FeatureGraph, check_poincare_hopf, transfer_featur
 INITS = ("zero", "constant", "random", "linear")
 
 
+MESHER_CHOICES = ("auto", "TetGen", "fTetWild")
+
+
 @dataclass
 class Options:
     """Settings of a solve.
@@ -68,6 +71,15 @@ class Options:
     snap_features  : move the tet mesh's boundary onto the input's sharp
                      edges and patches (snapping.py); fTetWild leaves thin
                      tilted triangles along creases that twist the field
+    mesher         : 'auto' (the default), 'TetGen' or 'fTetWild'.  TetGen
+                     (mesh/cdt.py) keeps a clean surface exactly and meshes
+                     3-10x faster; it needs the AGPL ``tetgen`` package, which
+                     the extension does not bundle.  fTetWild remeshes any
+                     triangle soup and meshes the curve tubes.  'auto'
+                     takes TetGen where it is installed, the network has no
+                     singular curves and the surface is no denser than an
+                     h-mesh of it (cdt.wants_tetgen), else fTetWild; where
+                     TetGen fails, fTetWild meshes and the report says why
     """
 
     edge_length: float | None = None
@@ -84,6 +96,7 @@ class Options:
     refine: int | None = None
     snap_features: bool = True
     max_tets: int | None = None
+    mesher: str = "auto"
 
     def __post_init__(self):
         # types and ranges in one place (checks.py): a bad value is refused
@@ -112,6 +125,7 @@ class Options:
         self.snap_features = checks.boolean("option 'snap_features'", self.snap_features, E)
         self.max_tets = checks.integer("option 'max_tets'", self.max_tets, E, low=1, allow_none=True,
                                        fix="a tet count, or null/None for the default limit (mesh/resolution.py)")
+        self.mesher = checks.choice("option 'mesher'", self.mesher, MESHER_CHOICES, E)
 
 
 @dataclass
@@ -125,6 +139,7 @@ class Report:
     edge_length: float = 0.0
     repairs: list = field(default_factory=list)  # intake.CurveRepair per interior curve
     repair_scale: float = 0.0  # the h the curves were repaired at
+    mesher: str = ""  # the mesher that made the tet mesh, and why if not the one asked for
     corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
     status: str = ""  # 'converged' or 'not converged' (solution_status)
     status_reason: str = ""
@@ -142,6 +157,8 @@ class Report:
                  f"edges {self.sizes.get('edges', 0):,}  (edge length {self.edge_length:.4g})"]
         if self.status:
             lines.insert(0, f"status: {self.status} ({self.status_reason})")
+        if self.mesher and self.mesher != "fTetWild":
+            lines.append(f"  meshed by {self.mesher}")
         if self.sizes.get("graded_tets"):
             lines.append(f"  graded towards the network: {self.sizes['graded_tets']:,} tets added by bisection, "
                          f"edges down to {self.sizes['edge_length_min']:.4g}")
@@ -150,7 +167,8 @@ class Report:
                          f"(~{self.sizes['needed_tets']:,} tets): held at {self.sizes['resolution_floor']:.3g} to keep "
                          f"the tet budget; raise target_tets to resolve it")
         if self.sizes.get("refine_levels"):
-            lines.append(f"  fTetWild meshed {self.sizes['mesher_tets']:,} tets, refined "
+            who = "TetGen" if self.mesher == "TetGen" else "fTetWild"
+            lines.append(f"  {who} meshed {self.sizes['mesher_tets']:,} tets, refined "
                          f"{self.sizes['refine_levels']}x (each tet into 8)")
         if self.sizes.get("flat_tets"):
             left = self.sizes.get("flat_tets_left", 0)
@@ -185,7 +203,7 @@ class Report:
     def as_dict(self) -> dict:
         d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
              "edge_length": self.edge_length, "repairs": [asdict(r) for r in self.repairs],
-             "repair_scale": self.repair_scale,
+             "repair_scale": self.repair_scale, "mesher": self.mesher,
              "corners": [asdict(c) for c in self.corners], "status": self.status, "converged": self.converged,
              "status_reason": self.status_reason}
         if self.lm is not None:
@@ -460,7 +478,28 @@ class FieldProblem:
     def _mesh_at(self, h, cancel=None):
         """fTetWild's mesh for a final edge length h: (mesh, refinement
         levels k, the edge length H = h 2**k meshed at, topology problem or
-        None)."""
+        None).  With mesher 'TetGen' the surface alone is meshed at h (no
+        tubes: embed.py traces the curves through any mesh); where TetGen
+        fails, fTetWild meshes it and the report says why."""
+        from .mesh.cdt import tetrahedralize_cdt, wants_tetgen
+
+        mesher = self.options.mesher
+        if mesher == "auto":
+            singular = any(c.sigma != 0 for c in self.network.curves)
+            mesher = "TetGen" if wants_tetgen(self.checked.surface, h, singular) else "fTetWild"
+        if mesher == "TetGen" and not self.report.mesher.startswith("fTetWild"):
+            # no automatic red refinement: TetGen's time grows with its output
+            # no faster than refinement's (refine_levels is for fTetWild)
+            k = int(self.options.refine or 0)
+            try:
+                mesh = tetrahedralize_cdt(self.checked.surface, h * 2.0**k, cancel)
+            except MeshingError as e:
+                self.report.mesher = f"fTetWild (TetGen failed: {e})"
+            else:
+                self.report.mesher = "TetGen"
+                return mesh, k, h * 2.0**k, self._topology_change(mesh)
+        elif not self.report.mesher:
+            self.report.mesher = "fTetWild"
         k = self.refine_levels(h)
         while True:
             H = h * 2.0**k
@@ -656,7 +695,8 @@ class FieldProblem:
             self.options = Options(**{**asdict(opts), "penalty": penalty})
         report = Report(stage_seconds=dict(self.report.stage_seconds), sizes=dict(self.report.sizes),
                         edge_length=self.edge_length, repairs=self.report.repairs,
-                        repair_scale=self.report.repair_scale, corners=self.report.corners)
+                        repair_scale=self.report.repair_scale, corners=self.report.corners,
+                        mesher=self.report.mesher)
         st = _Stages(report, progress, cancel)
         st.done = 0.45
         # the volume problem's setup (assembly pattern, preconditioner

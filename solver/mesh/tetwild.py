@@ -152,6 +152,13 @@ z = np.load(sys.argv[1])
 V, F = z["V"], z["F"].astype(np.int32)
 h, eps, passes, simplify = float(z["h"]), float(z["eps"]), int(z["passes"]), bool(z["simplify"])
 forced = os.environ.get("SYMFRAMES_MESHER", "")
+if "tetgen_volume" in z.files:
+    # TetGen (cdt.py): a constrained Delaunay mesh of the closed surface,
+    # quality-refined (radius-edge 1.5) under a volume bound; interior only
+    import tetgen
+    out = tetgen.TetGen(V, F).tetrahedralize(switches="pq1.5a%.17gQ" % float(z["tetgen_volume"]))
+    np.savez(sys.argv[2], P=np.asarray(out[0]), T=np.asarray(out[1]))
+    sys.exit(0)
 try:
     if forced == "wildmeshing":
         raise ImportError("SYMFRAMES_MESHER=wildmeshing")
@@ -278,7 +285,7 @@ def mesher_name() -> str:
     return ""
 
 
-def run_tetwild(V, F, edge_length, epsilon, cancel=None, simplify=True):
+def run_tetwild(V, F, edge_length, epsilon, cancel=None, simplify=True, tetgen_volume=None):
     """fTetWild's unfiltered tet mesh of the triangle soup (V, F).
 
     Runs in a child process whose working directory is a temporary folder:
@@ -293,6 +300,9 @@ def run_tetwild(V, F, edge_length, epsilon, cancel=None, simplify=True):
     so a SIGKILLed parent does not orphan it either.  The folder is named
     after the owner's pid; folders of owners that died without cleaning up
     are removed by the next run (remove_stale_folders).
+
+    tetgen_volume : run TetGen instead, with this bound on the tet volume
+                    (cdt.py), in the same kind of child.
     """
     import atexit
     import os
@@ -311,8 +321,9 @@ def run_tetwild(V, F, edge_length, epsilon, cancel=None, simplify=True):
             fh.write(f"{os.getpid()} {_process_start(os.getpid()) or ''}\n")
         src = os.path.join(tmp, "in.npz")
         dst = os.path.join(tmp, "out.npz")
+        extra = {} if tetgen_volume is None else {"tetgen_volume": float(tetgen_volume)}
         np.savez(src, V=np.asarray(V, np.float64), F=np.asarray(F, np.int64), h=float(edge_length),
-                 eps=float(epsilon), passes=TETWILD_PASSES, simplify=bool(simplify))
+                 eps=float(epsilon), passes=TETWILD_PASSES, simplify=bool(simplify), **extra)
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
         proc = subprocess.Popen([sys.executable, "-c", _TETWILD_WORKER, src, dst, str(os.getpid())], cwd=tmp,
@@ -335,7 +346,8 @@ def run_tetwild(V, F, edge_length, epsilon, cancel=None, simplify=True):
             _LIVE_CHILDREN.discard(proc)
         if proc.returncode != 0 or not os.path.exists(dst):
             msg = err.decode(errors="replace").strip().splitlines()[-3:] if err else []
-            raise MeshingError(f"fTetWild failed (exit code {proc.returncode}): {' | '.join(msg)}")
+            who = "TetGen" if tetgen_volume is not None else "fTetWild"
+            raise MeshingError(f"{who} failed (exit code {proc.returncode}): {' | '.join(msg)}")
         z = np.load(dst)
         return z["P"], z["T"]
 

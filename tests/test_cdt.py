@@ -1,0 +1,69 @@
+"""TetGen as the mesher of clean surfaces (solver/mesh/cdt.py) and the
+choice between it and fTetWild (Options.mesher)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from solver import FieldProblem, MeshingError, Options, OptionsError, solve
+from solver.examples import box, l_prism_example, load_example
+from solver.mesh.cdt import tetrahedralize_cdt, wants_tetgen
+from solver.surface.trisurface import TriSurface
+
+
+def test_tetgen_keeps_the_surface_exactly():
+    """Every boundary vertex of the mesh lies on the input surface and the
+    volumes agree to round-off; no tet is flat; the count is near the
+    budget's 15 tets per h^3."""
+    V, F, _ = l_prism_example()
+    S = TriSurface(V, F)
+    h = 0.12
+    mesh = tetrahedralize_cdt(S, h)
+    assert mesh.tet_volumes.min() > 0
+    assert mesh.tet_volumes.sum() == pytest.approx(abs(S.signed_volumes().sum()), rel=1e-9)
+    d, _, _ = S.closest_points(mesh.vertices[mesh.boundary_vertices])
+    assert d.max() < 1e-9
+    expected = 15.0 * abs(S.signed_volumes().sum()) / h**3
+    assert 0.5 * expected < mesh.n_tets < 1.5 * expected
+
+
+def test_tetgen_failure_is_an_error_not_a_crash():
+    """Two overlapping boxes (a surface that intersects itself, which
+    validation would refuse): TetGen refuses it in its child process; the
+    caller gets a MeshingError and keeps running."""
+    V, F = box(n=2)
+    S = TriSurface(np.vstack([V, V + 0.5]), np.vstack([F, F + len(V)]))
+    with pytest.raises(MeshingError, match="TetGen failed"):
+        tetrahedralize_cdt(S, 0.3)
+
+
+def test_auto_takes_tetgen_for_a_clean_part_and_it_solves():
+    V, F, net = load_example("prism")
+    r = solve(V, F, net)
+    assert r.report.mesher == "TetGen" and "meshed by TetGen" in r.report.summary()
+    assert r.report.converged, r.report.status_reason
+    assert r.report.metrics["normal_adaptation_mean_deg"] < 0.5
+
+
+def test_where_tetgen_fails_ftetwild_meshes(monkeypatch):
+    import solver.mesh.cdt as cdt
+
+    def fail(*a, **k):
+        raise MeshingError("TetGen failed (exit code 1): test")
+
+    monkeypatch.setattr(cdt, "tetrahedralize_cdt", fail)
+    V, F, net = load_example("cube")
+    p = FieldProblem(V, F, net, Options(mesher="TetGen", edge_length=0.3))
+    assert p.report.mesher.startswith("fTetWild (TetGen failed") and p.mesh.n_tets > 0
+    assert "meshed by fTetWild (TetGen failed" in p.report.summary()
+
+
+def test_dense_surfaces_and_singular_curves_go_to_ftetwild():
+    """TetGen keeps every input vertex: a surface with many more triangles
+    than an h-mesh of it would mesh far past the budget."""
+    V, F, _ = load_example("cylinder")  # 4,480 triangles, 3.5x an h-mesh at h = 0.18
+    S = TriSurface(V, F)
+    assert not wants_tetgen(S, 0.18) and wants_tetgen(S, 0.09) and not wants_tetgen(S, 0.09, singular_curves=True)
+    with pytest.raises(OptionsError, match="mesher"):
+        Options(mesher="gmsh")
