@@ -27,7 +27,7 @@ sys.path.insert(0, ROOT)
 STAGES = ("validate", "tetmesh", "embed", "boundary2d", "constraints", "volume3d", "integrate")
 
 
-def run_one(example: str, tets: int) -> dict:
+def run_one(example: str, tets: int, mesher: str = "auto") -> dict:
     """Solve once in this process and return the figures (example 'lprism'
     with tets 0: the real-shape row, default settings)."""
     from solver import FieldProblem, Options
@@ -35,7 +35,7 @@ def run_one(example: str, tets: int) -> dict:
 
     V, F, net = l_prism_example() if example == "lprism" else load_example(example)
     t0 = time.perf_counter()
-    problem = FieldProblem(V, F, net, Options(target_tets=tets) if tets else Options())
+    problem = FieldProblem(V, F, net, Options(target_tets=tets, mesher=mesher) if tets else Options(mesher=mesher))
     result = problem.solve()
     wall = time.perf_counter() - t0
     rep = result.report
@@ -46,6 +46,7 @@ def run_one(example: str, tets: int) -> dict:
             "lm_iterations": rep.lm.n_iterations, "cg_iterations": rep.lm.cg_iterations,
             "lm_reason": rep.lm.reason, "energy": rep.lm.final.energy, "peak_mb": own, "mesher_peak_mb": child,
             "metrics": rep.metrics, "status": rep.status, "mesher_tets": rep.sizes.get("mesher_tets", 0),
+            "mesher": rep.mesher or "fTetWild", "mesher_option": mesher,
             "cpu": _cpu(resource.RUSAGE_SELF), "mesher_cpu": _cpu(resource.RUSAGE_CHILDREN)}
 
 
@@ -55,21 +56,21 @@ def _cpu(who) -> float:
 
 
 REAL_SHAPE = ("L-shaped prism (three unit squares, 0.5 thick; 18 sharp edges, one feature curve across the "
-              "thickness), default settings (target_tets 15,000)")
+              "thickness), default settings (target_tets 15,000; mesher auto), then with fTetWild forced")
 
 
 def real_shape_table(rows: list[dict]) -> str:
     """End to end and meshing share of the CAD-like part (the tetmesh stage
-    against the whole, wall time), and fTetWild's child process's share of
+    against the whole, wall time), and the mesher child process's share of
     all CPU seconds, which other processes on the machine disturb less than
     wall time (the tetmesh stage's own work, the inside filter and the
     snapping, counts on the other side there)."""
-    lines = ["| tets | fTetWild tets | tetmesh s | volume3d s | total s | meshing share | fTetWild share of CPU | "
-             "LM its | status |", "|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+    lines = ["| mesher option | meshed by | tets | tetmesh s | volume3d s | total s | meshing share | "
+             "mesher share of CPU | LM its | status |", "|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
     for r in rows:
         tm, tot = r["stages"].get("tetmesh", 0.0), sum(r["stages"].values())
         cpu_share = r["mesher_cpu"] / max(r["cpu"] + r["mesher_cpu"], 1e-9)
-        lines.append(f"| {r['tets']:,} | {r.get('mesher_tets', r['tets']):,} | {tm:.1f} | "
+        lines.append(f"| {r.get('mesher_option', 'auto')} | {r.get('mesher', 'fTetWild')} | {r['tets']:,} | {tm:.1f} | "
                      f"{r['stages'].get('volume3d', 0.0):.1f} | {r['wall']:.1f} | {tm / tot:.0%} | {cpu_share:.0%} | "
                      f"{r['lm_iterations']} | {r['status']} |")
     return "\n".join(lines)
@@ -121,19 +122,23 @@ def main(argv=None) -> int:
     p.add_argument("--write", action="store_true", help="write the table into bench/RESULTS.md")
     p.add_argument("--real-shape", type=int, metavar="RUNS", help="the CAD-like part (an L-shaped prism with sharp "
                    "edges and a feature curve) at default settings, RUNS fresh runs")
+    p.add_argument("--mesher", default="auto", help="Options.mesher for the solver rows (auto, TetGen, fTetWild)")
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: run one size, print JSON
     args = p.parse_args(argv)
     if args.one is not None:
-        print("RESULT " + json.dumps(run_one(args.example, args.one), default=float))
+        print("RESULT " + json.dumps(run_one(args.example, args.one, args.mesher), default=float))
         return 0
+    runs = [(n, args.mesher) for n in args.tets]
     if args.real_shape:
-        args.example, args.tets = "lprism", [0] * args.real_shape
+        # the default, then the same part with fTetWild forced, for comparison
+        args.example = "lprism"
+        runs = [(0, m) for m in ("auto", "fTetWild") for _ in range(args.real_shape)]
     rows, failed = [], []
-    for n in args.tets:
-        print(f"[bench] {args.example} " + (f"~{n:,} tets ..." if n else "default settings ..."), file=sys.stderr,
-              flush=True)
-        out = subprocess.run([sys.executable, os.path.abspath(__file__), "--example", args.example, "--one", str(n)],
-                             capture_output=True, text=True)
+    for n, mesher in runs:
+        print(f"[bench] {args.example} " + (f"~{n:,} tets ..." if n else "default settings ...")
+              + (f" (mesher {mesher})" if mesher != "auto" else ""), file=sys.stderr, flush=True)
+        out = subprocess.run([sys.executable, os.path.abspath(__file__), "--example", args.example, "--one", str(n),
+                              "--mesher", mesher], capture_output=True, text=True)
         line = [x for x in out.stdout.splitlines() if x.startswith("RESULT ")]
         if out.returncode != 0 or not line:
             # one failed size does not lose the others: it is reported
