@@ -454,6 +454,14 @@ class FieldProblem:
             n = mesh.n_tets * 8.0**k
             if cap is None or problem is not None or n <= cap:
                 break
+            if self.report.mesher == "TetGen":
+                # TetGen keeps the input's triangles and refines around the
+                # small or thin ones whatever h is (a box with 1,728 thin
+                # triangles: 3.4k tets at 1.8 h after the overshoot at h,
+                # where fTetWild made 9.1k at h), so fTetWild meshes instead
+                self.report.mesher = (f"fTetWild (TetGen made {int(n):,} tets, past 1.5x the budget, around the "
+                                      "surface's small or thin triangles)")
+                continue
             h *= (n / self.options.target_tets) ** (1.0 / 3.0)
             self.edge_length = self.report.edge_length = h
             mesh.info["budget_retries"] = _attempt + 1

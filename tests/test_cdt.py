@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import FieldProblem, MeshingError, Options, OptionsError, solve
+from solver import FieldProblem, MeshingError, Network, Options, OptionsError, solve
 from solver.examples import box, l_prism_example, load_example
 from solver.mesh.cdt import tetrahedralize_cdt, wants_tetgen
 from solver.surface.trisurface import TriSurface
@@ -67,3 +67,18 @@ def test_dense_surfaces_and_singular_curves_go_to_ftetwild():
     assert not wants_tetgen(S, 0.18) and wants_tetgen(S, 0.09) and not wants_tetgen(S, 0.09, singular_curves=True)
     with pytest.raises(OptionsError, match="mesher"):
         Options(mesher="gmsh")
+
+
+def test_a_surface_of_thin_triangles_that_tetgen_overrefines_goes_to_ftetwild():
+    """A box whose 1,728 triangles are squeezed towards x = 0 (up to 100:1):
+    no denser than the mesh, but TetGen refines around the thin triangles
+    whatever the edge length, far past 1.5x the budget; fTetWild meshes it
+    at the same edge length instead of a coarser TetGen mesh."""
+    V, F = box(n=12)
+    V = V.copy()
+    V[:, 0] = np.sign(V[:, 0]) * np.abs(V[:, 0]) ** 4
+    budget = 6000
+    p = FieldProblem(V, F, Network(curves=[], sharp_angle=30.0), Options(target_tets=budget))
+    assert p.report.mesher.startswith("fTetWild (TetGen made"), p.report.mesher
+    assert p.mesh.n_tets <= 1.5 * budget
+    assert p.edge_length == pytest.approx(p.plan.edge_length)
