@@ -336,6 +336,7 @@ class FieldProblem:
         self.report.edge_length = h
         self.network: PreparedNetwork = self.checked.network
         self.hierarchy = []  # refine.Refinement per level, coarse to fine
+        self._tetgen_off = ""  # why TetGen, asked for, did not mesh (then fTetWild did)
         if mesh is None:
             if progress is not None:
                 progress("tetmesh", st.done, f"tetmesh: {self.plan.describe()}")
@@ -459,8 +460,8 @@ class FieldProblem:
                 # small or thin ones whatever h is (a box with 1,728 thin
                 # triangles: 3.4k tets at 1.8 h after the overshoot at h,
                 # where fTetWild made 9.1k at h), so fTetWild meshes instead
-                self.report.mesher = (f"fTetWild (TetGen made {int(n):,} tets, past 1.5x the budget, around the "
-                                      "surface's small or thin triangles)")
+                self._tetgen_off = (f"TetGen made {int(n):,} tets, past 1.5x the budget, around the surface's "
+                                    "small or thin triangles")
                 continue
             h *= (n / self.options.target_tets) ** (1.0 / 3.0)
             self.edge_length = self.report.edge_length = h
@@ -495,19 +496,18 @@ class FieldProblem:
         if mesher == "auto":
             singular = any(c.sigma != 0 for c in self.network.curves)
             mesher = "TetGen" if wants_tetgen(self.checked.surface, h, singular) else "fTetWild"
-        if mesher == "TetGen" and not self.report.mesher.startswith("fTetWild"):
+        if mesher == "TetGen" and not self._tetgen_off:
             # no automatic red refinement: TetGen's time grows with its output
             # no faster than refinement's (refine_levels is for fTetWild)
             k = int(self.options.refine or 0)
             try:
                 mesh = tetrahedralize_cdt(self.checked.surface, h * 2.0**k, cancel)
             except MeshingError as e:
-                self.report.mesher = f"fTetWild (TetGen failed: {e})"
+                self._tetgen_off = f"TetGen failed: {e}"
             else:
                 self.report.mesher = "TetGen"
                 return mesh, k, h * 2.0**k, self._topology_change(mesh)
-        elif not self.report.mesher:
-            self.report.mesher = "fTetWild"
+        self.report.mesher = "fTetWild" + (f" ({self._tetgen_off})" if self._tetgen_off else "")
         k = self.refine_levels(h)
         while True:
             H = h * 2.0**k
@@ -577,13 +577,17 @@ class FieldProblem:
         # singular curves through the spanning chain prescribe; a first
         # correction, then once more with the opposite sense of rotation
         # for any the first did not fix (_generator_turns)
-        extra = {}
-        for flip in (1, -1):
+        extra, first = {}, {}
+        for attempt in range(2):
             wrong = self._generator_turns(bf)
             if not wrong:
                 break
             for key, t in wrong.items():
-                extra[key] = extra.get(key, 0) + flip * t * (2 if flip < 0 else 1)
+                # the second time, a generator the first correction did not
+                # fix gets that correction in the other sense
+                extra[key] = -first[key] if attempt and key in first else extra.get(key, 0) + t
+            if not attempt:
+                first = dict(wrong)
             bf = solve_boundary_field(B, G, fs, generator_turns=extra, normal_override=override)
         self._check_lift(bf)
         return bf
