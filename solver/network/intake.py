@@ -459,9 +459,10 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
         slide = {}
         if not c.closed and len(P0) > 1:
             for end, kind in ((0, kinds[0]), (-1, kinds[1])):
-                d, f, q = S.closest_points(P0[end][None])
-                if kind == "boundary" and d[0] <= boundary_tolerance:
-                    slide[end] = surface_normal_at(S, int(f[0]), q[0])
+                if kind == "boundary":
+                    q, nrm = project(P0[end])
+                    if np.linalg.norm(q - P0[end]) <= boundary_tolerance:
+                        slide[end] = nrm
         Q, merged, ell, ncorner, fixed = fair_curve(P0, h, c.closed, slide, project)
         faired = True
         note = ""
