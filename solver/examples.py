@@ -393,9 +393,8 @@ def genus2_example(slant: float = 25.0):
     edges everywhere) and two straight feature curves (sigma = 0) from the
     bottom to the top, slanted by `slant` degrees off the normal: the
     intake bends both ends of each onto the normals, and the field follows
-    their tangent.  (With a +1/4, -1/4 pair of singular curves there
-    instead, straight or slanted, LM ended at its cap, penalty ~4e4, while
-    the block alone solves exactly: not yet understood.)"""
+    their tangent.  A +1/4, -1/4 pair of singular curves there instead
+    solves too (tests/test_handles.py)."""
     occ = np.ones((5, 3, 1), bool)
     occ[1, 1, 0] = occ[3, 1, 0] = False
     V, F = voxel_surface(occ, 0.5)

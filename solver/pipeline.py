@@ -345,6 +345,7 @@ class FieldProblem:
         self.mesh = mesh
         node_r = self._node_radius(self._node_h(h))
         self.embedding: Embedding = st.run("embed", embed_network, mesh, self.network, node_r)
+        self._meridian_cache = None  # (_meridians)
         self.boundary: BoundaryField = st.run("boundary2d", self._boundary)
         self.constraints: AffineOmega = st.run("constraints", build_constraints, mesh, self.network,
                                                self.embedding, self.boundary)
@@ -573,21 +574,27 @@ class FieldProblem:
                 for v in B.F[np.searchsorted(mesh.boundary_faces, f)]:
                     override[int(v)] = t
         bf = solve_boundary_field(B, G, fs, normal_override=override)
-        # generators that bound in the solid: their turns must be what the
+        # loops that bound in the solid: their turns must be what the
         # singular curves through the spanning chain prescribe; a first
-        # correction, then once more with the opposite sense of rotation
-        # for any the first did not fix (_generator_turns)
-        extra, first = {}, {}
+        # correction, then once more with the opposite sense of rotation for
+        # any the first did not fix (_meridian_errors)
+        keys = [key for key, _ids, _signs in bf.generators]
+        fixed = _bounding_combinations(bf.generator_null_values) if keys else []
+        wanted, first = {}, {}
         for attempt in range(2):
-            wrong = self._generator_turns(bf)
+            wrong = self._meridian_errors(bf)
             if not wrong:
                 break
-            for key, t in wrong.items():
-                # the second time, a generator the first correction did not
-                # fix gets that correction in the other sense
-                extra[key] = -first[key] if attempt and key in first else extra.get(key, 0) + t
+            for n, t in wrong:
+                # the second time, a loop the first correction did not fix
+                # gets that correction in the other sense
+                wanted[n] = -first[n] if attempt and n in first else wanted.get(n, 0) + t
             if not attempt:
-                first = dict(wrong)
+                first = dict(wanted)
+            delta = _integer_turns(wanted, fixed, len(keys))
+            if delta is None:
+                break
+            extra = {keys[i]: int(d) for i, d in enumerate(delta) if d}
             bf = solve_boundary_field(B, G, fs, generator_turns=extra, normal_override=override)
         self._check_lift(bf)
         return bf
@@ -607,9 +614,10 @@ class FieldProblem:
                 f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}): the tet mesh's surface is probably folded there (a "
                 f"curve tube or feature close to the surface). Try another edge length (now {self.edge_length:.4g})")
 
-    def _generator_turns(self, bf: BoundaryField) -> dict:
+    def _meridian_errors(self, bf: BoundaryField) -> list:
         """Quarter turns the boundary field's holonomy is off by around the
-        generators that bound in the solid (the meridians of a handle).
+        loops of the surface that bound in the solid (the meridians of a
+        handle).
 
         Along such a loop the frames of the 3D lift (adapted to the boundary)
         return rotated about the normal at the base by k quarter turns, read
@@ -621,50 +629,87 @@ class FieldProblem:
         without curves).  The 2D field's generator holonomy (Eq. 14) is
         otherwise taken as the nearest quarter turn of the smoothest field,
         which can be a quarter or a full turn off; LM then ends at its cap
-        with a penalty of 1e4 or more (a +-1/4 pair of curves through the
-        genus-2 block).  Returns {generator key: quarter turns to add}, in
-        the sense of the base vertex's normal.
-        """
-        import scipy.sparse.linalg as spla
+        with a penalty of 1e4 or more (a +-1/4 pair of curves on either side
+        of a hole).
 
-        mesh = self.mesh
-        if not bf.generators:
-            return {}
-        B = mesh.boundary
-        bv = mesh.boundary_vertices
-        # chains of interior faces only: a curve's end face on the surface
-        # carries its singularity in the 2D field, not a flux
-        inner = np.ones(mesh.n_faces, bool)
-        inner[mesh.boundary_faces] = False
-        d1t = mesh.d1.T.tocsr()[:, np.nonzero(inner)[0]]
-        # turns of the curves through each face, with the sign of the face's
-        # normal: |Omega_f| / 2 pi = sigma however obliquely the curve
-        # pierces it (Omega . N would count sigma cos(angle))
-        Om = self.embedding.face_omega
-        flux = np.sign(np.einsum("ij,ij->i", Om, mesh.face_normals)) * np.linalg.norm(Om, axis=1) / (2 * np.pi)
-        out = {}
-        for key, ids, signs in bf.generators:
-            ge = mesh.edge_index(bv[B.edges[ids, 0]], bv[B.edges[ids, 1]])
-            eta = np.zeros(mesh.n_edges)
-            np.add.at(eta, ge, signs)
-            sol = spla.lsqr(d1t, eta, atol=1e-12, btol=1e-12, iter_lim=50000)
-            chain = sol[0]
-            if np.linalg.norm(d1t @ chain - eta) > 1e-6 * np.linalg.norm(eta):
-                continue  # does not bound in the solid: any class is allowed
-            through = int(np.round(4 * float(chain @ flux[inner])))
+        The surface's generators need not bound one by one (tree-cotree
+        gives any basis: on a torus often meridian + longitude and the
+        longitude), so the bounding loops are the integer combinations
+        sum n_i eta_i (_meridians).  All holonomies here are rotations about
+        the base normal, so the turns of a combination are sum n_i k_i
+        (mod 8).  Returns [(n as a tuple, quarter turns to add)].
+        """
+        combos = self._meridians(bf)
+        if not combos:
+            return []
+        B = self.mesh.boundary
+        turns = []
+        for _key, ids, signs in bf.generators:
             q = _su2_holonomy(bf.omega0[ids] * signs[:, None])
             base = B.edges[ids[0], 0] if signs[0] > 0 else B.edges[ids[0], 1]
             # the sense from the base vertex's normal (at a sharp corner the
             # axis is one face's normal, and the vertex normal their mean)
             sense = 1.0 if float(q[1:] @ bf.normals[base]) >= 0 else -1.0
-            k = 2.0 * np.arctan2(sense * np.linalg.norm(q[1:]), float(q[0])) / (np.pi / 2)  # in (-4, 4]
+            turns.append(2.0 * np.arctan2(sense * np.linalg.norm(q[1:]), float(q[0])) / (np.pi / 2))  # (-4, 4]
+        out = []
+        for n, through in combos:
+            k = float(np.dot(n, turns))
             if abs(k - np.round(k)) > 0.25:
                 continue  # not a whole number of quarter turns: nothing to read
             k = int(np.round(k))
             best = min((((t - k + 4) % 8) - 4 for t in (through, -through)), key=abs)
             if best:
-                out[key] = int(best)
+                out.append((tuple(int(x) for x in n), int(best)))
         return out
+
+    def _meridians(self, bf: BoundaryField) -> list:
+        """The integer combinations n of the surface's generators that bound
+        in the solid, with the quarter turns of the singular curves through
+        a chain spanning each: [(n, turns through)].  A loop bounds when no
+        part of it is left outside the boundaries of the solid's 2-chains
+        (least squares); the combinations are those whose leftovers cancel.
+        Depends on the mesh and the generators only, so it is kept."""
+        if self._meridian_cache is not None:
+            return self._meridian_cache
+        import scipy.sparse.linalg as spla
+
+        mesh = self.mesh
+        B = mesh.boundary
+        bv = mesh.boundary_vertices
+        # spanning chains may use any face: along a sharp rim a boundary edge
+        # often lies in no interior face (its one tet has both boundary
+        # faces), and with interior faces only no loop of a genus-1 block
+        # bounded.  Turns of the curves through each face, with the sign of
+        # the face's normal: |Omega_f| / 2 pi = sigma however obliquely the
+        # curve pierces it (Omega . N would count sigma cos(angle)).  The
+        # boundary face a curve ends on gets the value that balances its tet,
+        # so that the count is the same through every chain spanning a loop
+        Om = self.embedding.face_omega
+        flux = np.sign(np.einsum("ij,ij->i", Om, mesh.face_normals)) * np.linalg.norm(Om, axis=1) / (2 * np.pi)
+        for f, _ in self.embedding.boundary_end_faces:
+            T = mesh.face_tets[f, 0]
+            fs = mesh.tet_faces[T]
+            out = np.sign(np.einsum("ij,ij->i", mesh.vertices[mesh.faces[fs]].mean(axis=1)
+                                    - mesh.vertices[mesh.tets[T]].mean(axis=0), mesh.face_normals[fs]))
+            me = fs == f
+            flux[f] = -float(out[~me] @ flux[fs[~me]]) / float(out[me][0])
+        d1t = mesh.d1.T.tocsr()
+        chains, resid = [], []
+        for _key, ids, signs in bf.generators:
+            ge = mesh.edge_index(bv[B.edges[ids, 0]], bv[B.edges[ids, 1]])
+            eta = np.zeros(mesh.n_edges)
+            np.add.at(eta, ge, signs)
+            # atol=0: stop at the least-squares solution to machine precision
+            # (the default test stopped early with a residual of 1.3)
+            chain = spla.lsqr(d1t, eta, atol=0.0, btol=1e-12, iter_lim=50000)[0]
+            chains.append(chain)
+            resid.append(d1t @ chain - eta)  # unscaled: integer combinations stay so
+        self._meridian_cache = []
+        if chains:
+            for n in _bounding_combinations(np.array(resid)):
+                chain = sum(int(n[i]) * chains[i] for i in np.nonzero(n)[0])
+                self._meridian_cache.append((n, int(np.round(4 * float(chain @ flux)))))
+        return self._meridian_cache
 
     # ----------------------------------------------------------------- solve
     @property
@@ -882,3 +927,65 @@ def _su2_holonomy(steps: np.ndarray) -> np.ndarray:
         p = np.r_[np.cos(th / 2), np.sin(th / 2) * a]
         q = np.r_[p[0] * q[0] - p[1:] @ q[1:], p[0] * q[1:] + q[0] * p[1:] + np.cross(p[1:], q[1:])]
     return q
+
+
+def _bounding_combinations(resid: np.ndarray, max_denominator: int = 12) -> list[np.ndarray]:
+    """Integer vectors n with sum n_i resid_i = 0: the combinations of loops
+    whose residuals (the part no 2-chain of the solid spans) cancel.
+
+    resid : (#loops, #edges).  The null space of their Gram matrix, put in
+    reduced row echelon form and scaled to integers, primitive.
+    """
+    from fractions import Fraction
+
+    G = resid @ resid.T
+    scale = max(float(np.abs(np.diag(G)).max()), 1e-300)
+    w, U = np.linalg.eigh(G / scale)
+    N = U[:, w < 1e-8]  # (#loops, dim)
+    if N.shape[1] == 0:
+        return []
+    # reduced row echelon form of N^T
+    M = N.T.copy()
+    r = 0
+    for c in range(M.shape[1]):
+        if r == M.shape[0]:
+            break
+        p = r + int(np.argmax(np.abs(M[r:, c])))
+        if abs(M[p, c]) < 1e-6:
+            continue
+        M[[r, p]] = M[[p, r]]
+        M[r] /= M[r, c]
+        for i in range(M.shape[0]):
+            if i != r:
+                M[i] -= M[i, c] * M[r]
+        r += 1
+    out = []
+    for row in M[:r]:
+        fr = [Fraction(float(x)).limit_denominator(max_denominator) for x in row]
+        den = int(np.lcm.reduce([f.denominator for f in fr]))
+        v = np.array([int(f * den) for f in fr])
+        g = int(np.gcd.reduce(np.abs(v[v != 0]))) if np.any(v) else 1
+        v = v // max(g, 1)
+        if np.any(v) and np.abs(v @ resid).max() <= 1e-6 * np.abs(resid).max() * np.abs(v).sum():
+            out.append(v)
+    return out
+
+
+def _integer_turns(wanted: dict, fixed: list, n: int, reach: int = 4):
+    """Integer turns d per generator with n . d = t for each bounding
+    combination n -> t in `wanted`, and c . d = 0 for each combination c the
+    alignment rows fix; the smallest (sum |d|) for up to 4 generators, by
+    search within +-reach, otherwise by least squares if that is integral.
+    None when there is none."""
+    A = np.array([list(k) for k in wanted] + [list(c) for c in fixed], dtype=float).reshape(-1, n)
+    b = np.r_[list(wanted.values()), np.zeros(len(fixed))]
+    if n <= 4:
+        grid = np.stack(np.meshgrid(*[np.arange(-reach, reach + 1)] * n, indexing="ij"), axis=-1).reshape(-1, n)
+        ok = np.all(grid @ A.T == b, axis=1)
+        if not np.any(ok):
+            return None
+        cand = grid[ok]
+        return cand[np.argmin(np.abs(cand).sum(axis=1))]
+    d = np.round(np.linalg.lstsq(A, b, rcond=None)[0])
+    return d.astype(int) if np.allclose(A @ d, b) else None
+

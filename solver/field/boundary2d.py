@@ -98,6 +98,9 @@ class BoundaryField:
     is_feature_vertex : (#bV,) frames fully fixed there (sharp features)
     features : FeatureGraph on the boundary
     generators : list of ((component, k), edge ids, signs) loops used in Eq. 14
+    generator_null_values : (#generators, m) change of each generator's
+        holonomy along m random null vectors of the face and alignment rows
+        (zero for the combinations these rows fix)
     """
 
     omega2d: np.ndarray
@@ -113,6 +116,7 @@ class BoundaryField:
     features: FeatureGraph
     generators: list
     constraint_residual: float
+    generator_null_values: np.ndarray | None = None
 
 
 def edge_angles(S: TriSurface, vc: VertexCoordinates):
@@ -186,6 +190,123 @@ def tree_cotree_generators(S: TriSurface, comp_faces: np.ndarray, root: int):
             signs.append(1.0 if x < y else -1.0)
         loops.append((np.array(ids), np.array(signs)))
     return loops
+
+
+def _sector_rows(S: TriSurface, G: FeatureGraph, vc: VertexCoordinates, beta, rho, reg):
+    """Alignment across the sectors of sharp corners (§3.3, Fig. 11).
+
+    Fixed omega on sharp edges keeps the field aligned along a chain of
+    regular feature vertices, but nothing carried the alignment past a
+    corner: the smoothest field could turn by any angle from one chain to the
+    next (12 degrees on the holes of a genus-1 block, 45 with a singular pair
+    through it), and the frames adapted at the sharp edges then disagreed with
+    the 2D field by up to half a quarter turn.  For each sector s of a corner
+    c, from sharp edge (a1, c) to (c, a2) counter-clockwise, the field carried
+    a1 -> c -> a2 must arrive aligned with the second edge:
+
+        omega_a1c + omega_ca2 = theta~_s - k_s pi/2  (- Omega_c in the sector
+                                                      of c's singular triangle)
+
+    where theta~_s is the sector's normalised angle and k_s its quantised
+    angle in quarter turns; the real target is the value congruent (mod pi/2)
+    to exact alignment at a1 and a2 (their beta) nearest to that ideal.
+    Around c the targets sum to zero, so when every sector of c has regular
+    feature vertices at both ends the singular sector's row is implied and
+    left out.  Returns (rows as (sector, edge, sign) triplets, rhs, links
+    (a1, a2) per row).
+    """
+    F = S.F
+    ns, slab = G.sectors
+    nV = len(S.V)
+    corners = G.corners
+    if len(corners) == 0:
+        return np.zeros((0, 3), np.int64), np.zeros(0), np.zeros((0, 2), np.int64)
+    sv = G.sector_vertex
+    is_corner = np.zeros(nV, bool)
+    is_corner[corners] = True
+    fe = S.face_edges
+    sharp = G.sharp
+    flat = np.arange(3 * len(F))
+    f, k = flat // 3, flat % 3
+    cv = F[f, k]
+    at = is_corner[cv]
+    # the sector's first corner starts at a sharp edge (c, F[f,k+1]); its
+    # last corner ends at a sharp edge (c, F[f,k+2])
+    first = at & sharp[fe[f, k]]
+    last = at & sharp[fe[f, (k + 2) % 3]]
+    a1 = np.full(ns, -1)
+    a2 = np.full(ns, -1)
+    a1[slab[first]] = F[f[first], (k[first] + 1) % 3]
+    a2[slab[last]] = F[f[last], (k[last] + 2) % 3]
+    tt = np.bincount(slab, weights=vc.theta_tilde.reshape(-1), minlength=ns)
+    sing = np.zeros(ns, bool)
+    cf = G.corner_faces()
+    ck = np.argmax(F[cf] == corners[:, None], axis=1)
+    sing[slab[3 * cf + ck]] = True
+    Omega_c = np.zeros(nV)
+    Omega_c[corners] = 2 * np.pi * G.vertex_index[corners]
+    secs = np.nonzero(is_corner[sv] & (a1 >= 0) & (a2 >= 0))[0]
+    secs = secs[(a1[secs] != a2[secs])]
+    valid = reg[a1[secs]] & reg[a2[secs]]
+    # every sector of the corner valid: its singular sector's row is implied
+    n_sec = np.bincount(sv[secs], minlength=nV)
+    n_val = np.bincount(sv[secs[valid]], minlength=nV)
+    all_valid = (n_sec == np.bincount(sv, minlength=nV)) & (n_val == n_sec)
+    keep = valid & ~(sing[secs] & all_valid[sv[secs]])
+    secs = secs[keep]
+    c, p, q = sv[secs], a1[secs], a2[secs]
+    ideal = tt[secs] - G.sector_quarters[secs] * np.pi / 2 - np.where(sing[secs], Omega_c[c], 0.0)
+    keys = S.edges[:, 0].astype(np.int64) * nV + S.edges[:, 1]
+    e1 = np.searchsorted(keys, np.minimum(p, c).astype(np.int64) * nV + np.maximum(p, c))
+    e2 = np.searchsorted(keys, np.minimum(c, q).astype(np.int64) * nV + np.maximum(c, q))
+    s1 = np.where(p < c, 1.0, -1.0)
+    s2 = np.where(c < q, 1.0, -1.0)
+    # alignment at a1 and a2: phi_a2 - phi_a1 = rho + omega along a1 -> c -> a2
+    resid = beta[q] - beta[p] - s1 * rho[e1] - s2 * rho[e2]
+    rhs = ideal + wrap(resid - ideal, np.pi / 2)
+    n = len(secs)
+    trip = np.stack([np.r_[np.arange(n), np.arange(n)], np.r_[e1, e2], np.r_[s1, s2]], axis=1)
+    return trip, rhs, np.stack([p, q], axis=1)
+
+
+def _unlinked_chain_paths(S: TriSurface, fixed, links, reg):
+    """Sharp chains not linked to their component's development root.
+
+    Chains of regular feature vertices are joined by fixed sharp edges and by
+    the corner sectors of _sector_rows; the groups this leaves in a surface
+    component other than the root's (the root is the first regular feature
+    vertex, as in _develop_angles) each get the breadth-first tree path from
+    the root to their first vertex.  Returns [(root, vertex, edge ids,
+    signs)].
+    """
+    E = S.edges
+    nV = len(S.V)
+    if not np.any(reg):
+        return []
+    pairs = np.r_[E[fixed], links.reshape(-1, 2)]
+    A = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(nV, nV))
+    _, glab = csgraph.connected_components(A, directed=False)
+    Aall = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nV, nV))
+    Aall = (Aall + Aall.T).tocsr()
+    ncomp, vlab = csgraph.connected_components(Aall, directed=False)
+    keys = E[:, 0].astype(np.int64) * nV + E[:, 1]
+    out = []
+    for c in range(ncomp):
+        feat = np.nonzero((vlab == c) & reg)[0]
+        if len(feat) == 0:
+            continue
+        root = int(feat[0])
+        _, first = np.unique(glab[feat], return_index=True)
+        others = [int(v) for v in feat[first] if glab[v] != glab[root]]
+        if not others:
+            continue
+        _, pred = csgraph.breadth_first_order(Aall, root, directed=False, return_predecessors=True)
+        for v in others:
+            path = _path_to_root(pred, v)[::-1]  # root -> v
+            a, b = np.array(path[:-1]), np.array(path[1:])
+            ids = np.searchsorted(keys, np.minimum(a, b).astype(np.int64) * nV + np.maximum(a, b))
+            out.append((root, v, ids, np.where(a < b, 1.0, -1.0)))
+    return out
 
 
 def _path_to_root(pred, v):
@@ -263,39 +384,70 @@ def solve_boundary_field(
             generators.append(((c, k), loop))
     free = ~fixed
 
-    def solve(rows, rhs):
-        """Smallest-norm free omega with rows @ omega = rhs (fixed edges moved
-        to the right-hand side), by the normal equations of the constraints."""
+    def least_norm(rows):
+        """(Cf, apply): apply(r) is the smallest weighted-norm x on the free
+        edges with Cf x = r (r a vector or columns), by the normal equations
+        of the constraints."""
         Cf = rows[:, free].tocsr()
-        r = rhs - rows[:, fixed] @ omega_fixed[fixed]
         Winv = sp.diags(1.0 / w[free])
         Sys = (Cf @ Winv @ Cf.T).tocsc()
         lu = spla.splu(Sys + 1e-12 * Sys.diagonal().mean() * sp.eye(Sys.shape[0]), permc_spec="MMD_AT_PLUS_A")
-        y = lu.solve(r)
-        # the shift guards against dependent rows but leaves a residual of
-        # shift * y in every row, and these add up in the triangle left out
-        # of each component (its row is minus the sum of the others): the
-        # torus example at 50k tets, with a full turn added around a
-        # generator, missed it by 1.4e-6 rad on 4 of 4 meshes, above the
-        # tolerance below.  Iterative refinement against the unshifted
-        # system removes it (along a null vector of Sys, y may grow, but
-        # Cf^T maps that direction to zero)
-        for _ in range(3):
-            y += lu.solve(r - Sys @ y)
+
+        def apply(r):
+            y = lu.solve(r)
+            # the shift guards against dependent rows but leaves a residual
+            # of shift * y in every row, and these add up in the triangle
+            # left out of each component (its row is minus the sum of the
+            # others): the torus example at 50k tets, with a full turn added
+            # around a generator, missed it by 1.4e-6 rad on 4 of 4 meshes,
+            # above the tolerance below.  Iterative refinement against the
+            # unshifted system removes it (along a null vector of Sys, y may
+            # grow, but Cf^T maps that direction to zero)
+            for _ in range(3):
+                y += lu.solve(r - Sys @ y)
+            return Winv @ (Cf.T @ y)
+
+        return Cf, apply
+
+    def solve(rows, rhs):
+        """Smallest-norm omega with rows @ omega = rhs (fixed edges moved to
+        the right-hand side)."""
+        _, apply = least_norm(rows)
         out = np.zeros(nE)
-        out[free] = Winv @ (Cf.T @ y)
+        out[free] = apply(rhs - rows[:, fixed] @ omega_fixed[fixed])
         out[fixed] = omega_fixed[fixed]
         return out
 
-    Cface = C[keep].tocsr()
-    bface = b[keep]
-    gen_rows, gen_rhs = [], []
+    def null_vectors(rows, m):
+        """m random vectors on the free edges that the rows map to zero."""
+        Cf, apply = least_norm(rows)
+        R = np.random.default_rng(0).normal(size=(int(free.sum()), m))
+        out = np.zeros((nE, m))
+        out[free] = R - apply(Cf @ R)
+        return out
+
+    # alignment carried across the sectors of sharp corners
+    trip, srhs, links = _sector_rows(S, features, vc, beta, rho, reg)
+    Csec = sp.csr_matrix((trip[:, 2], (trip[:, 0].astype(np.int64), trip[:, 1].astype(np.int64))),
+                         shape=(len(srhs), nE))
+    Call = sp.vstack([C[keep], Csec]).tocsr()
+    ball = np.r_[b[keep], srhs]
+    null_values = np.zeros((0, 0))
     if generators:
         # Eq. 14 fixes the holonomy of the cross field along each generator to
         # a multiple of a quarter turn; take the multiple nearest to the
         # smoothest field without generator constraints (plus any requested
         # extra turns, e.g. the parity correction of the pipeline)
-        omega1 = solve(Cface, bface)
+        omega1 = solve(Call, ball)
+        # how the generators' holonomies move along the null space of the
+        # rows so far: a combination homologous to sharp outlines (a hole's
+        # rim) does not move, the alignment rows fix it, and turns added to
+        # it would contradict them (the pipeline keeps its corrections off
+        # these combinations)
+        N = null_vectors(Call, len(generators) + 2)
+        null_values = np.array([signs @ N[ids] for _key, (ids, signs) in generators])
+        null_values /= np.linalg.norm(N, axis=0)[None, :]  # one scale per vector: integer combinations stay so
+        gen_rows, gen_rhs = [], []
         for key, (ids, signs) in generators:
             Phi0 = np.sum(signs * rho[ids])
             H1 = Phi0 + np.sum(signs * omega1[ids])
@@ -306,15 +458,30 @@ def solve_boundary_field(
             np.add.at(row, ids, signs)
             gen_rows.append(row)
             gen_rhs.append(-Phi0 + turns * np.pi / 2)
-        Call = sp.vstack([Cface, sp.csr_matrix(np.array(gen_rows))]).tocsr()
-        ball = np.r_[bface, gen_rhs]
-    else:
-        Call, ball = Cface, bface
+        Call = sp.vstack([Call, sp.csr_matrix(np.array(gen_rows))]).tocsr()
+        ball = np.r_[ball, gen_rhs]
+    # sharp chains the corners do not link to the development root (the rims
+    # of a hole, apart from the outline): align each group with the root by
+    # the quarter turn nearest to the smoothest field (a free choice, like a
+    # generator's turns; it sets how the field turns across the annulus
+    # between them)
+    paths = _unlinked_chain_paths(S, fixed, links, reg)
+    if paths:
+        omega2 = solve(Call, ball)
+        rows, rhs = [], []
+        for root, rep, ids, signs in paths:
+            Phi0 = np.sum(signs * rho[ids])
+            d = beta[rep] - beta[root]
+            val = Phi0 + np.sum(signs * omega2[ids])
+            row = np.zeros(nE)
+            np.add.at(row, ids, signs)
+            rows.append(row)
+            rhs.append(d + np.round((val - d) / (np.pi / 2)) * np.pi / 2 - Phi0)
+        Call = sp.vstack([Call, sp.csr_matrix(np.array(rows))]).tocsr()
+        ball = np.r_[ball, rhs]
     omega = solve(Call, ball)
     generators = [(key, ids, signs) for key, (ids, signs) in generators]
-    res = np.abs(C @ omega - b)
-    if gen_rows:
-        res = np.r_[res, np.abs(np.array(gen_rows) @ omega - np.array(gen_rhs))]
+    res = np.abs(Call @ omega - ball)
     worst = float(res.max()) if len(res) else 0.0
     if worst > 1e-6:
         f = int(np.argmax(np.abs(C @ omega - b)))
@@ -354,6 +521,7 @@ def solve_boundary_field(
     # the sharp edge directions
     _adapt_feature_frames(S, features, E0)
     omega0 = _extrinsic_omega(S, features, E0, omega, edge_normals)
+    _walk_corner_fans(S, features, E0, omega0)
     return BoundaryField(
         omega2d=omega,
         phi=phi,
@@ -368,6 +536,7 @@ def solve_boundary_field(
         features=features,
         generators=generators,
         constraint_residual=worst,
+        generator_null_values=null_values,
     )
 
 
@@ -470,3 +639,64 @@ def _extrinsic_omega(S, G: FeatureGraph, E0, omega2d, edge_normals):
     best = np.argmax(tr, axis=1)
     Rb = R[np.arange(len(E)), best]
     return unwrap_rotvec(log_so3(Rb), pred)
+
+
+def _walk_corner_fans(S: TriSurface, G: FeatureGraph, E0, omega0) -> None:
+    """Choose omega0 on the smooth spokes of sharp corners by walking each
+    sector's fan from its first sharp edge, so that every triangle of the
+    fan closes (in place).
+
+    _extrinsic_omega predicts a corner spoke by the smallest rotation alone:
+    the corner's 2D coordinates are rescaled, so omega_ij says little there.
+    Where the 2D field turns fast next to a corner (a concave corner of a
+    hole, with a singular pair through the solid twisting the field across
+    the arm) the nearest representative was then a quarter turn off on a
+    triangle by the corner, and LM ended at its cap with a penalty of 1e4.
+    Across the fan's outer edges and along sharp edges omega0 is reliable;
+    the spoke c -> b of triangle (c, a, b) is the representative of E0_b
+    nearest to R_ab R_ca.
+    """
+    corners = G.corners
+    if len(corners) == 0:
+        return
+    F = S.F
+    nV = len(S.V)
+    fe = S.face_edges
+    sharp = G.sharp
+    is_corner = np.zeros(nV, bool)
+    is_corner[corners] = True
+    cw = corner_fan_links(S)
+    ccw = np.empty_like(cw)
+    ccw[cw] = np.arange(len(cw))
+    E = S.edges
+    keys = E[:, 0].astype(np.int64) * nV + E[:, 1]
+
+    def eid(i, j):
+        return np.searchsorted(keys, np.minimum(i, j).astype(np.int64) * nV + np.maximum(i, j))
+
+    def rot(i, j):
+        e = eid(i, j)
+        R = exp_so3(omega0[e])
+        return np.where((i < j)[:, None, None], R, np.transpose(R, (0, 2, 1)))
+
+    flat = np.arange(3 * len(F))
+    cur = flat[is_corner[F.reshape(-1)] & sharp[fe.reshape(-1)]]
+    for _ in range(64):
+        f, k = cur // 3, cur % 3
+        go = ~sharp[fe[f, (k + 2) % 3]]
+        cur, f, k = cur[go], f[go], k[go]
+        if len(cur) == 0:
+            break
+        # a spoke to another corner keeps its smallest rotation (both frames
+        # are fully adapted); the walk goes on past it
+        own = ~is_corner[F[f, (k + 2) % 3]]
+        c, a, b = F[f[own], k[own]], F[f[own], (k[own] + 1) % 3], F[f[own], (k[own] + 2) % 3]
+        pred = rot(a, b) @ rot(c, a)
+        cand = np.einsum("nij,gjk,nlk->ngil", E0[b], CUBE_GROUP, E0[c])
+        best = np.argmax(np.einsum("ngij,nij->ng", cand, pred), axis=1)
+        Rcb = cand[np.arange(len(c)), best]
+        R = np.where((c < b)[:, None, None], Rcb, np.transpose(Rcb, (0, 2, 1)))
+        e = eid(c, b)
+        omega0[e] = unwrap_rotvec(log_so3(R), omega0[e])
+        cur = ccw[cur]
+
