@@ -635,25 +635,23 @@ class FieldProblem:
         The surface's generators need not bound one by one (tree-cotree
         gives any basis: on a torus often meridian + longitude and the
         longitude), so the bounding loops are the integer combinations
-        sum n_i eta_i (_meridians).  All holonomies here are rotations about
-        the base normal, so the turns of a combination are sum n_i k_i
-        (mod 8).  Returns [(n as a tuple, quarter turns to add)].
+        sum n_i eta_i (_meridians), read as one closed loop based off the
+        sharp features (_combined_loop): summing the generators' own turns
+        went wrong where a generator ran along a rim, whose holonomy there
+        turns about a face normal or the edge, not the vertex normal.
+        Returns [(n as a tuple, quarter turns to add)].
         """
         combos = self._meridians(bf)
         if not combos:
             return []
         B = self.mesh.boundary
-        turns = []
-        for _key, ids, signs in bf.generators:
-            q = _su2_holonomy(bf.omega0[ids] * signs[:, None])
-            base = B.edges[ids[0], 0] if signs[0] > 0 else B.edges[ids[0], 1]
-            # the sense from the base vertex's normal (at a sharp corner the
-            # axis is one face's normal, and the vertex normal their mean)
-            sense = 1.0 if float(q[1:] @ bf.normals[base]) >= 0 else -1.0
-            turns.append(2.0 * np.arctan2(sense * np.linalg.norm(q[1:]), float(q[0])) / (np.pi / 2))  # (-4, 4]
         out = []
         for n, through in combos:
-            k = float(np.dot(n, turns))
+            ids, signs = _combined_loop(B, bf, n)
+            q = _su2_holonomy(bf.omega0[ids] * signs[:, None])
+            base = B.edges[ids[0], 0] if signs[0] > 0 else B.edges[ids[0], 1]
+            sense = 1.0 if float(q[1:] @ bf.normals[base]) >= 0 else -1.0
+            k = 2.0 * np.arctan2(sense * np.linalg.norm(q[1:]), float(q[0])) / (np.pi / 2)  # (-4, 4]
             if abs(k - np.round(k)) > 0.25:
                 continue  # not a whole number of quarter turns: nothing to read
             k = int(np.round(k))
@@ -988,4 +986,44 @@ def _integer_turns(wanted: dict, fixed: list, n: int, reach: int = 4):
         return cand[np.argmin(np.abs(cand).sum(axis=1))]
     d = np.round(np.linalg.lstsq(A, b, rcond=None)[0])
     return d.astype(int) if np.allclose(A @ d, b) else None
+
+
+def _combined_loop(B, bf: BoundaryField, n) -> tuple[np.ndarray, np.ndarray]:
+    """One closed edge loop for the combination sum n_i eta_i of the boundary
+    field's generators: from a vertex s off the sharp features, for each
+    generator a tree path to its base, the loop |n_i| times (reversed when
+    n_i < 0), and the path back.  Returns (edge ids, signs)."""
+    from scipy.sparse import csgraph
+
+    E = B.edges
+    nV = len(B.V)
+    loops = [(ids, signs) for _key, ids, signs in bf.generators]
+    used = [i for i in range(len(loops)) if n[i]]
+    starts = [np.where(loops[i][1] > 0, E[loops[i][0], 0], E[loops[i][0], 1]) for i in used]
+    cand = np.concatenate(starts)
+    smooth = cand[~bf.is_feature_vertex[cand]]
+    if len(smooth):
+        s = int(smooth[0])
+    else:
+        s = int(np.nonzero(~bf.is_feature_vertex)[0][0]) if np.any(~bf.is_feature_vertex) else int(cand[0])
+    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nV, nV))
+    _, pred = csgraph.breadth_first_order((A + A.T).tocsr(), s, directed=False, return_predecessors=True)
+    keys = E[:, 0].astype(np.int64) * nV + E[:, 1]
+    out_ids, out_signs = [], []
+    for i, st in zip(used, starts):
+        ids, signs = loops[i]
+        j = int(np.nonzero(st == s)[0][0]) if np.any(st == s) else 0
+        ids, signs, st = np.roll(ids, -j), np.roll(signs, -j), np.roll(st, -j)
+        path = [int(st[0])]
+        while path[-1] != s:
+            path.append(int(pred[path[-1]]))
+        path = path[::-1]  # s -> base
+        a, b = np.array(path[:-1], np.int64), np.array(path[1:], np.int64)
+        pid = np.searchsorted(keys, np.minimum(a, b) * nV + np.maximum(a, b))
+        psg = np.where(a < b, 1.0, -1.0)
+        if n[i] < 0:
+            ids, signs = ids[::-1], -signs[::-1]
+        out_ids += [pid] + [ids] * abs(int(n[i])) + [pid[::-1]]
+        out_signs += [psg] + [signs] * abs(int(n[i])) + [-psg[::-1]]
+    return np.concatenate(out_ids).astype(np.int64), np.concatenate(out_signs)
 

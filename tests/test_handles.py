@@ -20,7 +20,7 @@ from solver import Options, solve
 from solver.examples import _segment, voxel_surface
 from solver.field.boundary2d import edge_angles, solve_boundary_field, vertex_coordinates
 from solver.network.network import Curve, Network
-from solver.pipeline import _bounding_combinations, _su2_holonomy
+from solver.pipeline import _bounding_combinations, _combined_loop, _su2_holonomy
 from solver.surface.features import FeatureGraph, sharp_edges_by_angle
 from solver.surface.trisurface import TriSurface
 from tests.test_examples import check_omega_singular_set
@@ -81,6 +81,29 @@ def test_bounding_combinations_are_integer_and_primitive():
     combos = {tuple(v * np.sign(v[np.nonzero(v)[0][0]])) for v in _bounding_combinations(resid)}
     assert combos == {(0, 1, 0, 0), (2, 0, -1, 0)}
     assert _bounding_combinations(np.array([a, b])) == []
+
+
+@pytest.mark.parametrize("n", [(1, 0), (1, -1), (2, 1), (0, -1)])
+def test_a_combination_of_generators_is_read_along_one_closed_loop_off_the_sharp_edges(n):
+    """The meridian of a holed block is often g0 +- g1, and a generator may
+    run along a rim, where its holonomy turns about a face normal: the
+    combination is read along one loop from a vertex off the features,
+    which as a chain is exactly sum n_i g_i."""
+    V, F = ring()
+    S = TriSurface(V, F)
+    bf = solve_boundary_field(S, FeatureGraph(S, sharp_edges_by_angle(S, 30.0)), np.zeros(len(S.F)))
+    ids, signs = _combined_loop(S, bf, np.array(n))
+    E = S.edges
+    tail = np.where(signs > 0, E[ids, 0], E[ids, 1])
+    head = np.where(signs > 0, E[ids, 1], E[ids, 0])
+    assert np.all(head[:-1] == tail[1:]) and head[-1] == tail[0]
+    assert not bf.is_feature_vertex[tail[0]]
+    chain = np.zeros(len(E))
+    np.add.at(chain, ids, signs)
+    want = np.zeros(len(E))
+    for k, (_key, gi, gs) in enumerate(bf.generators):
+        np.add.at(want, gi, n[k] * gs)
+    assert np.array_equal(chain, want)
 
 
 @pytest.mark.parametrize("holes, xs", [(1, (0.25, 1.25)), (2, (0.25, 2.25))])

@@ -465,20 +465,17 @@ def solve_boundary_field(
     # the quarter turn nearest to the smoothest field (a free choice, like a
     # generator's turns; it sets how the field turns across the annulus
     # between them)
-    paths = _unlinked_chain_paths(S, fixed, links, reg)
-    if paths:
+    # one at a time: the next group's quarter turn is read from the field
+    # that already has the previous ones (two rims of a round hole, rounded
+    # independently, could contradict the meridian's turns between them)
+    for root, rep, ids, signs in _unlinked_chain_paths(S, fixed, links, reg):
         omega2 = solve(Call, ball)
-        rows, rhs = [], []
-        for root, rep, ids, signs in paths:
-            Phi0 = np.sum(signs * rho[ids])
-            d = beta[rep] - beta[root]
-            val = Phi0 + np.sum(signs * omega2[ids])
-            row = np.zeros(nE)
-            np.add.at(row, ids, signs)
-            rows.append(row)
-            rhs.append(d + np.round((val - d) / (np.pi / 2)) * np.pi / 2 - Phi0)
-        Call = sp.vstack([Call, sp.csr_matrix(np.array(rows))]).tocsr()
-        ball = np.r_[ball, rhs]
+        Phi0 = np.sum(signs * rho[ids])
+        d = beta[rep] - beta[root]
+        val = Phi0 + np.sum(signs * omega2[ids])
+        row = sp.csr_matrix((signs, (np.zeros(len(ids), np.int64), ids)), shape=(1, nE))
+        Call = sp.vstack([Call, row]).tocsr()
+        ball = np.r_[ball, d + np.round((val - d) / (np.pi / 2)) * np.pi / 2 - Phi0]
     omega = solve(Call, ball)
     generators = [(key, ids, signs) for key, (ids, signs) in generators]
     res = np.abs(Call @ omega - ball)
