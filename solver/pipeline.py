@@ -698,7 +698,6 @@ class FieldProblem:
             eta = np.zeros(mesh.n_edges)
             np.add.at(eta, ge, signs)
             # atol=0: stop at the least-squares solution to machine precision
-            # (the default test stopped early with a residual of 1.3)
             chain = spla.lsqr(d1t, eta, atol=0.0, btol=1e-12, iter_lim=50000)[0]
             chains.append(chain)
             resid.append(d1t @ chain - eta)  # unscaled: integer combinations stay so
