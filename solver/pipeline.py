@@ -345,7 +345,6 @@ class FieldProblem:
         self.mesh = mesh
         node_r = self._node_radius(self._node_h(h))
         self.embedding: Embedding = st.run("embed", embed_network, mesh, self.network, node_r)
-        self._meridian_cache = None  # (_meridians)
         self.boundary: BoundaryField = st.run("boundary2d", self._boundary)
         self.constraints: AffineOmega = st.run("constraints", build_constraints, mesh, self.network,
                                                self.embedding, self.boundary)
@@ -580,9 +579,10 @@ class FieldProblem:
         # any the first did not fix (_meridian_errors)
         keys = [key for key, _ids, _signs in bf.generators]
         fixed = _bounding_combinations(bf.generator_null_values) if keys else []
+        meridians = self._meridians(bf) if keys else []
         wanted, first = {}, {}
         for attempt in range(2):
-            wrong = self._meridian_errors(bf)
+            wrong = self._meridian_errors(bf, meridians)
             if not wrong:
                 break
             for n, t in wrong:
@@ -614,7 +614,7 @@ class FieldProblem:
                 f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}): the tet mesh's surface is probably folded there (a "
                 f"curve tube or feature close to the surface). Try another edge length (now {self.edge_length:.4g})")
 
-    def _meridian_errors(self, bf: BoundaryField) -> list:
+    def _meridian_errors(self, bf: BoundaryField, meridians: list) -> list:
         """Quarter turns the boundary field's holonomy is off by around the
         loops of the surface that bound in the solid (the meridians of a
         handle).
@@ -639,14 +639,12 @@ class FieldProblem:
         sharp features (_combined_loop): summing the generators' own turns
         went wrong where a generator ran along a rim, whose holonomy there
         turns about a face normal or the edge, not the vertex normal.
-        Returns [(n as a tuple, quarter turns to add)].
+        meridians : _meridians(bf).  Returns [(n as a tuple, quarter turns
+        to add)].
         """
-        combos = self._meridians(bf)
-        if not combos:
-            return []
         B = self.mesh.boundary
         out = []
-        for n, through in combos:
+        for n, through in meridians:
             ids, signs = _combined_loop(B, bf, n)
             q = _su2_holonomy(bf.omega0[ids] * signs[:, None])
             base = B.edges[ids[0], 0] if signs[0] > 0 else B.edges[ids[0], 1]
@@ -666,9 +664,7 @@ class FieldProblem:
         a chain spanning each: [(n, turns through)].  A loop bounds when no
         part of it is left outside the boundaries of the solid's 2-chains
         (least squares); the combinations are those whose leftovers cancel.
-        Depends on the mesh and the generators only, so it is kept."""
-        if self._meridian_cache is not None:
-            return self._meridian_cache
+        Depends on the mesh and the generators only."""
         import scipy.sparse.linalg as spla
 
         mesh = self.mesh
@@ -687,10 +683,10 @@ class FieldProblem:
         for f, _ in self.embedding.boundary_end_faces:
             T = mesh.face_tets[f, 0]
             fs = mesh.tet_faces[T]
-            out = np.sign(np.einsum("ij,ij->i", mesh.vertices[mesh.faces[fs]].mean(axis=1)
-                                    - mesh.vertices[mesh.tets[T]].mean(axis=0), mesh.face_normals[fs]))
+            outward = np.sign(np.einsum("ij,ij->i", mesh.vertices[mesh.faces[fs]].mean(axis=1)
+                                        - mesh.vertices[mesh.tets[T]].mean(axis=0), mesh.face_normals[fs]))
             me = fs == f
-            flux[f] = -float(out[~me] @ flux[fs[~me]]) / float(out[me][0])
+            flux[f] = -float(outward[~me] @ flux[fs[~me]]) / float(outward[me][0])
         d1t = mesh.d1.T.tocsr()
         chains, resid = [], []
         for _key, ids, signs in bf.generators:
@@ -701,12 +697,11 @@ class FieldProblem:
             chain = spla.lsqr(d1t, eta, atol=0.0, btol=1e-12, iter_lim=50000)[0]
             chains.append(chain)
             resid.append(d1t @ chain - eta)  # unscaled: integer combinations stay so
-        self._meridian_cache = []
-        if chains:
-            for n in _bounding_combinations(np.array(resid)):
-                chain = sum(int(n[i]) * chains[i] for i in np.nonzero(n)[0])
-                self._meridian_cache.append((n, int(np.round(4 * float(chain @ flux)))))
-        return self._meridian_cache
+        out = []
+        for n in _bounding_combinations(np.array(resid)):
+            chain = sum(int(n[i]) * chains[i] for i in np.nonzero(n)[0])
+            out.append((n, int(np.round(4 * float(chain @ flux)))))
+        return out
 
     # ----------------------------------------------------------------- solve
     @property
@@ -1007,7 +1002,6 @@ def _combined_loop(B, bf: BoundaryField, n) -> tuple[np.ndarray, np.ndarray]:
         s = int(np.nonzero(~bf.is_feature_vertex)[0][0]) if np.any(~bf.is_feature_vertex) else int(cand[0])
     A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nV, nV))
     _, pred = csgraph.breadth_first_order((A + A.T).tocsr(), s, directed=False, return_predecessors=True)
-    keys = E[:, 0].astype(np.int64) * nV + E[:, 1]
     out_ids, out_signs = [], []
     for i, st in zip(used, starts):
         ids, signs = loops[i]
@@ -1018,7 +1012,7 @@ def _combined_loop(B, bf: BoundaryField, n) -> tuple[np.ndarray, np.ndarray]:
             path.append(int(pred[path[-1]]))
         path = path[::-1]  # s -> base
         a, b = np.array(path[:-1], np.int64), np.array(path[1:], np.int64)
-        pid = np.searchsorted(keys, np.minimum(a, b) * nV + np.maximum(a, b))
+        pid = B.edge_index(a, b)
         psg = np.where(a < b, 1.0, -1.0)
         if n[i] < 0:
             ids, signs = ids[::-1], -signs[::-1]

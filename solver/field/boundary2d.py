@@ -256,9 +256,8 @@ def _sector_rows(S: TriSurface, G: FeatureGraph, vc: VertexCoordinates, beta, rh
     secs = secs[keep]
     c, p, q = sv[secs], a1[secs], a2[secs]
     ideal = tt[secs] - G.sector_quarters[secs] * np.pi / 2 - np.where(sing[secs], Omega_c[c], 0.0)
-    keys = S.edges[:, 0].astype(np.int64) * nV + S.edges[:, 1]
-    e1 = np.searchsorted(keys, np.minimum(p, c).astype(np.int64) * nV + np.maximum(p, c))
-    e2 = np.searchsorted(keys, np.minimum(c, q).astype(np.int64) * nV + np.maximum(c, q))
+    e1 = S.edge_index(p, c)
+    e2 = S.edge_index(c, q)
     s1 = np.where(p < c, 1.0, -1.0)
     s2 = np.where(c < q, 1.0, -1.0)
     # alignment at a1 and a2: phi_a2 - phi_a1 = rho + omega along a1 -> c -> a2
@@ -289,7 +288,6 @@ def _unlinked_chain_paths(S: TriSurface, fixed, links, reg):
     Aall = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nV, nV))
     Aall = (Aall + Aall.T).tocsr()
     ncomp, vlab = csgraph.connected_components(Aall, directed=False)
-    keys = E[:, 0].astype(np.int64) * nV + E[:, 1]
     out = []
     for c in range(ncomp):
         feat = np.nonzero((vlab == c) & reg)[0]
@@ -304,8 +302,7 @@ def _unlinked_chain_paths(S: TriSurface, fixed, links, reg):
         for v in others:
             path = _path_to_root(pred, v)[::-1]  # root -> v
             a, b = np.array(path[:-1]), np.array(path[1:])
-            ids = np.searchsorted(keys, np.minimum(a, b).astype(np.int64) * nV + np.maximum(a, b))
-            out.append((root, v, ids, np.where(a < b, 1.0, -1.0)))
+            out.append((root, v, S.edge_index(a, b), np.where(a < b, 1.0, -1.0)))
     return out
 
 
@@ -665,14 +662,9 @@ def _walk_corner_fans(S: TriSurface, G: FeatureGraph, E0, omega0) -> None:
     cw = corner_fan_links(S)
     ccw = np.empty_like(cw)
     ccw[cw] = np.arange(len(cw))
-    E = S.edges
-    keys = E[:, 0].astype(np.int64) * nV + E[:, 1]
-
-    def eid(i, j):
-        return np.searchsorted(keys, np.minimum(i, j).astype(np.int64) * nV + np.maximum(i, j))
 
     def rot(i, j):
-        e = eid(i, j)
+        e = S.edge_index(i, j)
         R = exp_so3(omega0[e])
         return np.where((i < j)[:, None, None], R, np.transpose(R, (0, 2, 1)))
 
@@ -693,7 +685,7 @@ def _walk_corner_fans(S: TriSurface, G: FeatureGraph, E0, omega0) -> None:
         best = np.argmax(np.einsum("ngij,nij->ng", cand, pred), axis=1)
         Rcb = cand[np.arange(len(c)), best]
         R = np.where((c < b)[:, None, None], Rcb, np.transpose(Rcb, (0, 2, 1)))
-        e = eid(c, b)
+        e = S.edge_index(c, b)
         omega0[e] = unwrap_rotvec(log_so3(R), omega0[e])
         cur = ccw[cur]
 

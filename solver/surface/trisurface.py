@@ -79,6 +79,14 @@ class TriSurface:
         return edges, inv.reshape(-1, 3), cnt
 
     @cached_property
+    def _edge_key_sorted(self) -> np.ndarray:
+        return edge_keys(self.edges[:, 0], self.edges[:, 1], len(self.V))
+
+    def edge_index(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Edge ids of existing edges between vertices i and j (any order)."""
+        return np.searchsorted(self._edge_key_sorted, edge_keys(np.asarray(i), np.asarray(j), len(self.V)))
+
+    @cached_property
     def edge_faces(self) -> np.ndarray:
         """(#E, 2) the two faces of each edge (closed manifold surfaces only)."""
         fe = self.face_edges.reshape(-1)
