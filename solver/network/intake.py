@@ -12,11 +12,11 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
 2. *fairing length*: ``l = max(h, median segment length)`` -- a chain of
    mesh edges carries no shape below its own edge length;
 3. *corners*: where the curve turns by more than ``MAX_KINK``
-   between chords of length ``CORNER_WINDOW * l`` on either side (both
-   fitting on the curve), and by less than 1.5 times that between chords
-   twice as long (a corner, not an arc), the input vertex nearest the
-   largest turn is kept as a knot (a real corner survives and validation reports it as it would
-   have);
+   between chords of length ``CORNER_WINDOW * l`` on either side and
+   between chords twice as long (both fitting on the curve), but there by
+   less than 1.5 times as much (a corner, not an arc or a bump), the
+   input vertex nearest the largest turn is kept as a knot (a real
+   corner survives and validation reports it as it would have);
 4. *resample* between ends and corners by arc length at spacing ``l / 2``;
 5. *fair*: ``SMOOTH_ITERATIONS`` = 72 steps of Laplacian smoothing
    ``P_i += 1/2 (P_(i-1) + P_(i+1) - 2 P_i) / 2`` with ends, nodes and corners
@@ -31,7 +31,8 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    tangent plane (the curve continued by reflection, which crosses the
    surface at right angles), so it moves towards the foot of the curve
    and the last stretch turns onto the normal smoothly, over the fairing
-   width (by at most ``SLIDE_MAX * h``; the plane follows the surface).
+   width (by at most ``SLIDE_MAX * l``: the chain's own uncertainty,
+   about an edge of its mesh; the plane follows the surface).
    A tet-edge chain ends wherever its mesh had a boundary vertex, up to
    half an edge from where the curve meant to end, so this is mostly what
    its oblique ends need.  Where the end still meets the surface off the
@@ -68,7 +69,7 @@ MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of 
 MERGE = 0.05  # points closer than MERGE * h are merged
 CORNER_WINDOW = 2.0  # chords of CORNER_WINDOW * l on each side detect real corners
 SMOOTH_ITERATIONS = 72  # Laplacian steps of 1/2 at spacing l / 2: a Gaussian of width 3 l
-SLIDE_MAX = 1.0  # a boundary end slides along the surface by at most this many h while faired
+SLIDE_MAX = 1.0  # a boundary end slides along the surface by at most this many l while faired
 BEND_MIN = 2.0  # degrees: ends closer than this to the normal are left alone
 BEND_LENGTH = 3.0  # bent stretch, in units of h ...
 BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length
@@ -253,13 +254,21 @@ def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
     sf = arclength(fine)
     w = CORNER_WINDOW * ell
     ang = turning(fine, w, closed)
-    # only where both chords fit: a curve shorter than two windows has no
-    # corner that can be told from a zig-zag of its own edges; and only
-    # where the turn is concentrated (chords twice as long see about the
-    # same turn), unlike an arc, whose turn doubles with the chords
-    big = (ang > MAX_KINK) & (turning(fine, 2.0 * w, closed) < 1.5 * ang)
+    # A corner has straight arms: the turn is over MAX_KINK between chords
+    # of w and still between chords of 2 w, but there less than 1.5 times
+    # as much.  An arc's turn doubles with the chords; a bump's -- a
+    # tet-edge chain straying by an edge to one side and back -- averages
+    # out.  Both chords of 2 w must fit on the curve: nearer an end (or on
+    # a curve shorter than four windows) a corner cannot be told from a
+    # bump of the chain's own edges.  (With chords of w alone, bumps on
+    # the tet-edge cylinder turning 45-50 degrees between chords of 2 l
+    # were kept as corners in about 1 chain in 10; the faired curves then
+    # kinked by 16-32 degrees over h, and LM ended with a penalty of 3-31
+    # or at its cap.)
+    wide = turning(fine, 2.0 * w, closed)
+    big = (ang > MAX_KINK) & (wide > MAX_KINK) & (wide < 1.5 * ang)
     if not closed:
-        big &= (sf >= w) & (sf <= sf[-1] - w)
+        big &= (sf >= 2.0 * w) & (sf <= sf[-1] - 2.0 * w)
     knots = []
     i = 0
     while i < len(ang):
@@ -329,7 +338,7 @@ def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: 
 def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None, project=None):
     """Steps 1-5 of the module docstring.  slide: {0 or -1: outward normal}
     of boundary ends that may slide along the surface (``_laplacian_fair``;
-    by at most ``SLIDE_MAX * h``; project: its surface projection).
+    by at most ``SLIDE_MAX * l``; project: its surface projection).
     Returns (points, merged count, fairing length l, corner count, fixed
     mask)."""
     Pm = merge_close(P, MERGE * h, closed)
@@ -357,7 +366,7 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
     # tet-edge chains near their ends: on the tet-edge cylinder curves moved
     # by up to 1.1 h, turned 19 degrees over h, and LM took 19 iterations to
     # a penalty of 157, against 0.8 h, 9 degrees, 7-9 and 67 without)
-    Q = _laplacian_fair(Q, fx, closed, SMOOTH_ITERATIONS, slide, SLIDE_MAX * h, project)
+    Q = _laplacian_fair(Q, fx, closed, SMOOTH_ITERATIONS, slide, SLIDE_MAX * ell, project)
     return Q, merged, ell, len(knots), fx
 
 
