@@ -146,6 +146,36 @@ def test_a_bump_of_the_chain_is_no_corner(cylinder):
     assert turning(checked.network.curves[0].points, checked.scale).max() < 15.0, rep.text()
 
 
+def test_least_bending_straightens_a_bow_within_an_edge(cylinder):
+    """An axial chain of edges 0.25 long zig-zagging by 0.1 about a bow of
+    0.12 along its whole length (as a shortest path through a tet mesh can
+    stray to one side): the Gaussian keeps much of so long a bow, and the
+    field pays for the curvature.  Bent as little as it can be within one
+    edge of the input, it comes out straight and square to both caps.  A
+    smooth bow of 0.5, a shape of the curve, is kept to within an edge."""
+    from solver.network.intake import BAND
+
+    V, F, net = cylinder
+    z = np.linspace(-1.0, 1.0, 9)
+    zig = 0.1 * np.where(np.arange(9) % 2 == 0, 1.0, -1.0)
+    zig[[0, -1]] = 0.0
+    bowed = np.c_[-0.35 - 0.12 * np.sin(np.pi * (z + 1.0) / 2.0) + zig, np.full(9, -0.35), z]
+    checked = check_input(V, F, with_curve(net, 0, bowed))
+    Q = checked.network.curves[0].points
+    chord = (Q[-1] - Q[0]) / np.linalg.norm(Q[-1] - Q[0])
+    off = Q - Q[0] - np.outer((Q - Q[0]) @ chord, chord)
+    assert np.linalg.norm(off, axis=1).max() < 1e-3 * checked.scale
+    assert end_normal_angle(checked.surface, Q) < 0.5 and end_normal_angle(checked.surface, Q[::-1]) < 0.5
+
+    zs = np.linspace(-1.0, 1.0, 41)
+    smooth = np.c_[-0.35 - 0.5 * np.sin(np.pi * (zs + 1.0) / 2.0), np.full(41, -0.35), zs]
+    checked = check_input(V, F, with_curve(net, 0, smooth))
+    Q = checked.network.curves[0].points
+    ell = max(checked.scale, 0.05)
+    assert -0.35 - Q[:, 0].min() > 0.5 - BAND * ell - 0.05, Q[:, 0].min()
+    assert checked.repairs[0].max_displacement_h <= 1.5
+
+
 # --------------------------------------------------------------- oblique end
 def test_oblique_end_is_turned_onto_the_normal(cylinder):
     """The last 0.4 of a curve runs 30 degrees off the cap's normal: refused
