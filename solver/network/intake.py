@@ -35,8 +35,9 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    every point stays within ``BAND * l`` of the input -- again the chain's
    own uncertainty (``_least_bending``): the least sum of
    |P_(i-1) - 2 P_i + P_(i+1)|^2 (a discrete cubic spline) with nodes and
-   corners held, boundary ends free to move in their tangent plane and
-   the curve meeting the surface along the normal (each end's neighbour
+   corners held, boundary ends free to move in their tangent plane (by
+   at most ``SLIDE_MAX * l`` from the input end) and the curve meeting
+   the surface along the normal (each end's neighbour
    against its mirror image in that plane); points beyond the band are
    pulled back to its edge by a penalty that grows round by round.  A
    shape smaller than an edge of the chain goes (the tet-edge cylinder's
