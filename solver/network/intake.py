@@ -31,7 +31,7 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    every bend of a singular curve (the structure penalty grows with the
    square of the curvature: the straight clean cylinder network scores
    0.0018, its curves bowed to turn 2.3 degrees over h 0.0099, 7 degrees
-   0.090).  So an open curve is then bent as little as it can be while
+   0.090, with fairing alone, which kept those bows).  So an open curve is then bent as little as it can be while
    every point stays within ``BAND * l`` of the input -- again the chain's
    own uncertainty (``_least_bending``): the least sum of
    |P_(i-1) - 2 P_i + P_(i+1)|^2 (a discrete cubic spline) with nodes and
@@ -448,7 +448,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
     f3 = np.repeat(free, 3)
     x = Q.ravel().copy()
     target = x.copy()
-    w = np.full(3 * n, 1e-8)  # the faintest pull to the faired curve
+    w = np.full(3 * n, 1e-8)  # the faintest pull: to the faired curve, then to the last round's
     geo = CurveGeometry(guide)
     mu = 1e2
     for _ in range(rounds):
