@@ -39,7 +39,8 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    at most ``SLIDE_MAX * l`` from the input end) and the curve meeting
    the surface along the normal (each end's neighbour
    against its mirror image in that plane); points beyond the band are
-   pulled back to its edge by a penalty that grows round by round.  A
+   pulled back to its edge by a penalty that grows from faint round by
+   round.  A
    shape smaller than an edge of the chain goes (the tet-edge cylinder's
    curves come out straight), a larger one is kept to within l;
 6. *ends*: a boundary end slides along the surface while the curve is
@@ -398,7 +399,7 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
 
 
 def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarray, band: float,
-                   slide_max: float, rounds: int = 40) -> np.ndarray:
+                   slide_max: float, rounds: int = 80) -> np.ndarray:
     """Step 5b of the module docstring: the open polyline Q bent as little
     as it can be -- the least sum of |P_(i-1) - 2 P_i + P_(i+1)|^2 over the
     points not centred on a fixed one -- with the fixed points held and
@@ -413,7 +414,13 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
            within slide_max of the guide's end.  The other end points
            stay where they are.
     Points beyond the band (ends: beyond slide_max) are pulled to its edge
-    (weight mu, x4 per round up to PLANE) until none is 1 % past it.
+    with a weight mu that starts faint (1e-4, against bending terms of
+    order 1) and doubles each round up to PLANE, until none is 1 % past
+    it: the pull follows the least-bending curve as the band closes in.
+    (Starting stiff froze the first round's points at the band's edge:
+    where no straight line fits, the bend gathered into a bump of 12
+    degrees over h at the input's apex instead of spreading over the curve
+    at 2.)
     """
     import scipy.sparse as sp
     from scipy.sparse.linalg import spsolve
@@ -450,7 +457,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
     target = x.copy()
     w = np.full(3 * n, 1e-8)  # the faintest pull: to the faired curve, then to the last round's
     geo = CurveGeometry(guide)
-    mu = 1e2
+    mu = 1e-4
     for _ in range(rounds):
         A = (H + sp.diags(w)).tocsr()
         x[f3] = spsolve(A[f3][:, f3].tocsc(), (w * target + plane_rhs)[f3] - A[f3][:, ~f3] @ x[~f3])
@@ -470,7 +477,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
         tg[out] = foot[out] + (lim[out] / d[out])[:, None] * (X[out] - foot[out])
         w = np.full(3 * n, 1e-8)
         w.reshape(n, 3)[out] = mu
-        mu = min(4.0 * mu, PLANE)
+        mu = min(2.0 * mu, PLANE)
     return x.reshape(n, 3)
 
 
