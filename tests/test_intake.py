@@ -171,7 +171,7 @@ def test_least_bending_straightens_a_bow_within_an_edge(cylinder):
     smooth = np.c_[-0.35 - 0.5 * np.sin(np.pi * (zs + 1.0) / 2.0), np.full(41, -0.35), zs]
     checked = check_input(V, F, with_curve(net, 0, smooth))
     Q = checked.network.curves[0].points
-    ell = max(checked.scale, 0.05)
+    ell = max(checked.scale, float(np.median(np.linalg.norm(np.diff(smooth, axis=0), axis=1))))
     assert -0.35 - Q[:, 0].min() > 0.5 - BAND * ell - 0.05, Q[:, 0].min()
     assert checked.repairs[0].max_displacement_h <= 1.5
 

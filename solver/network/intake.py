@@ -31,18 +31,18 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    every bend of a singular curve (the structure penalty grows with the
    square of the curvature: the straight clean cylinder network scores
    0.0018, its curves bowed to turn 2.3 degrees over h 0.0099, 7 degrees
-   0.090, with fairing alone, which kept those bows).  So an open curve is then bent as little as it can be while
-   every point stays within ``BAND * l`` of the input -- again the chain's
-   own uncertainty (``_least_bending``): the least sum of
-   |P_(i-1) - 2 P_i + P_(i+1)|^2 (a discrete cubic spline) with nodes and
-   corners held, boundary ends free to move in their tangent plane (by
-   at most ``SLIDE_MAX * l`` from the input end) and the curve meeting
-   the surface along the normal (each end's neighbour
-   against its mirror image in that plane); points beyond the band are
-   pulled back to its edge by a penalty that grows from faint round by
-   round.  A
-   shape smaller than an edge of the chain goes (the tet-edge cylinder's
-   curves come out straight), a larger one is kept to within l;
+   0.090, with fairing alone, which kept those bows).  So an open curve
+   is then bent as little as it can be while every point stays within
+   ``BAND * l`` of the input -- again the chain's own uncertainty
+   (``_least_bending``): the least sum of |P_(i-1) - 2 P_i + P_(i+1)|^2
+   (a discrete cubic spline) with nodes and corners held, boundary ends
+   free to move in their tangent plane (by at most ``SLIDE_MAX * l`` from
+   the input end) and the curve meeting the surface along the normal
+   (each end's neighbour against its mirror image in that plane); points
+   beyond the band are pulled back to its edge by a penalty that grows
+   from faint round by round.  A shape smaller than an edge of the chain
+   goes (the tet-edge cylinder's curves come out straight), a larger one
+   is kept to within l;
 6. *ends*: a boundary end slides along the surface while the curve is
    faired: it is smoothed against the mirror image of its neighbour in the
    tangent plane (the curve continued by reflection, which crosses the
@@ -76,10 +76,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from ..errors import NetworkError
 from ..surface.trisurface import TriSurface
+from .curves import CurveGeometry
 from .network import Curve, PreparedNetwork, _fmt
 
 MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of h/2 each side)
@@ -422,14 +425,9 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
     degrees over h at the input's apex instead of spreading over the curve
     at 2.)
     """
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import spsolve
-
-    from .curves import CurveGeometry
-
     n = len(Q)
     PLANE = 1e6
-    free = ~fixed.copy()
+    free = ~fixed
     free[[0, -1]] = False
     c = np.arange(1, n - 1)
     c = c[free[c]]
@@ -463,7 +461,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
         x[f3] = spsolve(A[f3][:, f3].tocsc(), (w * target + plane_rhs)[f3] - A[f3][:, ~f3] @ x[~f3])
         X = x.reshape(n, 3)
         s, t, d = geo.closest(X)
-        foot = geo.P[s] + t[:, None] * (geo.P[s + 1] - geo.P[s])
+        foot = geo.point(s, t)
         lim = np.full(n, band)
         for i, _, _ in ends:
             foot[i] = guide[0] if i == 0 else guide[-1]
