@@ -66,7 +66,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="tet mesher (default auto: TetGen where the tetgen package is installed and the surface "
                         "is no denser than the mesh, else fTetWild; fTetWild meshes where TetGen fails)")
     p.add_argument("--penalty", type=float, help="penalty a of Eq. 23 (default 1000)")
-    p.add_argument("--iterations", type=int, help="maximum Levenberg-Marquardt iterations (default 30)")
+    p.add_argument("--iterations", type=int, help="maximum Levenberg-Marquardt iterations (default 50)")
     p.add_argument("--init", choices=INITS, help="initial guess (default zero)")
     p.add_argument("--root", type=int, help="tet-mesh vertex to develop the frames from (default: a boundary vertex)")
     p.add_argument("--check", action="store_true", help="only validate the input, then exit")

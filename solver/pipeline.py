@@ -84,7 +84,7 @@ class Options:
 
     edge_length: float | None = None
     penalty: float = 1000.0
-    max_iterations: int = 30
+    max_iterations: int = 50
     tolerance: float = 1e-10
     init: str = "zero"
     seed: int = 0
@@ -106,7 +106,7 @@ class Options:
                                                  fix="a length in the units of the surface")
         self.penalty = checks.positive_float("option 'penalty'", self.penalty, E, fix="the default is 1000")
         self.max_iterations = checks.integer("option 'max_iterations'", self.max_iterations, E, low=1,
-                                             fix="the default is 30")
+                                             fix="the default is 50")
         self.tolerance = checks.nonnegative_float("option 'tolerance'", self.tolerance, E, fix="the default is 1e-10")
         self.init = checks.choice("option 'init'", self.init, INITS, E)
         self.seed = checks.integer("option 'seed'", self.seed, E, low=0, fix="a whole number such as 0")
@@ -259,7 +259,20 @@ def solution_status(lm: LMReport) -> tuple[str, str]:
     f = lm.final
     allowed = PENALTY_ABS + PENALTY_REL * f.smoothness
     if not lm.converged:
-        return "not converged", f"Levenberg-Marquardt {lm.reason}"
+        why = f"Levenberg-Marquardt {lm.reason}"
+        E = [it.energy for it in lm.iterations if it.accepted]
+        if lm.reason.startswith("stopped after") and len(E) > 5 and f.penalty <= allowed:
+            # the iteration cap, not a failure to resolve the network: say how
+            # close it came (graded meshes around short curves end in a flat
+            # valley of the energy, 1e-5 of it per iteration, and finish in
+            # up to ~30 more)
+            change = (E[-6] - E[-1]) / max(abs(E[-1]), 1e-300)
+            fell = f"{1.0 + change:.3g}-fold" if change > 1.0 else f"by {100.0 * change:.2g}%"
+            near = ", close to a minimum but not at it" if change < 1e-3 else ""
+            why += (f" with the penalty at the discretisation level ({f.penalty:.3g} <= {allowed:.3g}); the "
+                    f"energy fell {fell} over the last 5 iterations{near}. Raise max_iterations (command "
+                    f"line: --iterations) to finish")
+        return "not converged", why
     if f.penalty > allowed:
         return "not converged", (f"the structure penalty {f.penalty:.3g} is above the discretisation level "
                                  f"({PENALTY_ABS:g} + {PENALTY_REL:g} x smoothness {f.smoothness:.3g} = "

@@ -55,13 +55,13 @@ SLICE_QUANTITIES = (
 # count, and the largest number of LM iterations.  Standard is the defaults.
 PRESETS = {
     "DRAFT": {"auto_resolution": True, "target_tets": 4000, "max_iterations": 15},
-    "STANDARD": {"auto_resolution": True, "target_tets": 15000, "max_iterations": 30},
+    "STANDARD": {"auto_resolution": True, "target_tets": 15000, "max_iterations": 50},
     "FINE": {"auto_resolution": True, "target_tets": 50000, "max_iterations": 60},
 }
 PRESET_ITEMS = (
     ("DRAFT", "Draft", "Auto resolution aiming at about 4,000 tets, at most 15 iterations: the quickest, to try "
      "a network"),
-    ("STANDARD", "Standard", "Auto resolution aiming at about 15,000 tets, at most 30 iterations (the defaults)"),
+    ("STANDARD", "Standard", "Auto resolution aiming at about 15,000 tets, at most 50 iterations (the defaults)"),
     ("FINE", "Fine", "Auto resolution aiming at about 50,000 tets, at most 60 iterations: a finer field, slower"),
 )
 INITS = (
@@ -185,7 +185,7 @@ class SymFramesSettings(bpy.types.PropertyGroup):
         name="Penalty", default=1000.0, min=1e-3, soft_max=1e5,
         description="Weight a of the structure-equation penalty (Eq. 23)",
     )
-    max_iterations: IntProperty(name="Iterations", default=30, min=1, soft_max=200,
+    max_iterations: IntProperty(name="Iterations", default=50, min=1, soft_max=200,
                                 description="Largest number of Levenberg-Marquardt iterations")
     init: EnumProperty(name="Start", items=INITS, default="zero",
                        description="Initial guess of Levenberg-Marquardt (the result should not depend on it)")

@@ -146,7 +146,7 @@ def test_unregister_removes_the_menu_entries():
 # ----------------------------------------------------------- presets, seed
 def test_presets_set_the_documented_values():
     s = scene().symframes
-    documented = {"DRAFT": (4000, 15), "STANDARD": (15000, 30), "FINE": (50000, 60)}  # docs/addon.md
+    documented = {"DRAFT": (4000, 15), "STANDARD": (15000, 50), "FINE": (50000, 60)}  # docs/addon.md
     assert set(properties.PRESETS) == set(documented)
     for preset, (tets, iterations) in documented.items():
         s.auto_resolution, s.target_tets, s.max_iterations = False, 777, 3
@@ -156,7 +156,7 @@ def test_presets_set_the_documented_values():
     rna = s.bl_rna.properties
     for key, value in properties.PRESETS["STANDARD"].items():
         assert rna[key].default == value, key
-    assert (Options().target_tets, Options().max_iterations) == (15000, 30)
+    assert (Options().target_tets, Options().max_iterations) == (15000, 50)
 
 
 def test_solve_seed_and_target_tets_reach_the_solver():

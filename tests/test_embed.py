@@ -118,3 +118,31 @@ def _segment_directions(P, ang, a):
     k = np.clip(np.searchsorted(a, ang) - 1, 0, len(P) - 2)
     d = P[k + 1] - P[k]
     return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def test_a_curve_grazing_a_face_turns_the_way_it_crosses():
+    """Omega_f's orientation is the walk's: from the tet the curve leaves
+    into the one it enters.  Here a curve crosses the mesh plane x = y at
+    a grazing angle (segment 0.8 degrees off the plane) and then bends
+    back, so its smooth tangent at the crossing (interpolated between
+    vertex tangents) lies on the far side of the plane: signing Omega_f
+    by n . T reversed that face's quarter turn (penalty 4.5e3 on a ball
+    mesh whose face a radial curve grazed)."""
+    from solver import Curve
+    from solver.mesh.embed import embed_network
+    from solver.network.network import PreparedNetwork
+
+    mesh = box_mesh(4, lo=(-1, -1, -1), hi=(1, 1, 1))
+    d = 0.01  # x = 0.1: the cell [0, 0.5]'s diagonal plane x = y is crossed at z = -0.5
+    P = np.array([[0.1, 0.1 - d, -1.0], [0.1, 0.1 + d, 0.0], [0.1, 0.1 - 9 * d, 1.0]])
+    pn = PreparedNetwork(curves=[Curve(P, sigma=0.25, name="grazing")], source=[0], start_kind=["boundary"],
+                         end_kind=["boundary"], nodes=[])
+    emb = embed_network(mesh, pn, node_radius=0.1)
+    tr = emb.traces[0]
+    n = mesh.face_normals[tr.faces]
+    grazing = np.abs(np.einsum("ij,ij->i", n, tr.tangents)) < 0.02
+    assert grazing.any()  # the case this test is about
+    cen = mesh.vertices[mesh.tets].mean(axis=1)
+    way = np.sign(np.einsum("ij,ij->i", n, cen[tr.tets[1:]] - cen[tr.tets[:-1]]))
+    want = 2 * np.pi * 0.25 * way[:, None] * tr.tangents
+    assert np.allclose(emb.face_omega[tr.faces], want, atol=1e-12)

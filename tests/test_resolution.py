@@ -9,6 +9,7 @@ import pytest
 from solver import Curve, FieldProblem, Network, Options, solve
 from solver.__main__ import EXIT_NOT_CONVERGED
 from solver.__main__ import main as cli_main
+from solver.analysis.measures import normal_adaptation, tangent_adaptation
 from solver.examples import ball_example, box, cube_example
 from solver.mesh.bisection import bisect
 from solver.mesh.resolution import ResolutionError, refusal, tet_limit
@@ -128,6 +129,32 @@ def test_short_curve_within_budget():
     assert np.median(h[near]) < 0.5 * np.median(h[~near])
 
 
+def test_short_curves_solve_within_budget():
+    """Node-to-node curves 0.1 long (the cube-sphere network with an inner
+    cube 0.1 across), shorter than the bulk edge length the budget allows
+    (~0.2 for 8,000 tets): the graded mesh keeps the budget and the solve,
+    with default options, resolves the network -- converged at the
+    discretisation level, the omega-matched singular faces exactly the
+    network's, the frames adapted to the surface and the curves.  Measured
+    here: 8.7k-10.5k tets, 16-31 LM iterations, penalty 2.3-3.9 (README
+    limitations: it falls with the tet count, not with the grading).  A
+    radial curve grazing a mesh face once flipped that face's quarter turn
+    (penalty 4.5e3, 1 run in 3; test_embed)."""
+    V, F, net = ball_example(inner=0.05)
+    budget = 8000
+    r = solve(V, F, net, target_tets=budget)
+    sizes = r.report.sizes
+    assert sizes["tets"] <= 1.5 * budget and sizes.get("graded_tets", 0) > 0, sizes
+    assert r.problem.plan.finest < 0.1 < r.problem.edge_length, (r.problem.plan.finest, r.problem.edge_length)
+    assert r.report.converged, r.report.status_reason
+    m = r.report.metrics
+    assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0, m
+    na = np.degrees(normal_adaptation(r.mesh, r.frames))
+    _, ta = tangent_adaptation(r)
+    assert na.mean() <= 0.5, na.mean()
+    assert np.degrees(ta).mean() <= 1.0 and np.degrees(ta).max() <= 5.0, np.degrees(ta)
+
+
 # ------------------------------------------------------------------ status
 def test_not_converged_status_and_exit_code(cube, tmp_path, capsys):
     V, F, net = cube
@@ -141,6 +168,21 @@ def test_not_converged_status_and_exit_code(cube, tmp_path, capsys):
     assert rc == EXIT_NOT_CONVERGED == 3
     assert out.exists()  # the result is still written
     assert "not converged" in capsys.readouterr().err
+
+
+def test_the_iteration_cap_says_how_close_it_came():
+    """Stopped by the cap with the penalty already at the discretisation
+    level: the status names the energy's last change and the option to
+    raise (the cylinder from a random start needs 8 iterations)."""
+    from solver.examples import load_example
+
+    V, F, net = load_example("cylinder")
+    res = solve(V, F, net, edge_length=0.4, max_iterations=6, init="random")
+    assert res.report.status == "not converged"
+    why = res.report.status_reason
+    assert "stopped after 6 iterations" in why and "discretisation level" in why, why
+    assert "energy fell" in why and "Raise max_iterations" in why, why
+    assert "close to a minimum" not in why  # it was still falling fast
 
 
 def test_converged_status(cube):

@@ -396,7 +396,7 @@ class VolumeProblem:
     def solve(
         self,
         x0: np.ndarray,
-        max_iterations: int = 30,
+        max_iterations: int = 50,
         tol: float = 1e-10,
         init: str = "",
         linear: bool = False,
