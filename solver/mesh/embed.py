@@ -7,8 +7,8 @@ anyway, so we never build tubes.  Instead each curve is traced through the
 finished mesh as a walk from tet to tet:
 
 * the faces it pierces play the role of the tube cross-sections S2^A and carry
-  the curvature Omega_f = 2 pi sigma T (T the curve tangent, §4.2.2), oriented
-  so that its dot product with the face normal is positive;
+  the curvature Omega_f = 2 pi sigma T (T the curve tangent, §4.2.2), signed
+  along the face normal the way the walk crosses the face;
 * the tets it crosses form its tube; their interior edges carry the
   curve-adaptation constraints (Eq. 21/22) -- the analogue of S1 -- with T
   and the reference frame taken at the nearest point of the curve;
