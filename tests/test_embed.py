@@ -146,3 +146,6 @@ def test_a_curve_grazing_a_face_turns_the_way_it_crosses():
     way = np.sign(np.einsum("ij,ij->i", n, cen[tr.tets[1:]] - cen[tr.tets[:-1]]))
     want = 2 * np.pi * 0.25 * way[:, None] * tr.tangents
     assert np.allclose(emb.face_omega[tr.faces], want, atol=1e-12)
+    # every face a quarter-turn curve pierces is one where the field must be singular
+    assert emb.prescribed_singular()[tr.faces].all()
+    assert emb.prescribed_singular().sum() == len(np.unique(tr.faces))

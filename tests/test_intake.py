@@ -445,6 +445,20 @@ def test_genus2_example_ends_are_turned():
         assert end_normal_angle(checked.surface, Q[::-1]) < 1.0
 
 
+def test_feature_curves_leave_no_missing_singular_faces():
+    """A feature curve (sigma = 0) pierces faces where the field is regular:
+    they are not missing singular faces (the genus-2 example, whose two
+    curves are features, reported 34-37 of them on perfect solves)."""
+    V, F, net = load_example("genus2")
+    assert net.curves and all(c.sigma == 0 for c in net.curves)
+    r = solve(V, F, net)
+    assert r.report.converged, r.report.status_reason
+    assert np.any(r.embedding.pierce_count > 0) and not r.embedding.prescribed_singular().any()
+    m = r.report.metrics
+    assert m["missing_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0, m
+    assert m["spurious_singular_faces"] == 0 and m["omega_spurious_singular_faces"] == 0, m
+
+
 def test_a_smoothly_bent_singular_curve_converges(cylinder):
     """Four quarter-turn curves bowed outwards by 0.15 (curvature up to 0.74,
     square to the caps): a curve as a user draws it.  With Omega's axis

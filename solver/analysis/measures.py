@@ -279,12 +279,13 @@ def singular_structure(mesh: TetMesh, frames: np.ndarray, expected: np.ndarray |
 
 def network_singular_structure(result) -> SingularStructure:
     """singular_structure of a solved Result against its network: expected
-    are the pierced faces with a structure equation (index != 0); allowed
-    also the node regions and the boundary faces where curves end."""
+    are the faces where the field must be singular
+    (Embedding.prescribed_singular); allowed also the node regions and the
+    boundary faces where curves end."""
     mesh, emb = result.mesh, result.embedding
     n = mesh.face_normals
     idx = np.einsum("ij,ij->i", emb.face_omega, n) / (2 * np.pi)
-    expected = np.nonzero((emb.pierce_count > 0) & ~emb.face_excluded & (np.abs(idx) > 1e-9))[0]
+    expected = np.nonzero(emb.prescribed_singular())[0]
     Om = emb.face_omega
     tang = Om / np.maximum(np.linalg.norm(Om, axis=1, keepdims=True), 1e-300)
     return singular_structure(mesh, result.frames, expected, emb.network_faces(mesh), idx, tang)
@@ -632,13 +633,14 @@ def quick_metrics(result) -> dict:
     sing, _ = matched_singular_faces(mesh, result.frames)
     out["singular_faces"] = int(sing.sum())
     out["spurious_singular_faces"] = int((sing & ~net_faces).sum())
-    pierced = emb.pierce_count > 0
-    out["missing_singular_faces"] = int((pierced & ~sing & ~emb.face_excluded).sum())
+    # faces the singular curves pierce (a feature curve's faces are regular)
+    pierced = emb.prescribed_singular()
+    out["missing_singular_faces"] = int((pierced & ~sing).sum())
     # the same with omega-aware matchings, and the largest turn of an edge
     # (above 45 degrees closest-rotation matching is ambiguous)
     osing = omega_singular_faces(mesh, result.omega, result.frames)
     out["omega_spurious_singular_faces"] = int((osing & ~net_faces).sum())
-    out["omega_missing_singular_faces"] = int((pierced & ~osing & ~emb.face_excluded).sum())
+    out["omega_missing_singular_faces"] = int((pierced & ~osing).sum())
     out["max_edge_turn_deg"] = float(np.degrees(np.linalg.norm(result.omega, axis=1).max()))
     fixed = result.problem.boundary.is_feature_vertex
     na = np.degrees(normal_adaptation(mesh, result.frames))

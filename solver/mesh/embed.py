@@ -84,6 +84,14 @@ class Embedding:
             return np.zeros(0, dtype=np.int64)
         return np.unique(np.concatenate(self.node_region))
 
+    def prescribed_singular(self) -> np.ndarray:
+        """(#F,) bool: the faces where the field must be singular -- a
+        structure equation whose Omega_f is not a whole number of turns.
+        Faces that only feature curves (sigma = 0) pierce are not among
+        them, nor faces two opposite curves pierce."""
+        quarters = np.rint(np.linalg.norm(self.face_omega, axis=1) / (0.5 * np.pi)).astype(np.int64)
+        return (quarters % 4 != 0) & ~self.face_excluded
+
     def network_faces(self, mesh: TetMesh) -> np.ndarray:
         """Faces the network passes through: pierced faces, the faces of node
         regions and the boundary faces where curves end."""
