@@ -634,13 +634,13 @@ def quick_metrics(result) -> dict:
     out["singular_faces"] = int(sing.sum())
     out["spurious_singular_faces"] = int((sing & ~net_faces).sum())
     # faces the singular curves pierce (a feature curve's faces are regular)
-    pierced = emb.prescribed_singular()
-    out["missing_singular_faces"] = int((pierced & ~sing).sum())
+    must = emb.prescribed_singular()
+    out["missing_singular_faces"] = int((must & ~sing).sum())
     # the same with omega-aware matchings, and the largest turn of an edge
     # (above 45 degrees closest-rotation matching is ambiguous)
     osing = omega_singular_faces(mesh, result.omega, result.frames)
     out["omega_spurious_singular_faces"] = int((osing & ~net_faces).sum())
-    out["omega_missing_singular_faces"] = int((pierced & ~osing).sum())
+    out["omega_missing_singular_faces"] = int((must & ~osing).sum())
     out["max_edge_turn_deg"] = float(np.degrees(np.linalg.norm(result.omega, axis=1).max()))
     fixed = result.problem.boundary.is_feature_vertex
     na = np.degrees(normal_adaptation(mesh, result.frames))

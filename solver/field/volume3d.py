@@ -76,6 +76,7 @@ class LMReport:
     init: str
     iterations: list = field(default_factory=list)
     converged: bool = False
+    capped: bool = False  # stopped by max_iterations
     reason: str = ""
     seconds: float = 0.0
     setup_seconds: float = 0.0
@@ -645,6 +646,7 @@ class VolumeProblem:
                 rep.reason = "converged: linear problem solved"
                 break
         else:
+            rep.capped = True
             rep.reason = f"stopped after {max_iterations} iterations"
         rep.seconds = time.perf_counter() - t0
         return x, rep

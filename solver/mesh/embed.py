@@ -385,7 +385,6 @@ def _assemble(mesh: TetMesh, net: PreparedNetwork, traces, node_tets, node_radiu
     # it, at any scale, so the second-order structure equation cannot hold
     # there and is left out.
     regions = []
-    cen = mesh.vertices[mesh.tets].mean(axis=1)
     for k, nd in enumerate(net.nodes):
         ball = np.nonzero(np.linalg.norm(cen - nd.position, axis=1) < node_radius)[0]
         region = set(ball.tolist()) | {int(node_tets[k])}
