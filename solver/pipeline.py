@@ -20,7 +20,7 @@ from scipy.sparse.csgraph import connected_components
 from . import checks
 from .errors import Cancelled, MeshingError, OptionsError, TopologyError
 from .field.boundary2d import BoundaryField, lift_mismatch, solve_boundary_field
-from .field.constraints import TUBE, AffineOmega, build_constraints
+from .field.constraints import TUBE, AffineOmega, build_constraints, tube_curvature
 from .field.develop import develop, symmetric_turn
 from .field.volume3d import LMReport, VolumeProblem
 from .linalg.rotations import exp_so3
@@ -361,6 +361,7 @@ class FieldProblem:
         self.boundary: BoundaryField = st.run("boundary2d", self._boundary)
         self.constraints: AffineOmega = st.run("constraints", build_constraints, mesh, self.network,
                                                self.embedding, self.boundary)
+        self.embedding.structure_omega = tube_curvature(mesh, self.constraints, self.embedding)
         self.report.sizes = {"tets": mesh.n_tets, "vertices": mesh.n_vertices, "edges": mesh.n_edges,
                              "faces": mesh.n_faces, "unknowns": self.constraints.n_unknowns,
                              "curves": len(self.network.curves), "nodes": len(self.network.nodes),
@@ -720,7 +721,7 @@ class FieldProblem:
     @property
     def volume(self) -> VolumeProblem:
         if self._volume is None:
-            self._volume = VolumeProblem(self.mesh, self.constraints, self.embedding.face_omega,
+            self._volume = VolumeProblem(self.mesh, self.constraints, self.embedding.equation_omega,
                                          self.embedding.face_excluded, self.options.penalty,
                                          self.boundary.normals, length_unit(self.checked))
         return self._volume

@@ -29,6 +29,7 @@ from ..mesh.tetmesh import TetMesh
 from ..network.curves import CurveGeometry
 from ..network.network import PreparedNetwork, Torsion
 from .boundary2d import BoundaryField, wrap
+from .structure import StructureEquation
 
 FREE, BOUNDARY, FIXED, TUBE = 0, 1, 2, 3
 
@@ -42,6 +43,9 @@ class AffineOmega:
     alpha_vertices : global vertex ids carrying alpha (Eq. 20)
     tube_curve  : (#E,) curve id of tube edges, -1 elsewhere
     tube_tangent: (#E, 3) T_e on tube edges
+    tube_reference : (#E, 3) on tube edges, omega of the reference field
+                  adapted to the curve and winding around it as prescribed:
+                  omega0 + sigma theta T_e (tube_curvature)
     n_alpha, n_beta, n_gamma : sizes of the parameter blocks
     """
 
@@ -52,6 +56,7 @@ class AffineOmega:
     alpha_vertices: np.ndarray
     tube_curve: np.ndarray
     tube_tangent: np.ndarray
+    tube_reference: np.ndarray
     n_alpha: int
     beta_edges: np.ndarray  # tube edges with free torsion, in the order of the beta block
     n_beta: int
@@ -120,6 +125,9 @@ def build_constraints(
     is_tube = tube_curve >= 0
     kind[is_tube] = TUBE
     c[is_tube] = tube_omega0[is_tube]
+    sig_e = np.array([net.curves[ci].sigma for ci in tube_curve[is_tube]], float)
+    tube_ref = np.zeros((nE, 3))
+    tube_ref[is_tube] = tube_omega0[is_tube] + (sig_e * tube_theta[is_tube])[:, None] * tube_T[is_tube]
     # -------------------------------------------------------------- free edges
     free_edges = np.nonzero(kind == FREE)[0]
     nfree = len(free_edges)
@@ -194,6 +202,7 @@ def build_constraints(
         alpha_vertices=bv[alpha_idx],  # representative of each alpha group
         tube_curve=tube_curve,
         tube_tangent=tube_T,
+        tube_reference=tube_ref,
         n_alpha=n_alpha,
         beta_edges=beta_edges,
         n_beta=n_beta,
@@ -298,3 +307,35 @@ def _tube_edges(mesh: TetMesh, net: PreparedNetwork, emb: Embedding, kind, bnorm
 
         theta[edges] = wrap(polar(E[edges, 1], sj, tj, Fj) - polar(E[edges, 0], si, ti, Fi))
     return tube_curve, tube_T, omega0, theta
+
+
+def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding) -> np.ndarray:
+    """(#F, 3) Omega_f of the structure equation (Eq. 17/19) on every face.
+
+    emb.face_omega prescribes 2 pi sigma T on the faces a curve pierces and
+    0 elsewhere (§4.2.2).  On a face whose three edges are all tube edges,
+    omega is omega0 + beta T_e on each (Eq. 21/22), and where the curve bends
+    these rotations do not commute: T_e differs between the edges by ~kappa h
+    while beta winds by up to a quarter turn around the curve, and the wedge
+    of Eq. 18 (exact for commuting rotations: a straight curve) is off by
+    O(beta^2 kappa h).  No field adapted to a bent curve then satisfies the
+    equation there, and LM pays for it on every tube face: the cube-sphere
+    ball with its radial curves bent onto tilted ends scored 42 instead of
+    0.23 straight.  So on those faces Omega_f is taken from the reference
+    field cons.tube_reference -- adapted to the curve and winding around it
+    by sigma times the polar angle -- as the value of Eq. 17 it gives with
+    Omega = 0: the equation then holds exactly for that field, and on a
+    straight curve this is face_omega itself.  A face where the two differ
+    by more than an eighth of a turn (a polar angle wrapped the other way
+    across the curve) keeps face_omega."""
+    Om = emb.face_omega.copy()
+    tube = cons.kind == TUBE
+    fe = mesh.face_edges
+    faces = np.nonzero(tube[fe].all(axis=1) & ~emb.face_excluded)[0]
+    if len(faces) == 0:
+        return Om
+    se = StructureEquation(fe[faces], mesh.corner_weights[faces], np.zeros((len(faces), 3)), mesh.n_edges)
+    ref = se.residual(cons.tube_reference)
+    ok = np.linalg.norm(ref - Om[faces], axis=1) < np.pi / 8
+    Om[faces[ok]] = ref[ok]
+    return Om
