@@ -477,3 +477,35 @@ def test_a_smoothly_bent_singular_curve_converges(cylinder):
     assert r.report.converged, r.report.status_reason
     assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0, m
     assert m["tangent_adaptation_mean_deg"] <= 1.0 and m["normal_adaptation_mean_deg"] <= 0.5, m
+
+
+def test_a_curve_from_a_node_is_bent_over_most_of_its_length():
+    """The cube-sphere network stretched into a 2 x 1 x 0.6 ellipsoid: its
+    straight radial curves run from the inner box's corners (nodes) to the
+    surface 50 degrees off the normal.  Only one end of each can be bent,
+    so the bend may take BEND_FRACTION_ONE_END of the curve instead of the
+    half left to each end of a curve with two: bent over half, LM ended at
+    a penalty of 520-580; over 0.8, 160-166.  The curve still leaves the
+    node as given, and meets the surface along the normal."""
+    from solver.examples import ball_example
+    from solver.network.intake import BEND_FRACTION, BEND_FRACTION_ONE_END
+
+    V, F, net = ball_example()
+    S = np.array([2.0, 1.0, 0.6])
+    net = Network(curves=[Curve(c.points * S, sigma=c.sigma, name=c.name) for c in net.curves])
+    checked = check_input(V * S, F, net)
+    h = checked.scale
+    for k, c in enumerate(net.curves):
+        if not c.name.startswith("radial"):
+            continue
+        rep = checked.repairs[k]
+        (bend,) = rep.ends
+        assert bend.input_angle_deg > 45.0, rep.text()
+        Q = checked.network.curves[k].points
+        L = float(np.sum(np.linalg.norm(np.diff(Q, axis=0), axis=1)))
+        assert BEND_FRACTION * L < bend.length_h * h <= BEND_FRACTION_ONE_END * L + 1e-9, rep.text()
+        assert np.allclose(Q[0], c.points[0])  # the node stays where it was
+        d0 = (Q[1] - Q[0]) / np.linalg.norm(Q[1] - Q[0])
+        assert d0 @ (c.points[-1] - c.points[0]) / np.linalg.norm(c.points[-1] - c.points[0]) > np.cos(np.radians(10))
+        assert end_normal_angle(checked.surface, Q) < 1.0
+        assert np.all(checked.surface.winding_number(Q[1:-1]) > 0.5)

@@ -55,11 +55,18 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    its oblique ends need.  Where the end still meets the surface off the
    normal (by more than ``BEND_MIN`` degrees: a long stretch really
    oblique), its last stretch of length ``Lb = min(BEND_LENGTH * h,
-   BEND_FRACTION * L)`` is replaced by a cubic Hermite arc
+   f L)`` is replaced by a cubic Hermite arc
    (tangent-continuous with the curve) followed by a straight piece along
    the inward normal of length Lb / 4, so that the curve meets the
    surface along the normal, as the frame there must be adapted to both
-   (§4.2.3, Eq. 20-21).  A bend that would leave the solid is retried
+   (§4.2.3, Eq. 20-21).  f is ``BEND_FRACTION`` = 1/2 where both ends
+   of the curve are bent, else ``BEND_FRACTION_ONE_END`` = 0.8: the
+   structure penalty grows with the square of the curvature, and the
+   cube-sphere network stretched into a 2 x 1 x 0.6 ellipsoid, whose
+   radial curves reach the surface 50 degrees off the normal and are
+   ~3.7 h long, scored 520-580 bent over half of them and 160-166 over
+   0.8 (the whole curve, bending away from the node too, 219).
+   A bend that would leave the solid is retried
    shorter; if none stays inside the input is refused with the numbers.
    (Bending alone, without the slide, left the tet-edge ball's radial
    curves turning 5-6 degrees per h/2 near the sphere and LM with a
@@ -93,7 +100,8 @@ BAND = 1.0  # least bending keeps every point within BAND * l of the input
 SLIDE_MAX = 1.0  # a boundary end slides along the surface by at most this many l while faired
 BEND_MIN = 2.0  # degrees: ends closer than this to the normal are left alone
 BEND_LENGTH = 3.0  # bent stretch, in units of h ...
-BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length
+BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length where both its ends are bent,
+BEND_FRACTION_ONE_END = 0.8  # ... or this fraction where only one end is (its other end a node)
 TETS_PER_H3 = 15.0  # as pipeline.TETS_PER_H3
 
 
@@ -499,10 +507,11 @@ def _hermite(p0, t0, p1, t1, n):
     return h00 * p0 + h10 * t0 + h01 * p1 + h11 * t1
 
 
-def bend_end(S: TriSurface, P: np.ndarray, h: float, label: str, end_name: str):
+def bend_end(S: TriSurface, P: np.ndarray, h: float, label: str, end_name: str,
+             fraction: float = BEND_FRACTION):
     """Bend the last stretch of P (which ends on the surface at P[-1]) so that
-    it reaches the surface along the normal.  Returns (new points, EndBend
-    or None)."""
+    it reaches the surface along the normal, over at most ``fraction`` of
+    its length.  Returns (new points, EndBend or None)."""
     d, f, q = S.closest_points(P[-1:])
     q = q[0]
     P = P.copy()
@@ -515,7 +524,7 @@ def bend_end(S: TriSurface, P: np.ndarray, h: float, label: str, end_name: str):
     angle = float(np.degrees(np.arccos(np.clip(chord @ n, -1.0, 1.0))))
     if angle <= BEND_MIN:
         return P, None
-    Lb0 = min(BEND_LENGTH * h, BEND_FRACTION * L)
+    Lb0 = min(BEND_LENGTH * h, fraction * L)
     for Lb in (Lb0, 0.6 * Lb0, 0.35 * Lb0):
         s0 = L - Lb
         p0 = at_arclength(P, np.array([s0]), cum)[0]
@@ -601,7 +610,9 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                 if d[0] > boundary_tolerance:
                     continue
                 R = Q if end == 1 else Q[::-1]
-                R, bend = bend_end(S, R, h, names[ci], "end" if end == 1 else "start")
+                both = kinds[0] == "boundary" and kinds[1] == "boundary"
+                R, bend = bend_end(S, R, h, names[ci], "end" if end == 1 else "start",
+                                   BEND_FRACTION if both else BEND_FRACTION_ONE_END)
                 Q = R if end == 1 else R[::-1]
                 slid = float(np.linalg.norm(R[-1] - (P0[-1] if end == 1 else P0[0]))) / h
                 if bend is None and slid > 1e-3:
