@@ -178,8 +178,9 @@ def test_bent_tubes_carry_no_structure_error():
     """Around a bent singular curve the adapted rotations omega0 + beta T_e
     do not commute, and with Omega_f = 2 pi sigma T (or 0) the second-order
     equation missed on every tube face: the cube-sphere ball with its radial
-    curves bowed by 0.45 had a penalty of 51 on them (80 in all).  With the
-    reference field's curvature they carry almost none (0.26 of 29)."""
+    curves bowed by 0.45 had a penalty of 9.9 on them (13.4 in all, not
+    converged).  With the reference field's curvature they carry almost
+    none (0.03 of 3.5)."""
     from solver import Curve, Network, solve
     from solver.examples import ball_example
 
