@@ -321,8 +321,9 @@ def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding) -> np.ndarr
     O(beta^2 kappa h).  No field adapted to a bent curve then satisfies the
     equation there, and LM pays for it on every tube face: the cube-sphere
     ball with its radial curves bowed by 0.45 scored 9.9 on them (13.4 in
-    all, against 0.23 straight), 0.03 with this Omega_f (3.5 in all).  So on those faces Omega_f is taken from the reference
-    field cons.tube_reference -- adapted to the curve and winding around it
+    all, against 0.23 straight), 0.03 with this Omega_f (3.5 in all).  So
+    on those faces Omega_f is taken from the reference field
+    cons.tube_reference -- adapted to the curve and winding around it
     by sigma times the polar angle -- as the value of Eq. 17 it gives with
     Omega = 0: the equation then holds exactly for that field, and on a
     straight curve this is face_omega itself.  A face where the two differ
