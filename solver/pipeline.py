@@ -361,7 +361,8 @@ class FieldProblem:
         self.boundary: BoundaryField = st.run("boundary2d", self._boundary)
         self.constraints: AffineOmega = st.run("constraints", build_constraints, mesh, self.network,
                                                self.embedding, self.boundary)
-        self.embedding.structure_omega = tube_curvature(mesh, self.constraints, self.embedding)
+        self.embedding.structure_omega = tube_curvature(mesh, self.constraints, self.embedding,
+                                                       self.network)
         self.report.sizes = {"tets": mesh.n_tets, "vertices": mesh.n_vertices, "edges": mesh.n_edges,
                              "faces": mesh.n_faces, "unknowns": self.constraints.n_unknowns,
                              "curves": len(self.network.curves), "nodes": len(self.network.nodes),

@@ -22,11 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
-from ..linalg.rotations import log_so3
+from ..linalg.rotations import exp_so3, log_so3
 from ..mesh.embed import Embedding
 from ..mesh.tetmesh import TetMesh
 from ..network.curves import CurveGeometry
+from ..network.intake import resample
 from ..network.network import PreparedNetwork, Torsion
 from .boundary2d import BoundaryField, wrap
 from .structure import StructureEquation
@@ -309,34 +311,102 @@ def _tube_edges(mesh: TetMesh, net: PreparedNetwork, emb: Embedding, kind, bnorm
     return tube_curve, tube_T, omega0, theta
 
 
-def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding) -> np.ndarray:
+RING_RADIUS = 1.5  # tube_curvature: vertices at most this many edge lengths (around the tube) from their curve
+
+
+def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding, net: PreparedNetwork) -> np.ndarray:
     """(#F, 3) Omega_f of the structure equation (Eq. 17/19) on every face.
 
     emb.face_omega prescribes 2 pi sigma T on the faces a curve pierces and
-    0 elsewhere (§4.2.2).  On a face whose three edges are all tube edges,
-    omega is omega0 + beta T_e on each (Eq. 21/22), and where the curve bends
-    these rotations do not commute: T_e differs between the edges by ~kappa h
-    while beta winds by up to a quarter turn around the curve, and the wedge
-    of Eq. 18 (exact for commuting rotations: a straight curve) is off by
-    O(beta^2 kappa h).  No field adapted to a bent curve then satisfies the
-    equation there, and LM pays for it on every tube face: the cube-sphere
-    ball with its radial curves bowed by 0.45 scored 9.9 on them (13.4 in
-    all, against 0.23 straight), 0.03 with this Omega_f (3.5 in all).  So
-    on those faces Omega_f is taken from the reference field
-    cons.tube_reference -- adapted to the curve and winding around it
-    by sigma times the polar angle -- as the value of Eq. 17 it gives with
-    Omega = 0: the equation then holds exactly for that field, and on a
-    straight curve this is face_omega itself.  A face where the two differ
-    by more than an eighth of a turn (a polar angle wrapped the other way
-    across the curve) keeps face_omega."""
+    0 elsewhere (§4.2.2).  Next to a bent singular curve that is not what
+    the discrete equation asks of a field adapted to it.  On a tube face,
+    omega is omega0 + beta T_e on each edge (Eq. 21/22); T_e differs between
+    the edges by ~kappa h while beta winds by up to a quarter turn around the
+    curve, these rotations do not commute, and the wedge of Eq. 18 (exact
+    for commuting rotations: a straight curve) is off by O(beta^2 kappa h).
+    The faces around the tube see the same winding and the same error.
+    So no field adapted to a bent curve satisfies the equation there, and
+    LM paid for it on every face near the curve.
+
+    Here Omega_f near each curve is the value of Eq. 17 (with Omega = 0)
+    of the curve's reference field: on tube edges cons.tube_reference
+    (omega0 + sigma theta T_e, inside the constraints), on the other edges
+    of the tets around the tube the exact rotation between the frames
+    E^0 exp(sigma phi) at the vertices' nearest curve points (phi the polar
+    angle around the curve).  This covers faces whose three edges belong to
+    one curve, between vertices nearer to it than to any other curve, within
+    RING_RADIUS edge lengths of it, off the node regions, the boundary and the
+    curve's ends.  The equation then holds exactly for the reference field,
+    and on a straight curve, where it turns about one axis, this is
+    face_omega itself.  A face where the two differ by more than an eighth
+    of a turn (a polar angle wrapped the other way across the curve) keeps
+    face_omega.  Measured (default options, limitations.md): the
+    cube-sphere ball with its radial curves bowed by 0.45 scored 13.4 (9.9
+    on tube faces), 3.5 with tube faces alone corrected, 1.6 with the ring
+    around them; the network stretched into a 2 x 1 x 0.6 ellipsoid, its
+    radial curves bent onto the normal from 50 degrees off, 160-172 and 33."""
     Om = emb.face_omega.copy()
+    E, X = mesh.edges, mesh.vertices
     tube = cons.kind == TUBE
+    owner = np.where(tube, cons.tube_curve, -1)
+    ref = cons.tube_reference.copy()
+    node_tets = emb.node_region_tets
+    off = mesh.is_boundary_vertex.copy()
+    if len(node_tets):
+        off[mesh.tets[node_tets].reshape(-1)] = True
+    # the nearest curve of a vertex, from points every quarter edge along each
+    step = 0.25 * float(np.median(mesh.edge_lengths))
+    lines = [resample(tr.polyline, step) for tr in emb.traces]
+    if lines:
+        nearest_tree = cKDTree(np.vstack(lines))
+        nearest_label = np.concatenate([np.full(len(P), ci) for ci, P in enumerate(lines)])
+    for ci, tr in enumerate(emb.traces):
+        own = np.nonzero(owner == ci)[0]
+        tets = np.setdiff1d(tr.tets, node_tets)
+        if len(own) == 0 or len(tets) == 0:
+            continue
+        near_tube = np.zeros(mesh.n_vertices, bool)
+        near_tube[mesh.tets[tets].reshape(-1)] = True
+        ring = np.setdiff1d(np.nonzero(near_tube[mesh.tets].any(axis=1))[0], node_tets)
+        edges = np.unique(mesh.tet_edges[ring].reshape(-1))
+        reach = RING_RADIUS * float(np.median(mesh.edge_lengths[edges]))
+        edges = edges[(owner[edges] < 0) & (cons.kind[edges] == FREE)]
+        verts = np.unique(E[edges].reshape(-1))
+        verts = verts[~off[verts]]
+        if len(edges) == 0 or len(verts) == 0:
+            continue
+        geo = CurveGeometry(tr.polyline, net.curves[ci].closed)
+        seg, t, d = geo.closest(X[verts])
+        at_end = ((seg == 0) & (t <= 0.0)) | ((seg == len(geo.P) - 2) & (t >= 1.0))
+        if net.curves[ci].closed:
+            at_end[:] = False
+        ok = (d < reach) & ~at_end & (nearest_label[nearest_tree.query(X[verts])[1]] == ci)
+        good = np.zeros(mesh.n_vertices, bool)
+        good[verts[ok]] = True
+        edges = edges[good[E[edges, 0]] & good[E[edges, 1]]]
+        if len(edges) == 0:
+            continue
+        si, ti, _ = geo.closest(X[E[edges, 0]])
+        sj, tj, _ = geo.closest(X[E[edges, 1]])
+        Fi, Fj = geo.frame(si, ti), geo.frame(sj, tj)
+
+        def polar(v, sg, tt, F):
+            r = X[v] - geo.point(sg, tt)
+            return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
+
+        turn = net.curves[ci].sigma * wrap(polar(E[edges, 1], sj, tj, Fj) - polar(E[edges, 0], si, ti, Fi))
+        z = np.zeros((len(edges), 3))
+        z[:, 2] = turn
+        # E_j E_i^T for E = F exp(sigma phi e_z) E0
+        ref[edges] = log_so3(np.einsum("nij,njk,nlk->nil", Fj, exp_so3(z), Fi))
+        owner[edges] = ci
     fe = mesh.face_edges
-    faces = np.nonzero(tube[fe].all(axis=1) & ~emb.face_excluded)[0]
+    o = owner[fe]
+    faces = np.nonzero((o[:, 0] >= 0) & (o[:, 0] == o[:, 1]) & (o[:, 1] == o[:, 2]) & ~emb.face_excluded)[0]
     if len(faces) == 0:
         return Om
     se = StructureEquation(fe[faces], mesh.corner_weights[faces], np.zeros((len(faces), 3)), mesh.n_edges)
-    ref = se.residual(cons.tube_reference)
-    ok = np.linalg.norm(ref - Om[faces], axis=1) < np.pi / 8
-    Om[faces[ok]] = ref[ok]
+    r = se.residual(ref)
+    keep = np.linalg.norm(r - Om[faces], axis=1) < np.pi / 8
+    Om[faces[keep]] = r[keep]
     return Om
