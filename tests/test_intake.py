@@ -485,7 +485,8 @@ def test_a_curve_from_a_node_is_bent_over_most_of_its_length():
     surface 50 degrees off the normal.  Only one end of each can be bent,
     so the bend may take BEND_FRACTION_ONE_END of the curve instead of the
     half left to each end of a curve with two: bent over half, LM ended at
-    a penalty of 520-580; over 0.8, 160-166.  The curve still leaves the
+    a penalty of 520-580; over 0.8, 160-166 (the tube faces' curvature
+    corrected, not yet the faces around them).  The curve still leaves the
     node as given, and meets the surface along the normal."""
     from solver.examples import ball_example
     from solver.network.intake import BEND_FRACTION, BEND_FRACTION_ONE_END

@@ -65,7 +65,8 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    cube-sphere network stretched into a 2 x 1 x 0.6 ellipsoid, whose
    radial curves reach the surface 50 degrees off the normal and are
    ~3.7 h long, scored 520-580 bent over half of them and 160-166 over
-   0.8 (the whole curve, bending away from the node too, 219).
+   0.8 (the whole curve, bending away from the node too, 219), with the
+   tube faces' curvature corrected (field/constraints.tube_curvature).
    A bend that would leave the solid is retried
    shorter; if none stays inside the input is refused with the numbers.
    (Bending alone, without the slide, left the tet-edge ball's radial
