@@ -127,7 +127,7 @@ def build_constraints(
     is_tube = tube_curve >= 0
     kind[is_tube] = TUBE
     c[is_tube] = tube_omega0[is_tube]
-    sig_e = np.array([c.sigma for c in net.curves], float)[tube_curve[is_tube]]
+    sig_e = np.array([net.curves[ci].sigma for ci in tube_curve[is_tube]], float)
     tube_ref = np.zeros((nE, 3))
     tube_ref[is_tube] = tube_omega0[is_tube] + (sig_e * tube_theta[is_tube])[:, None] * tube_T[is_tube]
     # -------------------------------------------------------------- free edges
@@ -298,24 +298,17 @@ def _tube_edges(mesh: TetMesh, net: PreparedNetwork, emb: Embedding, kind, bnorm
         best[edges] = d
         tube_curve[edges] = ci
         tube_T[edges] = geo.tangent(s, t)
-        Fi, Fj, theta[edges] = _frames_and_winding(geo, X[E[edges, 0]], X[E[edges, 1]])
+        si, ti, _ = geo.closest(X[E[edges, 0]])
+        sj, tj, _ = geo.closest(X[E[edges, 1]])
+        Fi, Fj = geo.frame(si, ti), geo.frame(sj, tj)
         omega0[edges] = log_so3(np.einsum("nij,nkj->nik", Fj, Fi))
+        # polar angle of each end around the curve, in its own reference frame
+        def polar(v, seg, tt, F):
+            r = X[v] - geo.point(seg, tt)
+            return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
+
+        theta[edges] = wrap(polar(E[edges, 1], sj, tj, Fj) - polar(E[edges, 0], si, ti, Fi))
     return tube_curve, tube_T, omega0, theta
-
-
-def _frames_and_winding(geo: CurveGeometry, Xi: np.ndarray, Xj: np.ndarray):
-    """Reference frames E0 at the nearest curve points of the edge ends Xi,
-    Xj (n, 3), and the change of polar angle around the curve from i to j,
-    each end's angle in its own frame (wrapped to (-pi, pi])."""
-    def frame_and_polar(P):
-        seg, t, _ = geo.closest(P)
-        F = geo.frame(seg, t)
-        r = P - geo.point(seg, t)
-        return F, np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
-
-    Fi, pi_ = frame_and_polar(Xi)
-    Fj, pj = frame_and_polar(Xj)
-    return Fi, Fj, wrap(pj - pi_)
 
 
 RING_RADIUS = 1.5  # tube_curvature: vertices at most this many edge lengths (around the tube) from their curve
@@ -346,8 +339,8 @@ def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding, net: Prepar
     curve's ends.  The equation then holds exactly for the reference field,
     and on a straight curve, where it turns about one axis, this is
     face_omega itself.  A face where the two differ by more than an eighth
-    of a turn (a polar angle wrapped the other way across the curve), or by
-    less than 1e-3 rad, keeps face_omega.  Measured (default options, limitations.md): the
+    of a turn (a polar angle wrapped the other way across the curve) keeps
+    face_omega.  Measured (default options, limitations.md): the
     cube-sphere ball with its radial curves bowed by 0.45 scored 13.4 (9.9
     on tube faces), 3.5 with tube faces alone corrected, 1.6 with the ring
     around them; the network stretched into a 2 x 1 x 0.6 ellipsoid, its
@@ -367,17 +360,14 @@ def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding, net: Prepar
     if lines:
         nearest_tree = cKDTree(np.vstack(lines))
         nearest_label = np.concatenate([np.full(len(P), ci) for ci, P in enumerate(lines)])
-    nT = mesh.n_tets
-    vertex_tets = sp.csr_matrix((np.ones(4 * nT, bool), (mesh.tets.reshape(-1), np.repeat(np.arange(nT), 4))),
-                                shape=(mesh.n_vertices, nT))
-    has_tube = np.zeros(len(emb.traces), bool)
-    has_tube[np.unique(cons.tube_curve[tube])] = True
     for ci, tr in enumerate(emb.traces):
+        own = np.nonzero(owner == ci)[0]
         tets = np.setdiff1d(tr.tets, node_tets)
-        if not has_tube[ci] or len(tets) == 0:
+        if len(own) == 0 or len(tets) == 0:
             continue
-        # the tets sharing a vertex with the tube's
-        ring = np.setdiff1d(vertex_tets[np.unique(mesh.tets[tets])].indices, node_tets)
+        near_tube = np.zeros(mesh.n_vertices, bool)
+        near_tube[mesh.tets[tets].reshape(-1)] = True
+        ring = np.setdiff1d(np.nonzero(near_tube[mesh.tets].any(axis=1))[0], node_tets)
         edges = np.unique(mesh.tet_edges[ring].reshape(-1))
         reach = RING_RADIUS * float(np.median(mesh.edge_lengths[edges]))
         edges = edges[(owner[edges] < 0) & (cons.kind[edges] == FREE)]
@@ -396,9 +386,17 @@ def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding, net: Prepar
         edges = edges[good[E[edges, 0]] & good[E[edges, 1]]]
         if len(edges) == 0:
             continue
-        Fi, Fj, dphi = _frames_and_winding(geo, X[E[edges, 0]], X[E[edges, 1]])
+        si, ti, _ = geo.closest(X[E[edges, 0]])
+        sj, tj, _ = geo.closest(X[E[edges, 1]])
+        Fi, Fj = geo.frame(si, ti), geo.frame(sj, tj)
+
+        def polar(v, sg, tt, F):
+            r = X[v] - geo.point(sg, tt)
+            return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
+
+        turn = net.curves[ci].sigma * wrap(polar(E[edges, 1], sj, tj, Fj) - polar(E[edges, 0], si, ti, Fi))
         z = np.zeros((len(edges), 3))
-        z[:, 2] = net.curves[ci].sigma * dphi
+        z[:, 2] = turn
         # E_j E_i^T for E = F exp(sigma phi e_z) E0
         ref[edges] = log_so3(np.einsum("nij,njk,nlk->nil", Fj, exp_so3(z), Fi))
         owner[edges] = ci
@@ -409,10 +407,6 @@ def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding, net: Prepar
         return Om
     se = StructureEquation(fe[faces], mesh.corner_weights[faces], np.zeros((len(faces), 3)), mesh.n_edges)
     r = se.residual(ref)
-    change = np.linalg.norm(r - Om[faces], axis=1)
-    # below 1e-3 rad (a nearly straight curve) the change is far under the
-    # discretisation error and is left out: networks of straight curves keep
-    # the paper's Omega_f exactly
-    keep = (change < np.pi / 8) & (change > 1e-3)
+    keep = np.linalg.norm(r - Om[faces], axis=1) < np.pi / 8
     Om[faces[keep]] = r[keep]
     return Om
