@@ -205,3 +205,55 @@ def test_bent_tubes_carry_no_structure_error():
     assert len(faces) > 50 and changed.max() > 1e-3
     assert vp.a * np.sum(res[faces] ** 2) < 1.0
     assert r.report.converged, r.report.status_reason
+
+
+def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
+    """The tube edges' reference winding theta is measured per vertex, in
+    the frame of each vertex's nearest curve point; where a bent curve
+    crosses an oblique face close to an edge, those points lie apart and
+    the face wound 0 times where the curve pierces it -- rare on default
+    meshes, common on meshes graded towards bends (the cube-sphere network
+    stretched into a 2 x 1 x 0.6 ellipsoid, its ends bent onto the normal:
+    50 of 851 tube faces, penalty 275).  Settled against the winding seen
+    from the curve (constraints._settle_windings): 6."""
+    import solver.mesh.resolution as resolution
+    from solver import Curve, FieldProblem, Network, Options
+    from solver.examples import ball_example
+    from solver.field.constraints import FREE, TUBE, _tube_edges
+    from solver.field.structure import StructureEquation
+
+    needs = resolution.network_needs
+
+    def needs_and_bends(S, pn):  # a sizing field also a third of the radius of curvature
+        P, need = needs(S, pn)
+        for c in pn.curves:
+            d = np.diff(c.points, axis=0)
+            ln = np.linalg.norm(d, axis=1)
+            u = d / ln[:, None]
+            turn = np.arccos(np.clip(np.einsum("ij,ij->i", u[:-1], u[1:]), -1.0, 1.0)) + 1e-12
+            P, need = np.vstack([P, c.points[1:-1]]), np.concatenate([need, 0.5 * (ln[:-1] + ln[1:]) / turn])
+        return P, need
+
+    monkeypatch.setattr(resolution, "network_needs", needs_and_bends)
+    V, F, net = ball_example()
+    S = np.array([2.0, 1.0, 0.6])
+    net = Network(curves=[Curve(c.points * S, sigma=c.sigma, name=c.name) for c in net.curves])
+    p = FieldProblem(V * S, F, net, Options())
+    assert p.report.sizes.get("graded_tets", 0) > 0
+    mesh, emb, cons = p.mesh, p.embedding, p.constraints
+    faces = _all_tube_faces(p)
+    se = StructureEquation(mesh.face_edges[faces], mesh.corner_weights[faces], emb.face_omega[faces], mesh.n_edges)
+
+    def wrong(ref):
+        return int(np.sum(np.linalg.norm(se.residual(ref), axis=1) > np.pi / 4))
+
+    kind = np.where(cons.kind == TUBE, FREE, cons.kind)  # the edges' kinds before the tubes
+    curve, T, omega0, theta, _ = _tube_edges(mesh, p.network, emb, kind, p.boundary.normals)
+    assert np.array_equal(curve >= 0, cons.kind == TUBE)
+    tube = curve >= 0
+    sigma = np.array([c.sigma for c in p.network.curves])[curve[tube]]
+    per_vertex = np.zeros((mesh.n_edges, 3))
+    per_vertex[tube] = omega0[tube] + (sigma * theta[tube])[:, None] * T[tube]
+    before, after = wrong(per_vertex), wrong(cons.tube_reference)
+    assert len(faces) > 300
+    assert after <= 0.3 * before + 2, (before, after)
