@@ -127,11 +127,11 @@ def build_constraints(
     is_tube = tube_curve >= 0
     kind[is_tube] = TUBE
     c[is_tube] = tube_omega0[is_tube]
-    sig_e = np.array([net.curves[ci].sigma for ci in tube_curve[is_tube]], float)
+    # sigma per edge (0 off the tubes; the appended 0 is what tube_curve = -1 picks)
+    sigma_e = np.where(is_tube, np.array([cv.sigma for cv in net.curves] + [0.0], float)[tube_curve], 0.0)
+    sig_e = sigma_e[is_tube]
     tube_ref = np.zeros((nE, 3))
     tube_ref[is_tube] = tube_omega0[is_tube] + (sig_e * tube_theta[is_tube])[:, None] * tube_T[is_tube]
-    sigma_e = np.zeros(nE)
-    sigma_e[is_tube] = sig_e
     _settle_windings(mesh, emb, tube_curve, sigma_e, tube_T, tube_theta, turns, tube_ref)
     # -------------------------------------------------------------- free edges
     free_edges = np.nonzero(kind == FREE)[0]
@@ -252,6 +252,13 @@ def _alpha_after_gauge(B, free_local, group):
     return free_local.copy()
 
 
+def _polar_angle(X: np.ndarray, C: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Polar angle of points X around curve points C, in the reference
+    frames F (n, 3, 3) there (first two columns across the curve)."""
+    r = X - C
+    return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
+
+
 def _edge_winding(geo: CurveGeometry, XA: np.ndarray, XB: np.ndarray, samples: int = 9) -> np.ndarray:
     """The angle (wrapped) by which edges XA -> XB wind around the curve,
     seen from the curve's point Q nearest to each edge: A and B projected
@@ -273,12 +280,7 @@ def _edge_winding(geo: CurveGeometry, XA: np.ndarray, XB: np.ndarray, samples: i
     seg, t, d = geo.closest(P.reshape(-1, 3))
     k = np.argmin(d.reshape(len(XA), samples), axis=1) + samples * np.arange(len(XA))
     Q, F = geo.point(seg[k], t[k]), geo.frame(seg[k], t[k])
-
-    def polar(X):
-        r = X - Q
-        return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
-
-    return wrap(polar(XB) - polar(XA))
+    return wrap(_polar_angle(XB, Q, F) - _polar_angle(XA, Q, F))
 
 
 def _tube_edges(mesh: TetMesh, net: PreparedNetwork, emb: Embedding, kind, bnormals):
@@ -336,11 +338,8 @@ def _tube_edges(mesh: TetMesh, net: PreparedNetwork, emb: Embedding, kind, bnorm
         Fi, Fj = geo.frame(si, ti), geo.frame(sj, tj)
         omega0[edges] = log_so3(np.einsum("nij,nkj->nik", Fj, Fi))
         # polar angle of each end around the curve, in its own reference frame
-        def polar(v, seg, tt, F):
-            r = X[v] - geo.point(seg, tt)
-            return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
-
-        th = wrap(polar(E[edges, 1], sj, tj, Fj) - polar(E[edges, 0], si, ti, Fi))
+        th = wrap(_polar_angle(X[E[edges, 1]], geo.point(sj, tj), Fj)
+                  - _polar_angle(X[E[edges, 0]], geo.point(si, ti), Fi))
         theta[edges] = th
         # the whole turns by which the edge winds otherwise seen from the curve
         # (_edge_winding): a candidate for _settle_windings
@@ -473,11 +472,8 @@ def tube_curvature(mesh: TetMesh, cons: AffineOmega, emb: Embedding, net: Prepar
         sj, tj, _ = geo.closest(X[E[edges, 1]])
         Fi, Fj = geo.frame(si, ti), geo.frame(sj, tj)
 
-        def polar(v, sg, tt, F):
-            r = X[v] - geo.point(sg, tt)
-            return np.arctan2(np.einsum("ij,ij->i", r, F[:, :, 1]), np.einsum("ij,ij->i", r, F[:, :, 0]))
-
-        turn = net.curves[ci].sigma * wrap(polar(E[edges, 1], sj, tj, Fj) - polar(E[edges, 0], si, ti, Fi))
+        turn = net.curves[ci].sigma * wrap(_polar_angle(X[E[edges, 1]], geo.point(sj, tj), Fj)
+                                           - _polar_angle(X[E[edges, 0]], geo.point(si, ti), Fi))
         z = np.zeros((len(edges), 3))
         z[:, 2] = turn
         # E_j E_i^T for E = F exp(sigma phi e_z) E0
