@@ -102,9 +102,10 @@ def finish_job(scene, j: job.SolveJob) -> tuple[str, str]:
         return "ERROR", error_text(e)
     r = j.outcome.report
     m = r["metrics"]
+    c = diagnostics.singular_counts(m)
     msg = (f"SymFrames: {r['sizes'].get('tets', 0):,} tets, {r['iterations']} iterations, {r['seconds']:.1f} s; "
            f"monodromy {m.get('monodromy_mean_deg', 0):.3g} deg mean, "
-           f"{m.get('spurious_singular_faces', 0)} spurious singular faces")
+           f"{c['spurious']} spurious and {c['missing']} missing singular faces")
     warnings = []
     if not r.get("converged", True):
         # written all the same (it may help to see where it fails), but said
@@ -350,7 +351,11 @@ class SYMFRAMES_OT_show_singular_faces(_FieldOperator, bpy.types.Operator):
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"SymFrames: {counts['singular']:,} singular faces, {counts['spurious']:,} spurious")
+        msg = f"SymFrames: {counts['singular']:,} singular faces, {counts['spurious']:,} spurious"
+        if counts["closest_differs"]:
+            msg += (f"; closest-rotation matching reads {counts['closest_differs']} face(s) differently (edges "
+                    "turning by ~45 degrees; exports carry the field's own matchings)")
+        self.report({"INFO"}, msg)
         return {"FINISHED"}
 
 

@@ -209,10 +209,12 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
             col.label(text=f"   tangents {m['tangent_adaptation_mean_deg']:.3g}°, "
                            f"{m.get('tangent_adaptation_max_deg', 0):.3g}°")
         col = layout.column(align=True)
-        spurious, missing = m.get("spurious_singular_faces", 0), m.get("missing_singular_faces", 0)
-        col.label(text=f"Singular faces {m.get('singular_faces', 0)}",
-                  icon="CHECKMARK" if spurious == 0 and missing == 0 else "ERROR")
-        col.label(text=f"   spurious {spurious}   missing {missing}")
+        c = diagnostics.singular_counts(m)
+        col.label(text=f"Singular faces {c['singular']}",
+                  icon="CHECKMARK" if c["spurious"] == 0 and c["missing"] == 0 else "ERROR")
+        col.label(text=f"   spurious {c['spurious']}   missing {c['missing']}")
+        if c["closest_differs"]:
+            col.label(text=f"   closest-rotation reads {c['closest_differs']} otherwise", icon="INFO")
         row = layout.row(align=True)
         row.operator("symframes.export_field", text="Export Field…", icon="EXPORT")
         row.operator("symframes.tet_mesh_object", text="Tet Mesh", icon="MESH_ICOSPHERE")
@@ -233,6 +235,8 @@ class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
             c = obj[diagnostics.COUNTS_KEY]
             layout.label(text=f"{c['singular']:,} singular faces, {c['spurious']:,} spurious (red)",
                          icon="CHECKMARK" if c["spurious"] == 0 else "ERROR")
+            if c.get("closest_differs"):
+                layout.label(text=f"closest-rotation reads {c['closest_differs']} otherwise", icon="INFO")
         if storage.field_omega_stored(scene) is False:
             layout.label(text="Older result: omega recomputed from the frames", icon="INFO")
         # omega arrows

@@ -445,6 +445,42 @@ def test_omega_aware_matching_sees_through_fast_turns():
     np.testing.assert_array_equal(got, want)
 
 
+def test_a_solved_field_reads_exactly_its_network_with_its_own_matchings():
+    """Two straight curves of index +1/4 and -1/4 through a structured mesh
+    of edge h = 1/6 (one passes 1e-4 h from a column of edge midpoints): the
+    solved field turns by more than 45 degrees across edges next to both
+    curves, and closest-rotation matching misreads 38 faces next to each (a
+    tool reading only the frames would see singular faces off the pierced
+    ones).  With each edge matched against the frame omega carries across
+    it, the singular faces are exactly the pierced ones; the faces where the
+    two readings differ all touch the network, and the report counts them."""
+    from solver import FieldProblem
+    from solver.examples import box
+    from solver.network.network import Curve, Network
+    from solver.pipeline import Options
+
+    n = 6
+    h = 1.0 / n
+    V, F = box(lo=(0, 0, 0), hi=(1, 1, 1), n=n)
+    z = np.linspace(0.0, 1.0, 5)
+    near = np.c_[np.full(5, 2.5 * h), np.full(5, 3.0 * h + 1e-4 * h), z]
+    other = np.c_[np.full(5, 0.21), np.full(5, 0.77), z]
+    net = Network(curves=[Curve(near, sigma=0.25, name="near"), Curve(other, sigma=-0.25, name="other")],
+                  sharp_angle=30.0)
+    result = FieldProblem(V, F, net, Options(edge_length=h), mesh=box_mesh(n)).solve()
+    assert result.report.converged
+    m = result.report.metrics
+    assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0
+    mesh = result.mesh
+    closest, _ = matched_singular_faces(mesh, result.frames)
+    differ = closest != omega_singular_faces(mesh, result.omega, result.frames)
+    assert m["max_edge_turn_deg"] > 45.0 and differ.any()
+    assert m["matching_disagreements"] == differ.sum()
+    on_network = np.zeros(mesh.n_vertices, bool)
+    on_network[mesh.faces[result.embedding.network_faces(mesh)]] = True
+    assert on_network[mesh.faces[differ]].any(axis=1).all()
+
+
 def test_omega_frame_mismatch_measures_the_frames_off_omega(mesh6):
     """Zero where omega carries each cross onto the next (whatever its
     representative), the turn of a frame rotated off omega on its edges,

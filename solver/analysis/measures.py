@@ -636,11 +636,17 @@ def quick_metrics(result) -> dict:
     # faces the singular curves pierce (a feature curve's faces are regular)
     must = emb.prescribed_singular()
     out["missing_singular_faces"] = int((must & ~sing).sum())
-    # the same with omega-aware matchings, and the largest turn of an edge
-    # (above 45 degrees closest-rotation matching is ambiguous)
+    # the same with omega-aware matchings (the field's own, which the exports
+    # write), and the largest turn of an edge.  Closest-rotation matching is
+    # ambiguous where an edge turns by ~45 degrees: an edge the curve passes
+    # close to (the plate at h = 0.2: 2-4 faces around such an edge flagged on
+    # 5 of 202 meshes -- one edge 4e-4 from the curve turned 46.4 degrees --
+    # while the omega-aware structure was exactly the network's)
     osing = omega_singular_faces(mesh, result.omega, result.frames)
+    out["omega_singular_faces"] = int(osing.sum())
     out["omega_spurious_singular_faces"] = int((osing & ~net_faces).sum())
     out["omega_missing_singular_faces"] = int((must & ~osing).sum())
+    out["matching_disagreements"] = int((osing != sing).sum())
     out["max_edge_turn_deg"] = float(np.degrees(np.linalg.norm(result.omega, axis=1).max()))
     fixed = result.problem.boundary.is_feature_vertex
     na = np.degrees(normal_adaptation(mesh, result.frames))
