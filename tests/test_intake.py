@@ -240,6 +240,52 @@ def test_a_long_oblique_stretch_is_slid_then_bent(cylinder):
     assert "then bent over" in rep.text()
 
 
+def test_ends_off_the_surface_are_cut_back_or_extended(cylinder):
+    """A hand-drawn curve rarely ends on the surface: one that runs 0.5 h
+    past the top cap (three points outside) and stops 0.7 h short of the
+    bottom one (h = 0.184) was refused; now it is cut back where it crosses
+    the cap and extended along its last chord to the other, both reported,
+    and the curve ends on the caps along their normals."""
+    from solver.network.intake import solid_scale
+
+    V, F, net = cylinder
+    h = solid_scale(TriSurface(V, F))
+    z = np.r_[np.linspace(-1.0 + 0.7 * h, 1.0, 8), 1.0 + np.array([0.2, 0.35, 0.5]) * h]
+    pts = np.c_[np.full(len(z), -0.35), np.full(len(z), -0.35), z]
+    net2 = with_curve(net, 0, pts)
+    with pytest.raises(NetworkError, match="inside the solid but not at a node"):
+        check_input(V, F, net2, repair=False)
+    checked = check_input(V, F, net2)
+    assert checked.scale == pytest.approx(h)
+    rep = checked.repairs[0]
+    gaps = {b.end: (b.gap, b.gap_h) for b in rep.ends}
+    assert gaps["end"][0] == "cut back" and gaps["end"][1] == pytest.approx(0.5, abs=0.01), rep.text()
+    assert gaps["start"][0] == "extended" and gaps["start"][1] == pytest.approx(0.7, abs=0.01), rep.text()
+    assert "end cut back 0.50 h to the surface" in rep.text() and "start extended 0.70 h" in rep.text()
+    Q = checked.network.curves[0].points
+    S = checked.surface
+    d, _, _ = S.closest_points(Q[[0, -1]])
+    assert d.max() < 1e-9 and Q[0, 2] == pytest.approx(-1.0) and Q[-1, 2] == pytest.approx(1.0)
+    assert np.all(S.winding_number(Q[1:-1]) > 0.5)
+    assert end_normal_angle(S, Q) < 1.0 and end_normal_angle(S, Q[::-1]) < 1.0
+
+
+@pytest.mark.parametrize("past", [1, -1])
+def test_ends_far_off_the_surface_are_refused_with_the_distance(cylinder, past):
+    """Beyond END_GAP h the end is not moved: a curve meant to end at a node,
+    or drawn for another object.  The message gives the distance in h."""
+    from solver.network.intake import END_GAP, solid_scale
+
+    V, F, net = cylinder
+    h = solid_scale(TriSurface(V, F))
+    top = 1.0 + past * (END_GAP + 0.5) * h
+    pts = np.c_[np.full(9, -0.35), np.full(9, -0.35), np.linspace(-1.0, top, 9)]
+    where = "outside the solid" if past > 0 else "inside the solid but not at a node"
+    how = "cut back" if past > 0 else "extended"
+    with pytest.raises(NetworkError, match=rf"{where} .*= 2\.50 h; ends up to 2 h off it are {how} onto it"):
+        check_input(V, F, with_curve(net, 0, pts))
+
+
 # ------------------------------------------------ real defects still refused
 def test_a_real_self_intersection_is_still_refused(cylinder):
     V, F, net = cylinder

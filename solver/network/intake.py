@@ -74,6 +74,13 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    penalty of 20-135, against 0.35-0.40 with it; the clean ball scores
    0.18.)
 
+0. *end gaps* (before everything else): a hand-drawn curve rarely ends
+   exactly on the surface.  A boundary end up to ``END_GAP * h`` outside
+   the solid is cut back to where the curve crosses the surface; one up to
+   ``END_GAP * h`` inside is extended along its last chord (of length h) to
+   the surface.  Farther ends are left for validation to refuse, with the
+   distance (a curve meant to end at a node, or drawn for another object).
+
 Every change is reported per curve (``CurveRepair``); displacements are in
 units of h.  Real crossings and self-intersections are not repaired:
 validation still refuses them, now at tolerances relative to h.
@@ -103,6 +110,7 @@ BEND_MIN = 2.0  # degrees: ends closer than this to the normal are left alone
 BEND_LENGTH = 3.0  # bent stretch, in units of h ...
 BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length where both its ends are bent,
 BEND_FRACTION_ONE_END = 0.8  # ... or this fraction where only one end is (its other end a node)
+END_GAP = 2.0  # boundary ends at most this many h outside or inside the surface are cut back or extended onto it
 TETS_PER_H3 = 15.0  # as pipeline.TETS_PER_H3
 
 
@@ -117,7 +125,7 @@ def solid_scale(S: TriSurface, target_tets: int = 15000) -> float:
 
 @dataclass
 class EndBend:
-    """A curve end bent onto the surface normal."""
+    """A curve end moved onto the surface (end gaps) or bent onto its normal."""
 
     end: str  # 'start' or 'end'
     angle_deg: float  # angle between the faired curve's end chord (length h) and the normal
@@ -125,11 +133,17 @@ class EndBend:
     position: tuple = ()
     input_angle_deg: float = 0.0  # the same for the curve as given (its last edge's angle can be larger)
     slid_h: float = 0.0  # how far the end moved along the surface while faired, in units of h
+    gap: str = ""  # 'cut back' (the end was outside the solid) or 'extended' (inside), else ''
+    gap_h: float = 0.0  # how far the given end was from the surface, in units of h
 
     def text(self) -> str:
-        how = [f"slid {self.slid_h:.2f} h along the surface"] if self.slid_h > 1e-3 else []
+        how = [f"{self.gap} {self.gap_h:.2f} h to the surface"] if self.gap else []
+        if self.slid_h > 1e-3:
+            how.append(f"slid {self.slid_h:.2f} h along the surface")
         if self.length_h > 0:
             how.append(f"bent over {self.length_h:.2f} h ({self.angle_deg:.0f} deg after fairing)")
+        if self.angle_deg == 0.0 and self.length_h == 0.0 and self.slid_h <= 1e-3:
+            return f"{self.end} {how[0]}" if how else f"{self.end} left as given"
         return f"{self.end} turned onto the normal (given {self.input_angle_deg:.0f} deg off): {', then '.join(how)}"
 
 
@@ -558,6 +572,59 @@ def bend_end(S: TriSurface, P: np.ndarray, h: float, label: str, end_name: str,
     )
 
 
+def close_end_gap(S: TriSurface, P: np.ndarray, h: float, tol: float, limit: float):
+    """Bring the last point of P onto the surface when it is within limit of
+    it (step 0 of the module docstring).  Returns (points, 'cut back' or
+    'extended' or '', distance of the given end from the surface).
+
+    Outside the solid the curve is cut where it last enters the outside
+    (found by bisection on the winding number), provided everything from
+    there on is outside and no longer than limit; inside, it is continued
+    along its last chord of length h to where that ray leaves the solid,
+    provided that is within limit."""
+    d, _, _ = S.closest_points(P[-1:])
+    d = float(d[0])
+    if d <= tol or d > limit:
+        return P, "", d
+    inside = S.winding_number(P) > 0.5
+    if not inside[-1]:
+        k = len(P) - 1
+        while k > 0 and not inside[k - 1]:
+            k -= 1
+        if k == 0:
+            return P, "", d  # all outside: nothing to cut back to
+        a, b = P[k - 1], P[k]
+        if float(np.linalg.norm(np.diff(P[k - 1:], axis=0), axis=1).sum()) > limit + tol:
+            return P, "", d
+        for _ in range(40):  # a inside, b outside
+            m = 0.5 * (a + b)
+            if S.winding_number(m[None])[0] > 0.5:
+                a = m
+            else:
+                b = m
+        return np.vstack([P[:k], 0.5 * (a + b)]), "cut back", d
+    L = arclength(P)[-1]
+    back = at_arclength(P, np.array([max(L - h, 0.0)]))[0]
+    t = P[-1] - back
+    if np.linalg.norm(t) < 1e-12 * max(L, h):
+        return P, "", d
+    t /= np.linalg.norm(t)
+    u = np.linspace(0.0, limit, int(np.ceil(limit / (0.05 * h))) + 1)[1:]
+    out = np.nonzero(S.winding_number(P[-1] + u[:, None] * t) < 0.5)[0]
+    if not len(out):
+        return P, "", d
+    lo, hi = (u[out[0] - 1] if out[0] else 0.0), u[out[0]]
+    for _ in range(40):
+        m = 0.5 * (lo + hi)
+        if S.winding_number((P[-1] + m * t)[None])[0] > 0.5:
+            lo = m
+        else:
+            hi = m
+    x = P[-1] + 0.5 * (lo + hi) * t
+    n = max(1, int(np.ceil(0.5 * (lo + hi) / (0.5 * h))))
+    return np.vstack([P, P[-1] + np.linspace(0.0, 1.0, n + 1)[1:, None] * (x - P[-1])]), "extended", d
+
+
 # ------------------------------------------------------------------- driver
 def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                    boundary_tolerance: float) -> tuple[PreparedNetwork, list[CurveRepair]]:
@@ -576,6 +643,16 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
 
     for ci, c in enumerate(pn.curves):
         P0 = c.points
+        kinds = (pn.start_kind[ci], pn.end_kind[ci])
+        gaps = {}
+        if not c.closed and len(P0) > 1:
+            for end, kind in ((1, kinds[1]), (0, kinds[0])):
+                if kind == "boundary":
+                    R, how, d = close_end_gap(S, P0 if end == 1 else P0[::-1], h, boundary_tolerance,
+                                              END_GAP * h)
+                    if how:
+                        P0 = R if end == 1 else R[::-1]
+                        gaps[end] = (how, d / h)
         if len(P0) > 2 and np.any(S.winding_number(P0[1:-1]) < 0.5):
             # a curve that leaves the solid is refused as given (validation
             # names where), not pulled back in by the fairing
@@ -583,7 +660,6 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                                        note="not repaired: passes outside the solid"))
             curves.append(c)
             continue
-        kinds = (pn.start_kind[ci], pn.end_kind[ci])
         slide = {}
         if not c.closed and len(P0) > 1:
             for end, kind in ((0, kinds[0]), (-1, kinds[1])):
@@ -616,9 +692,11 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                                    BEND_FRACTION if both else BEND_FRACTION_ONE_END)
                 Q = R if end == 1 else R[::-1]
                 slid = float(np.linalg.norm(R[-1] - (P0[-1] if end == 1 else P0[0]))) / h
-                if bend is None and slid > 1e-3:
+                if bend is None and (slid > 1e-3 or end in gaps):
                     bend = EndBend("end" if end == 1 else "start", 0.0, 0.0, tuple(np.round(R[-1], 6)))
                 if bend is not None:
+                    if end in gaps:
+                        bend.gap, bend.gap_h = gaps[end]
                     P_in = merge_close(P0 if end == 1 else P0[::-1], 1e-9 * h, False)
                     bend.input_angle_deg = end_chord_angle(S, P_in, h)
                     bend.slid_h = slid

@@ -21,7 +21,7 @@ from ..surface.features import (
     sharp_edges_from_pairs,
 )
 from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
-from .intake import MAX_KINK, repair_network, solid_scale, turning
+from .intake import END_GAP, MAX_KINK, repair_network, solid_scale, turning
 from .network import Network, PreparedNetwork, _fmt, prepare_network
 
 MAX_END_ANGLE = 30.0  # degrees between a curve's end tangent and the surface normal
@@ -107,15 +107,16 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
             d, f, q = S.closest_points(x[None])
             if d[0] > btol:
                 where = "starts" if end == 0 else "ends"
+                gap = (f"distance to the surface {d[0]:.3g} = {d[0] / h:.2f} h; ends up to {END_GAP:g} h off "
+                       f"it are {{}} onto it")
                 if S.winding_number(x[None])[0] < 0.5:
                     raise NetworkError(
-                        f"{label(ci)} {where} at {_fmt(x)}, outside the solid (distance to the surface "
-                        f"{d[0]:.3g}); move that end onto the surface, or inside the solid at a node"
+                        f"{label(ci)} {where} at {_fmt(x)}, outside the solid ({gap.format('cut back')}); move "
+                        "that end onto the surface, or inside the solid at a node"
                     )
                 raise NetworkError(
                     f"{label(ci)} {where} at {_fmt(x)}, inside the solid but not at a node or on the boundary "
-                    f"(distance to the surface {d[0]:.3g}); extend it to the surface, or connect 3-4 curve ends "
-                    "at a node"
+                    f"({gap.format('extended')}); extend it to the surface, or connect 3-4 curve ends at a node"
                 )
             t = (P[1] - P[0]) if end == 0 else (P[-1] - P[-2])
             t = t / np.linalg.norm(t)
