@@ -286,6 +286,41 @@ def test_ends_far_off_the_surface_are_refused_with_the_distance(cylinder, past):
         check_input(V, F, with_curve(net, 0, pts))
 
 
+def test_node_ends_drawn_apart_join_their_node():
+    """The cube-sphere network with every node end moved 0.3 h in a random
+    direction (curves drawn by hand, not snapped): refused before (ends
+    inside the solid but at no node, or 'crossing' curves); now the ends
+    join the node they were drawn to meet, each move reported, and the
+    nodes are the network's to within the scatter."""
+    from solver.network.intake import solid_scale
+
+    V, F, net = load_example("ball")
+    h = solid_scale(TriSurface(V, F))
+    rng = np.random.default_rng(3)
+    curves = []
+    for c in net.curves:
+        P = c.points.copy()
+        for s in (0, -1):
+            if np.linalg.norm(P[s]) < 0.9:  # the nodes are the inner cube's corners
+                v = rng.normal(size=3)
+                P[s] += 0.3 * h * v / np.linalg.norm(v)
+        curves.append(Curve(P, c.sigma, c.role, c.torsion, c.name))
+    drawn = Network(curves=curves, sharp_angle=net.sharp_angle)
+    with pytest.raises(NetworkError):
+        check_input(V, F, drawn, repair=False)
+    checked = check_input(V, F, drawn)
+    nodes = checked.network.nodes
+    want = np.array([nd.position for nd in check_input(V, F, net).network.nodes])
+    assert len(nodes) == len(want) == 8 and all(len(nd.ends) == 4 for nd in nodes)
+    got = np.array([nd.position for nd in nodes])
+    assert np.linalg.norm(got[:, None] - want[None], axis=2).min(axis=1).max() < 0.3 * h
+    moved = [j for r in checked.repairs for j in r.joined]
+    assert len(moved) == 32 and max(d for _, d in moved) < 0.6, moved
+    assert "moved" in repairs_text(checked.repairs, h) and "to join a node" in repairs_text(checked.repairs, h)
+    # a network whose ends meet exactly is left as it is
+    assert not any(r.joined for r in check_input(V, F, net).repairs)
+
+
 # ------------------------------------------------ real defects still refused
 def test_a_real_self_intersection_is_still_refused(cylinder):
     V, F, net = cylinder

@@ -74,7 +74,13 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    penalty of 20-135, against 0.35-0.40 with it; the clean ball scores
    0.18.)
 
-0. *end gaps* (before everything else): a hand-drawn curve rarely ends
+0. *loose node ends* and *end gaps* (before everything else).  Curves
+   drawn by hand meet at a node only roughly: an end farther than
+   boundary_tolerance from the surface and within node_tolerance of no
+   other end (so validation would refuse it as dangling) joins the ends
+   within ``NODE_GAP * h`` of it, if together they make a node of 3-4
+   curves (each once); all move to the node the others already form, or
+   to their mean.  And a hand-drawn curve rarely ends
    exactly on the surface.  A boundary end up to ``END_GAP * h`` outside
    the solid is cut back to where the curve crosses the surface; one up to
    ``END_GAP * h`` inside is extended along its last chord (of length h) to
@@ -88,17 +94,18 @@ validation still refuses them, now at tolerances relative to h.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from ..errors import NetworkError
 from ..surface.trisurface import TriSurface
 from .curves import CurveGeometry
-from .network import Curve, PreparedNetwork, _fmt
+from .network import Curve, Network, PreparedNetwork, _fmt
 
 MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of h/2 each side)
 MERGE = 0.05  # points closer than MERGE * h are merged
@@ -111,6 +118,7 @@ BEND_LENGTH = 3.0  # bent stretch, in units of h ...
 BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length where both its ends are bent,
 BEND_FRACTION_ONE_END = 0.8  # ... or this fraction where only one end is (its other end a node)
 END_GAP = 2.0  # boundary ends at most this many h outside or inside the surface are cut back or extended onto it
+NODE_GAP = 1.0  # loose curve ends within this many h of (the centre of) others join them at a node
 TETS_PER_H3 = 15.0  # as pipeline.TETS_PER_H3
 
 
@@ -170,10 +178,11 @@ class CurveRepair:
     corners: int = 0
     ends: list = field(default_factory=list)
     note: str = ""
+    joined: list = field(default_factory=list)  # ('start' or 'end', distance in h) of ends moved to join a node
 
     @property
     def changed(self) -> bool:
-        return self.max_displacement_h > 1e-6 or bool(self.ends) or self.merged > 0
+        return self.max_displacement_h > 1e-6 or bool(self.ends) or self.merged > 0 or bool(self.joined)
 
     def text(self) -> str:
         label = f"curve {self.curve}" + (f" '{self.name}'" if self.name else "")
@@ -184,6 +193,8 @@ class CurveRepair:
                f"{self.turn_out_deg:.0f} deg")
         if self.corners:
             s += f", {self.corners} corner(s) kept"
+        for end, d in self.joined:
+            s += f"; {end} moved {d:.2f} h to join a node"
         for b in self.ends:
             s += "; " + b.text()
         if self.note:
@@ -572,6 +583,70 @@ def bend_end(S: TriSurface, P: np.ndarray, h: float, label: str, end_name: str,
     )
 
 
+def join_loose_ends(S: TriSurface, net: Network, h: float, node_tol: float, boundary_tol: float):
+    """Move loose curve ends onto the node they were drawn to meet (step 0 of
+    the module docstring).  Returns (network, {input curve index: [('start'
+    or 'end', distance moved in h)]}); the network itself when no end moved.
+    """
+    ends = [(k, s) for k in net.interior_curves for s in (0, -1)
+            if not net.curves[k].closed and len(net.curves[k].points) > 1
+            and np.linalg.norm(net.curves[k].points[0] - net.curves[k].points[-1]) > node_tol]
+    if len(ends) < 2:
+        return net, {}
+    X = np.array([net.curves[k].points[s] for k, s in ends])
+    tree = cKDTree(X)
+    n = len(ends)
+    pairs = tree.query_pairs(node_tol, output_type="ndarray")
+    exact = connected_components(sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                 directed=False)[1] if len(pairs) else np.arange(n)
+    size = np.bincount(exact, minlength=n)[exact]
+    d, _, _ = S.closest_points(X)
+    loose = (size == 1) & (d > boundary_tol)
+    if not loose.any():
+        return net, {}
+    # greedy centroid linkage: the closest pair of clusters, one of them a
+    # loose end, merges while it stays within NODE_GAP h and could still be
+    # a node (at most 4 ends, each curve once); ends alone on the surface
+    # (boundary ends) and the nodes already formed keep to themselves
+    clusters = [list(np.nonzero(exact == c)[0]) for c in np.unique(exact)]
+    clusters = [m for m in clusters if len(m) > 1 or loose[m[0]]]
+    while True:
+        C = np.array([X[m].mean(axis=0) for m in clusters])
+        D = np.linalg.norm(C[:, None] - C[None], axis=2)
+        free = np.array([loose[m].all() for m in clusters])
+        ok = (free[:, None] | free[None]) & (D <= NODE_GAP * h)
+        np.fill_diagonal(ok, False)
+        best = None
+        for i, j in zip(*np.nonzero(np.triu(ok))):
+            merged = clusters[i] + clusters[j]
+            if len(merged) <= 4 and len({ends[m][0] for m in merged}) == len(merged) and \
+                    (best is None or D[i, j] < D[best]):
+                best = (i, j)
+        if best is None:
+            break
+        i, j = best
+        clusters[i] = clusters[i] + clusters[j]
+        del clusters[j]
+    points = {k: net.curves[k].points.copy() for k, _ in ends}
+    moved: dict = {}
+    for members in map(np.array, clusters):
+        if len(members) < 3 or not loose[members].any():
+            continue  # not a node (validation says why) or nothing to move
+        fixed = members[~loose[members]]
+        pos = X[fixed].mean(axis=0) if len(fixed) else X[members].mean(axis=0)
+        for m in members[loose[members]]:
+            k, s = ends[m]
+            points[k][s] = pos
+            moved.setdefault(k, []).append(("start" if s == 0 else "end", float(np.linalg.norm(pos - X[m])) / h))
+    if not moved:
+        return net, {}
+    curves = list(net.curves)
+    for k in moved:
+        c = curves[k]
+        curves[k] = Curve(points[k], c.sigma, c.role, c.torsion, c.name, c.closed)
+    return replace(net, curves=curves), moved
+
+
 def close_end_gap(S: TriSurface, P: np.ndarray, h: float, tol: float, limit: float):
     """Bring the last point of P onto the surface when it is within limit of
     it (step 0 of the module docstring).  Returns (points, 'cut back' or
@@ -627,14 +702,16 @@ def close_end_gap(S: TriSurface, P: np.ndarray, h: float, tol: float, limit: flo
 
 # ------------------------------------------------------------------- driver
 def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
-                   boundary_tolerance: float) -> tuple[PreparedNetwork, list[CurveRepair]]:
+                   boundary_tolerance: float, joined: dict | None = None) -> tuple[PreparedNetwork, list[CurveRepair]]:
     """Repair every prepared interior curve at scale h (module docstring).
 
     names[ci] : label of prepared curve ci for messages;  boundary ends
     farther than boundary_tolerance from the surface are left as they are
-    (validation refuses them).  Returns the repaired network and one
-    CurveRepair per curve.
+    (validation refuses them).  joined : join_loose_ends' moves, reported
+    with the curves.  Returns the repaired network and one CurveRepair per
+    curve.
     """
+    joined = joined or {}
     curves, repairs = [], []
 
     def project(x):
@@ -657,7 +734,8 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
             # a curve that leaves the solid is refused as given (validation
             # names where), not pulled back in by the fairing
             repairs.append(CurveRepair(pn.source[ci], c.name, len(P0), len(P0), 0, False, 0.0, 0.0, 0.0,
-                                       note="not repaired: passes outside the solid"))
+                                       note="not repaired: passes outside the solid",
+                                       joined=joined.get(pn.source[ci], [])))
             curves.append(c)
             continue
         slide = {}
@@ -706,6 +784,6 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
         disp = hausdorff(P0, Q, 0.05 * h) / h
         curves.append(Curve(Q, c.sigma, c.role, c.torsion, c.name, c.closed))
         repairs.append(CurveRepair(pn.source[ci], c.name, len(P0), len(Q), merged, faired, disp, turn_in, turn_out,
-                                   ncorner, ends[::-1], note))
+                                   ncorner, ends[::-1], note, joined.get(pn.source[ci], [])))
     out = PreparedNetwork(curves, list(pn.source), list(pn.start_kind), list(pn.end_kind), pn.nodes)
     return out, repairs

@@ -21,8 +21,8 @@ from ..surface.features import (
     sharp_edges_from_pairs,
 )
 from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
-from .intake import END_GAP, MAX_KINK, repair_network, solid_scale, turning
-from .network import Network, PreparedNetwork, _fmt, prepare_network
+from .intake import END_GAP, MAX_KINK, join_loose_ends, repair_network, solid_scale, turning
+from .network import Network, PreparedNetwork, _fmt, check_curve_basics, check_tolerances, prepare_network
 
 MAX_END_ANGLE = 30.0  # degrees between a curve's end tangent and the surface normal
 CROSSING_TOLERANCE = 0.01  # curves closer than this times h touch
@@ -82,9 +82,16 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     S = validate_surface(V, F, check_intersections=check_intersections)
     diag = S.bbox_diagonal
     h = float(scale) if scale is not None else solid_scale(S, target_tets)
+    btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
+    joined = {}
+    if repair:
+        # as prepare_network does first: the points and tolerances are sound
+        check_curve_basics(net, diag)
+        check_tolerances(net, diag)
+        ntol = net.node_tolerance if net.node_tolerance is not None else 1e-3 * diag
+        net, joined = join_loose_ends(S, net, h, ntol, btol)
     pn = prepare_network(net, diag)
     check_nodes(pn, lambda ci: _label(net.curves, pn.source[ci]))
-    btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
 
     def label(ci):
         return _label(net.curves, pn.source[ci])
@@ -93,7 +100,7 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     if repair and pn.curves:
         # a real crossing is refused before fairing could pull it apart
         _check_crossings(pn, label, CROSSING_TOLERANCE * h)
-        pn, repairs = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol)
+        pn, repairs = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol, joined)
 
     face_sigma = np.zeros(len(S.F))
     end_points = []
