@@ -138,6 +138,8 @@ def test_unsupported_node_degree(cube, degree):
     V, F = cube
     dirs = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]][:degree]
     curves = [Curve(seg([0.0, 0.0, 0.0], d), 0.0, "feature", name=f"arm{k}") for k, d in enumerate(dirs)]
+    if degree == 2:  # two pieces of one curve are joined (intake): only pieces that cannot be one curve are refused
+        curves[1] = Curve(seg([0.0, 0.0, 0.0], dirs[1]), 0.25, name="arm1")
     msg = expect(NetworkError, "(?i)node|degree|join", V, F, Network(curves))
     assert "arm0" in msg
 

@@ -321,6 +321,41 @@ def test_node_ends_drawn_apart_join_their_node():
     assert not any(r.joined for r in check_input(V, F, net).repairs)
 
 
+def test_a_curve_drawn_in_pieces_is_joined(cylinder):
+    """An axial curve drawn as two strokes meeting end to end (the second
+    drawn backwards) was refused as a node of degree 2; now the pieces are
+    one curve (sigma does not depend on the direction), reported; a loop
+    drawn as two halves closes.  Pieces with different indices are still
+    refused, saying so."""
+    V, F, net = cylinder
+    P = axial(-0.35, -0.35, 9)
+    curves = list(net.curves)
+    c = curves[0]
+    curves[0] = Curve(P[:5], c.sigma, c.role, c.torsion, "lower")
+    curves.append(Curve(P[4:][::-1], c.sigma, c.role, c.torsion, "upper"))
+    t = np.linspace(0.0, np.pi, 9)
+    half = np.c_[0.6 * np.cos(t), 0.6 * np.sin(t), 0.0 * t]
+    curves += [Curve(half, 0.0, "feature", name="loop a"), Curve(half * [1, -1, 1], 0.0, "feature", name="loop b")]
+    checked = check_input(V, F, Network(curves=curves, sharp_angle=net.sharp_angle))
+    pn = checked.network
+    assert len(pn.curves) == 5 and pn.source == [0, 1, 2, 3, 5]
+    axis = pn.curves[0].points
+    assert np.allclose(axis[[0, -1], :2], -0.35) and sorted(np.round(axis[[0, -1], 2], 6)) == [-1.0, 1.0]
+    assert pn.start_kind[0] == pn.end_kind[0] == "boundary"
+    loop = pn.curves[4]
+    assert loop.closed and pn.start_kind[4] == "loop" and np.allclose(loop.points[0], loop.points[-1])
+    text = repairs_text(checked.repairs, checked.scale)
+    assert "'lower' (joined end to end from curves 0, 4)" in text and "from curves 5, 6" in text, text
+    # strokes drawn with a gap of 0.3 h are joined too
+    gap = curves[:4] + [Curve(P[4:][::-1] + [0.0, 0.0, 0.3 * checked.scale], c.sigma, c.role, c.torsion, "upper")]
+    checked = check_input(V, F, Network(curves=gap, sharp_angle=net.sharp_angle))
+    assert len(checked.network.curves) == 4 and checked.network.pieces == {0: [0, 4]}
+    assert [d for r in checked.repairs for _, d in r.joined] == [pytest.approx(0.15, abs=1e-6)] * 2
+    curves[4] = Curve(P[4:][::-1], -c.sigma, c.role, c.torsion, "upper")
+    with pytest.raises(NetworkError, match=r"'lower', 'upper' meet end to end .*sigma \+0.25 / -0.25"):
+        check_input(V, F, Network(curves=curves, sharp_angle=net.sharp_angle))
+
+
 # ------------------------------------------------ real defects still refused
 def test_a_real_self_intersection_is_still_refused(cylinder):
     V, F, net = cylinder

@@ -79,8 +79,10 @@ cleaned and faired at a length tied to the mesh, never to the bounding box:
    boundary_tolerance from the surface and within node_tolerance of no
    other end (so validation would refuse it as dangling) joins the ends
    within ``NODE_GAP * h`` of it, if together they make a node of 3-4
-   curves (each once); all move to the node the others already form, or
-   to their mean.  And a hand-drawn curve rarely ends
+   curves (each once), or two loose ends of curves with the same index,
+   role and torsion (strokes of one curve, then joined into one by
+   network.prepare_network); all move to the node the others already
+   form, or to their mean.  And a hand-drawn curve rarely ends
    exactly on the surface.  A boundary end up to ``END_GAP * h`` outside
    the solid is cut back to where the curve crosses the surface; one up to
    ``END_GAP * h`` inside is extended along its last chord (of length h) to
@@ -179,14 +181,18 @@ class CurveRepair:
     ends: list = field(default_factory=list)
     note: str = ""
     joined: list = field(default_factory=list)  # ('start' or 'end', distance in h) of ends moved to join a node
+    pieces: list = field(default_factory=list)  # input curves joined end to end into this one (more than one)
 
     @property
     def changed(self) -> bool:
-        return self.max_displacement_h > 1e-6 or bool(self.ends) or self.merged > 0 or bool(self.joined)
+        return (self.max_displacement_h > 1e-6 or bool(self.ends) or self.merged > 0 or bool(self.joined)
+                or len(self.pieces) > 1)
 
     def text(self) -> str:
         label = f"curve {self.curve}" + (f" '{self.name}'" if self.name else "")
-        s = (f"{label}: {self.points_in} -> {self.points_out} points"
+        s = (f"{label}"
+             + (f" (joined end to end from curves {', '.join(map(str, self.pieces))})" if len(self.pieces) > 1 else "")
+             + f": {self.points_in} -> {self.points_out} points"
              + (f", {self.merged} merged" if self.merged else "")
              + (", faired" if self.faired else "")
              + f", moved at most {self.max_displacement_h:.2f} h, turning over h {self.turn_in_deg:.0f} -> "
@@ -630,8 +636,15 @@ def join_loose_ends(S: TriSurface, net: Network, h: float, node_tol: float, boun
     points = {k: net.curves[k].points.copy() for k, _ in ends}
     moved: dict = {}
     for members in map(np.array, clusters):
-        if len(members) < 3 or not loose[members].any():
-            continue  # not a node (validation says why) or nothing to move
+        if not loose[members].any():
+            continue
+        if len(members) == 2:
+            # two strokes of one curve, drawn with a gap: joined if they can be one curve
+            a, b = (net.curves[ends[m][0]] for m in members)
+            if (a.sigma, a.role, a.torsion) != (b.sigma, b.role, b.torsion) or not loose[members].all():
+                continue
+        elif len(members) < 3:
+            continue  # not a node (validation says why)
         fixed = members[~loose[members]]
         pos = X[fixed].mean(axis=0) if len(fixed) else X[members].mean(axis=0)
         for m in members[loose[members]]:
@@ -712,6 +725,10 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
     curve.
     """
     joined = joined or {}
+
+    def moves(src):  # the ends moved to join a node, of the curve or of the pieces joined into it
+        return [m for k in pn.pieces.get(src, [src]) for m in joined.get(k, [])]
+
     curves, repairs = [], []
 
     def project(x):
@@ -735,7 +752,8 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
             # names where), not pulled back in by the fairing
             repairs.append(CurveRepair(pn.source[ci], c.name, len(P0), len(P0), 0, False, 0.0, 0.0, 0.0,
                                        note="not repaired: passes outside the solid",
-                                       joined=joined.get(pn.source[ci], [])))
+                                       joined=moves(pn.source[ci]),
+                                       pieces=pn.pieces.get(pn.source[ci], [])))
             curves.append(c)
             continue
         slide = {}
@@ -784,6 +802,7 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
         disp = hausdorff(P0, Q, 0.05 * h) / h
         curves.append(Curve(Q, c.sigma, c.role, c.torsion, c.name, c.closed))
         repairs.append(CurveRepair(pn.source[ci], c.name, len(P0), len(Q), merged, faired, disp, turn_in, turn_out,
-                                   ncorner, ends[::-1], note, joined.get(pn.source[ci], [])))
-    out = PreparedNetwork(curves, list(pn.source), list(pn.start_kind), list(pn.end_kind), pn.nodes)
+                                   ncorner, ends[::-1], note, moves(pn.source[ci]),
+                                   pn.pieces.get(pn.source[ci], [])))
+    out = PreparedNetwork(curves, list(pn.source), list(pn.start_kind), list(pn.end_kind), pn.nodes, pn.pieces)
     return out, repairs

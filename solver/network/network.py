@@ -181,6 +181,7 @@ class PreparedNetwork:
     start_kind: list[str]
     end_kind: list[str]
     nodes: list[Node]
+    pieces: dict = field(default_factory=dict)  # source index -> input curves joined into it (_join_chains)
 
 
 def clean_polyline(points: np.ndarray, tol: float) -> np.ndarray:
@@ -260,6 +261,7 @@ def prepare_network(net: Network, diag: float) -> PreparedNetwork:
         if closed and len(P) < 4:
             raise NetworkError(f"curve {k} {c.label}: a closed loop needs at least three distinct points")
         curves.append(Curve(P, c.sigma, c.role, c.torsion, c.name, closed))
+    curves, idx, pieces = _join_chains(curves, idx, tol)
     # cluster the open ends
     ends = [(i, s) for i, c in enumerate(curves) if not c.closed for s in (0, 1)]
     nodes: list[Node] = []
@@ -284,9 +286,12 @@ def prepare_network(net: Network, diag: float) -> PreparedNetwork:
                     f"{_fmt(pos)} but the curve is not closed; close it or move an end"
                 )
             if len(members) == 2:
+                a, b = (curves[i] for i, _ in m_ends)
                 raise NetworkError(
-                    f"curves {names} meet end to end at {_fmt(pos)} (a node of degree 2); join them into one "
-                    "curve"
+                    f"curves {names} meet end to end at {_fmt(pos)} (a node of degree 2) with different "
+                    f"indices, roles or torsions (sigma {a.sigma:+g} / {b.sigma:+g}, {a.role.value} / "
+                    f"{b.role.value}, torsion {a.torsion.value} / {b.torsion.value}); one curve needs one of "
+                    "each: make them equal, or end them at a node of 3-4 curves"
                 )
             if len(members) > 4:
                 raise NetworkError(
@@ -302,7 +307,77 @@ def prepare_network(net: Network, diag: float) -> PreparedNetwork:
     for node in nodes:
         for i, s in node.ends:
             curves[i].points[0 if s == 0 else -1] = node.position
-    return PreparedNetwork(curves, idx, start_kind, end_kind, nodes)
+    return PreparedNetwork(curves, idx, start_kind, end_kind, nodes, pieces)
+
+
+def _join_chains(curves: list, idx: list, tol: float) -> tuple[list, list, dict]:
+    """Curves that meet end to end, two ends alone within tol with the same
+    index, role and torsion (a curve drawn in several strokes), become one
+    curve (closed if the chain closes).  sigma does not depend on a curve's
+    direction, so a piece is reversed where needed.  Returns the curves,
+    their input indices (a joined curve: its first piece's) and {input index
+    of a joined curve: input indices of its pieces}; pieces with different
+    indices are left apart, for the degree-2 node refusal."""
+    ends = [(i, s) for i, c in enumerate(curves) if not c.closed for s in (0, 1)]
+    if len(ends) < 2:
+        return curves, idx, {}
+    X = np.array([curves[i].points[0 if s == 0 else -1] for i, s in ends])
+    pairs = cKDTree(X).query_pairs(tol, output_type="ndarray")
+    if not len(pairs):
+        return curves, idx, {}
+    n = len(ends)
+    _, lab = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                  directed=False)
+    link = {}  # (curve, end) -> (other curve, its end)
+    for cl in np.unique(lab):
+        m = np.nonzero(lab == cl)[0]
+        if len(m) != 2:
+            continue
+        (i, si), (j, sj) = ends[m[0]], ends[m[1]]
+        a, b = curves[i], curves[j]
+        if i == j or (a.sigma, a.role, a.torsion) != (b.sigma, b.role, b.torsion):
+            continue
+        link[(i, si)], link[(j, sj)] = (j, sj), (i, si)
+    if not link:
+        return curves, idx, {}
+    done = set()
+    out, out_idx, pieces_of = [], [], {}
+    # chains first from a piece with a free end, then the closed ones
+    starts = [i for i in range(len(curves)) if not curves[i].closed and ((i, 0) in link) != ((i, 1) in link)]
+    starts += [i for i in range(len(curves)) if (i, 0) in link and (i, 1) in link]
+    for i in range(len(curves)):
+        if i in done:
+            continue
+        if (i, 0) not in link and (i, 1) not in link:
+            out.append(curves[i])
+            out_idx.append(idx[i])
+            done.add(i)
+    for i0 in starts:
+        if i0 in done:
+            continue
+        # walk from i0's free end (or its start, for a closed chain)
+        s_in = 0 if (i0, 0) not in link or (i0, 1) in link else 1
+        pieces, i, s = [], i0, s_in
+        members = []
+        while i not in done:
+            done.add(i)
+            members.append(idx[i])
+            P = curves[i].points if s == 0 else curves[i].points[::-1]
+            pieces.append(P if not pieces else P[1:])
+            nxt = link.get((i, 1 - s))
+            if nxt is None:
+                break
+            i, s = nxt
+        P = np.vstack(pieces)
+        c0 = curves[i0]
+        closed = np.linalg.norm(P[0] - P[-1]) <= tol and len(pieces) > 1 and (i0, 0) in link and (i0, 1) in link
+        if closed:
+            P[-1] = P[0]
+        out.append(Curve(P, c0.sigma, c0.role, c0.torsion, c0.name, closed))
+        out_idx.append(idx[i0])
+        pieces_of[idx[i0]] = sorted(members)
+    order = np.argsort(out_idx, kind="stable")
+    return [out[k] for k in order], [out_idx[k] for k in order], pieces_of
 
 
 def _fmt(p) -> str:
