@@ -281,8 +281,21 @@ def test_ends_far_off_the_surface_are_refused_with_the_distance(cylinder, past):
     top = 1.0 + past * (END_GAP + 0.5) * h
     pts = np.c_[np.full(9, -0.35), np.full(9, -0.35), np.linspace(-1.0, top, 9)]
     where = "outside the solid" if past > 0 else "inside the solid but not at a node"
-    how = "cut back" if past > 0 else "extended"
-    with pytest.raises(NetworkError, match=rf"{where} .*= 2\.50 h; ends up to 2 h off it are {how} onto it"):
+    how = "outside are cut back" if past > 0 else "short of it are extended"
+    with pytest.raises(NetworkError, match=rf"{where} .*= 2\.50 h; ends up to 2 h {how} onto it"):
+        check_input(V, F, with_curve(net, 0, pts))
+
+
+def test_an_end_short_of_the_surface_pointing_along_it_is_refused(cylinder):
+    """0.5 h below the top cap but running parallel to it at the end: its
+    last chord never reaches the cap, and the message says so."""
+    from solver.network.intake import solid_scale
+
+    V, F, net = cylinder
+    h = solid_scale(TriSurface(V, F))
+    z = 1.0 - 0.5 * h
+    pts = np.vstack([axial(-0.35, -0.35, 9)[:-1] * [1, 1, z], np.linspace([-0.35, -0.35, z], [0.2, -0.35, z], 4)])
+    with pytest.raises(NetworkError, match=r"= 0\.50 h; its last chord, extended by 2 h, does not reach it"):
         check_input(V, F, with_curve(net, 0, pts))
 
 

@@ -114,16 +114,21 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
             d, f, q = S.closest_points(x[None])
             if d[0] > btol:
                 where = "starts" if end == 0 else "ends"
-                gap = (f"distance to the surface {d[0]:.3g} = {d[0] / h:.2f} h; ends up to {END_GAP:g} h off "
-                       f"it are {{}} onto it")
+                far = d[0] > END_GAP * h
+                gap = f"distance to the surface {d[0]:.3g} = {d[0] / h:.2f} h; "
                 if S.winding_number(x[None])[0] < 0.5:
+                    gap += (f"ends up to {END_GAP:g} h outside are cut back onto it" if far else
+                            f"the curve does not cross the surface within {END_GAP:g} h of that end, to be cut "
+                            "back there")
                     raise NetworkError(
-                        f"{label(ci)} {where} at {_fmt(x)}, outside the solid ({gap.format('cut back')}); move "
-                        "that end onto the surface, or inside the solid at a node"
+                        f"{label(ci)} {where} at {_fmt(x)}, outside the solid ({gap}); move that end onto the "
+                        "surface, or inside the solid at a node"
                     )
+                gap += (f"ends up to {END_GAP:g} h short of it are extended onto it" if far else
+                        f"its last chord, extended by {END_GAP:g} h, does not reach it")
                 raise NetworkError(
                     f"{label(ci)} {where} at {_fmt(x)}, inside the solid but not at a node or on the boundary "
-                    f"({gap.format('extended')}); extend it to the surface, or connect 3-4 curve ends at a node"
+                    f"({gap}); extend it to the surface, or connect 3-4 curve ends at a node"
                 )
             t = (P[1] - P[0]) if end == 0 else (P[-1] - P[-2])
             t = t / np.linalg.norm(t)
