@@ -194,7 +194,8 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
         col.label(text=f"Iterations {r.get('iterations', 0)}   time {r.get('seconds', 0):.1f} s")
         if not r.get("converged", True):
             col.label(text="Not converged: see the status bar's advice", icon="ERROR")
-        moved = [c for c in r.get("repairs", []) if c.get("max_displacement_h", 0) > 0]
+        # 'changed': joined pieces and ends brought onto the surface or a node count too
+        moved = [c for c in r.get("repairs", []) if c.get("changed", c.get("max_displacement_h", 0) > 0)]
         if moved:
             worst = max(moved, key=lambda c: c["max_displacement_h"])
             col.label(text=f"{len(moved)} curve(s) repaired, up to {worst['max_displacement_h']:.2f} h "

@@ -273,6 +273,30 @@ def test_marked_sharp_edges_are_read():
     assert bpy.ops.symframes.check_network() == {"FINISHED"}
 
 
+def test_a_curve_drawn_past_the_surface_in_two_strokes_is_repaired(capsys):
+    """Hand-drawn: the cylinder's curve 'axial 0' as two splines of its
+    object meeting end to end, the upper one running past the top cap.
+    Check Network accepts it and says what the intake did: the strokes
+    joined into one curve, the end cut back to the cap."""
+    add_example("cylinder")
+    cu = bpy.data.objects["axial 0"].data
+    co = np.empty(4 * len(cu.splines[0].points))
+    cu.splines[0].points.foreach_get("co", co)
+    P = co.reshape(-1, 4)[:, :3]  # the object's own coordinates
+    top = P[-1] + 0.1 * (P[-1] - P[-2]) / np.linalg.norm(P[-1] - P[-2])  # 0.1 past the cap: about 0.5 h
+    mid = len(P) // 2
+    cu.splines.clear()
+    for part in (P[:mid + 1], np.vstack([P[mid:], top])):
+        sp = cu.splines.new("POLY")
+        sp.points.add(len(part) - 1)
+        sp.points.foreach_set("co", np.c_[part, np.ones(len(part))].ravel())
+    inp = scene_io.read_inputs(bpy.context)
+    assert len(inp.network.curves) == 5
+    assert bpy.ops.symframes.check_network() == {"FINISHED"}
+    out = capsys.readouterr().out
+    assert "(joined end to end from curves" in out and "end cut back" in out, out
+
+
 # ---------------------------------------------------------------- bad input
 def _fails(match, op=None):
     """op (default: compute) raises with a message matching match; nothing changes."""
