@@ -100,14 +100,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from ..errors import NetworkError
 from ..surface.trisurface import TriSurface
 from .curves import CurveGeometry
-from .network import Curve, Network, PreparedNetwork, _fmt
+from .network import Curve, Network, PreparedNetwork, _fmt, cluster_points
 
 MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of h/2 each side)
 MERGE = 0.05  # points closer than MERGE * h are merged
@@ -152,8 +151,8 @@ class EndBend:
             how.append(f"slid {self.slid_h:.2f} h along the surface")
         if self.length_h > 0:
             how.append(f"bent over {self.length_h:.2f} h ({self.angle_deg:.0f} deg after fairing)")
-        if self.angle_deg == 0.0 and self.length_h == 0.0 and self.slid_h <= 1e-3:
-            return f"{self.end} {how[0]}" if how else f"{self.end} left as given"
+        if self.length_h == 0.0 and self.slid_h <= 1e-3:  # only brought onto the surface
+            return f"{self.end} {how[0]}"
         return f"{self.end} turned onto the normal (given {self.input_angle_deg:.0f} deg off): {', then '.join(how)}"
 
 
@@ -600,12 +599,8 @@ def join_loose_ends(S: TriSurface, net: Network, h: float, node_tol: float, boun
     if len(ends) < 2:
         return net, {}
     X = np.array([net.curves[k].points[s] for k, s in ends])
-    tree = cKDTree(X)
-    n = len(ends)
-    pairs = tree.query_pairs(node_tol, output_type="ndarray")
-    exact = connected_components(sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
-                                 directed=False)[1] if len(pairs) else np.arange(n)
-    size = np.bincount(exact, minlength=n)[exact]
+    exact = cluster_points(X, node_tol)
+    size = np.bincount(exact)[exact]
     d, _, _ = S.closest_points(X)
     loose = (size == 1) & (d > boundary_tol)
     if not loose.any():
@@ -660,6 +655,18 @@ def join_loose_ends(S: TriSurface, net: Network, h: float, node_tol: float, boun
     return replace(net, curves=curves), moved
 
 
+def _surface_crossing(S: TriSurface, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Where the segment from a (inside the solid) to b (outside) crosses the
+    surface: bisection on the winding number."""
+    for _ in range(40):
+        m = 0.5 * (a + b)
+        if S.winding_number(m[None])[0] > 0.5:
+            a = m
+        else:
+            b = m
+    return 0.5 * (a + b)
+
+
 def close_end_gap(S: TriSurface, P: np.ndarray, h: float, tol: float, limit: float):
     """Bring the last point of P onto the surface when it is within limit of
     it (step 0 of the module docstring).  Returns (points, 'cut back' or
@@ -681,16 +688,9 @@ def close_end_gap(S: TriSurface, P: np.ndarray, h: float, tol: float, limit: flo
             k -= 1
         if k == 0:
             return P, "", d  # all outside: nothing to cut back to
-        a, b = P[k - 1], P[k]
         if float(np.linalg.norm(np.diff(P[k - 1:], axis=0), axis=1).sum()) > limit + tol:
             return P, "", d
-        for _ in range(40):  # a inside, b outside
-            m = 0.5 * (a + b)
-            if S.winding_number(m[None])[0] > 0.5:
-                a = m
-            else:
-                b = m
-        return np.vstack([P[:k], 0.5 * (a + b)]), "cut back", d
+        return np.vstack([P[:k], _surface_crossing(S, P[k - 1], P[k])]), "cut back", d
     L = arclength(P)[-1]
     back = at_arclength(P, np.array([max(L - h, 0.0)]))[0]
     t = P[-1] - back
@@ -701,15 +701,8 @@ def close_end_gap(S: TriSurface, P: np.ndarray, h: float, tol: float, limit: flo
     out = np.nonzero(S.winding_number(P[-1] + u[:, None] * t) < 0.5)[0]
     if not len(out):
         return P, "", d
-    lo, hi = (u[out[0] - 1] if out[0] else 0.0), u[out[0]]
-    for _ in range(40):
-        m = 0.5 * (lo + hi)
-        if S.winding_number((P[-1] + m * t)[None])[0] > 0.5:
-            lo = m
-        else:
-            hi = m
-    x = P[-1] + 0.5 * (lo + hi) * t
-    n = max(1, int(np.ceil(0.5 * (lo + hi) / (0.5 * h))))
+    x = _surface_crossing(S, P[-1] + (u[out[0] - 1] if out[0] else 0.0) * t, P[-1] + u[out[0]] * t)
+    n = max(1, int(np.ceil(np.linalg.norm(x - P[-1]) / (0.5 * h))))
     return np.vstack([P, P[-1] + np.linspace(0.0, 1.0, n + 1)[1:, None] * (x - P[-1])]), "extended", d
 
 

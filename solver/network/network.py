@@ -268,11 +268,8 @@ def prepare_network(net: Network, diag: float) -> PreparedNetwork:
     kinds = {}
     if ends:
         X = np.array([curves[i].points[0 if s == 0 else -1] for i, s in ends])
-        pairs = cKDTree(X).query_pairs(tol, output_type="ndarray")
-        n = len(ends)
-        A = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else None
-        ncl, lab = connected_components(A, directed=False) if A is not None else (n, np.arange(n))
-        for cl in range(ncl):
+        lab = cluster_points(X, tol)
+        for cl in range(lab.max() + 1):
             members = np.nonzero(lab == cl)[0]
             m_ends = [ends[m] for m in members]
             if len(members) == 1:
@@ -310,6 +307,17 @@ def prepare_network(net: Network, diag: float) -> PreparedNetwork:
     return PreparedNetwork(curves, idx, start_kind, end_kind, nodes, pieces)
 
 
+def cluster_points(X: np.ndarray, tol: float) -> np.ndarray:
+    """Cluster label per point: points chained by distances <= tol share one
+    (labels 0..k-1)."""
+    n = len(X)
+    pairs = cKDTree(X).query_pairs(tol, output_type="ndarray")
+    if not len(pairs):
+        return np.arange(n)
+    return connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                directed=False)[1]
+
+
 def _join_chains(curves: list, idx: list, tol: float) -> tuple[list, list, dict]:
     """Curves that meet end to end, two ends alone within tol with the same
     index, role and torsion (a curve drawn in several strokes), become one
@@ -321,13 +329,7 @@ def _join_chains(curves: list, idx: list, tol: float) -> tuple[list, list, dict]
     ends = [(i, s) for i, c in enumerate(curves) if not c.closed for s in (0, 1)]
     if len(ends) < 2:
         return curves, idx, {}
-    X = np.array([curves[i].points[0 if s == 0 else -1] for i, s in ends])
-    pairs = cKDTree(X).query_pairs(tol, output_type="ndarray")
-    if not len(pairs):
-        return curves, idx, {}
-    n = len(ends)
-    _, lab = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
-                                  directed=False)
+    lab = cluster_points(np.array([curves[i].points[0 if s == 0 else -1] for i, s in ends]), tol)
     link = {}  # (curve, end) -> (other curve, its end)
     for cl in np.unique(lab):
         m = np.nonzero(lab == cl)[0]
