@@ -90,10 +90,17 @@ def bpy_venv(bpy_version: str, log=print) -> str:
         log(f"[matrix] downloading bpy {bpy_version} (Python {variant.python}) into {WHEELS}")
         run([base, "-m", "pip", "download", "--quiet", "--no-deps", "-d", WHEELS, f"bpy=={bpy_version}"])
     wheel = glob.glob(os.path.join(WHEELS, f"bpy-{bpy_version}-*.whl"))[0]
-    log(f"[matrix] creating {venv} (Python {variant.python}, bpy {bpy_version}, numpy {numpy})")
-    shutil.rmtree(venv, ignore_errors=True)
-    run([base, "-m", "venv", venv])
-    run([py, "-m", "pip", "install", "--quiet", wheel, f"numpy=={numpy}"])
+    for attempt in (1, 2):  # a second try after a failed download or install, from scratch
+        log(f"[matrix] creating {venv} (Python {variant.python}, bpy {bpy_version}, numpy {numpy})")
+        shutil.rmtree(venv, ignore_errors=True)
+        try:
+            run([base, "-m", "venv", venv])
+            run([py, "-m", "pip", "install", "--quiet", wheel, f"numpy=={numpy}"])
+            break
+        except RuntimeError as ex:
+            if attempt == 2:
+                raise
+            log(f"[matrix] venv setup failed, trying once more: {str(ex)[-500:]}")
     with open(stamp, "w") as fh:
         fh.write(want)
     log(f"[matrix] venv ready in {time.perf_counter() - t0:.0f} s")
