@@ -25,6 +25,7 @@ from .field.develop import develop, symmetric_turn
 from .field.volume3d import LMReport, VolumeProblem
 from .linalg.rotations import exp_so3
 from .mesh.embed import Embedding, embed_network
+from .mesh.linking import misaligned_curves
 from .mesh.refine import red_refine
 from .mesh.resolution import Plan, check_resolution, plan_resolution, uniform_tets
 from .mesh.snapping import snap_to_features
@@ -283,6 +284,27 @@ def solution_status(lm: LMReport) -> tuple[str, str]:
                                  f"{allowed:.3g}): the network is not resolved or the field cannot wind as "
                                  f"prescribed; try a finer mesh")
     return "converged", f"{lm.reason}; penalty {f.penalty:.3g} <= {allowed:.3g}"
+
+
+# mean adaptation a converged field stays within (degrees): solved networks
+# score <= 0.6 (tangent: bent and short curves included) and <= 0.3 (normal); a
+# field that cannot follow a curve (one the surface frames do not carry,
+# before mesh/linking.py refused them) scored 43 with a penalty of 3e-5
+ADAPTATION_DEG = 5.0
+
+
+def adaptation_status(metrics: dict) -> str | None:
+    """Why a field whose structure penalty passed is still not a solution:
+    frames off the curves' tangents or the surface normals on average by
+    more than ADAPTATION_DEG; None when they follow both."""
+    for key, what in (("tangent_adaptation", "the curves' tangents"), ("normal_adaptation", "the surface normals")):
+        mean = metrics.get(f"{key}_mean_deg", 0.0)
+        if mean > ADAPTATION_DEG:
+            return (f"the frames are {mean:.3g} degrees off {what} on average (worst "
+                    f"{metrics.get(f'{key}_max_deg', mean):.3g}; a solved field stays within {ADAPTATION_DEG:g}): "
+                    f"check that the network is valid (every curve meets the surface along the normal, the "
+                    f"singular curves a sharp corner or a bent curve needs are there) and refine near the curves")
+    return None
 
 
 def _volume(checked: CheckedInput) -> float:
@@ -634,8 +656,35 @@ class FieldProblem:
                 break
             extra = {keys[i]: int(d) for i, d in enumerate(delta) if d}
             bf = solve_boundary_field(B, G, fs, generator_turns=extra, normal_override=override)
+        self._check_carried(bf)
         self._check_lift(bf)
         return bf
+
+    def _check_carried(self, bf: BoundaryField) -> None:
+        """Refuse a curve whose tangent axis the frames on the surface cannot
+        carry from one end to the other, with no singular curve between it
+        and the surface (mesh/linking.py): no cross field is adapted to it
+        (LM ended at its cap with a penalty of 1e4 on a smooth torus)."""
+        bad = misaligned_curves(self.mesh, self.embedding, [c.sigma for c in self.network.curves], bf.E0,
+                                bf.features.sharp)
+        if not bad:
+            return
+
+        def label(j):
+            c = self.network.curves[j]
+            return f"curve {self.network.source[j]}" + (f" '{c.name}'" if c.name else "")
+
+        i, a, b, cos = bad[0]
+        pa, pb = (", ".join(f"{x:.4g}" for x in self.mesh.vertices[v]) for v in (a, b))
+        how = "reversed" if cos < -0.5 else "across the curve"
+        raise TopologyError(
+            f"{label(i)} meets the surface at ({pa}) and ({pb}), and the frame axis along it, carried over the "
+            f"surface from one end to the other, arrives {how}: the frames have the curve's tangent as an axis "
+            f"and are adapted to the surface, so no cross field follows this curve unless a singular curve "
+            f"passes between it and the surface (on one smooth part of the surface the normal stays one axis: "
+            f"a curve across the tube of a smooth torus, or U-shaped under one face, cannot be followed). Mark "
+            f"sharp edges between its ends (sharp_angle or 'sharp' curves), end it elsewhere, or add the "
+            f"singular curves that let the field turn (curves refused: {', '.join(label(j) for j, *_ in bad)})")
 
     def _check_lift(self, bf: BoundaryField) -> None:
         """Refuse boundary data the volume solve cannot satisfy: triangles
@@ -811,6 +860,9 @@ class FieldProblem:
         frames = st.run("integrate", self.develop, omega, root, E_root)
         res = Result(problem=self, omega=omega, x=x, frames=frames, root=root, report=report)
         report.metrics.update(res.quick_metrics())
+        why = adaptation_status(report.metrics) if report.status == "converged" else None
+        if why:
+            report.status, report.status_reason = "not converged", why
         return res
 
     # ------------------------------------------------------------ development
