@@ -13,7 +13,8 @@ See README.md for the sign convention of the index sigma and the file formats.
 
 from .errors import Cancelled, MeshingError, NetworkError, OptionsError, SurfaceError, SymFramesError, TopologyError
 from .network.network import Curve, Network, Role, Torsion
-from .pipeline import FieldProblem, Options, Report, Result, solve
+from .pipeline import FieldProblem, Options, Result, solve
+from .report import Report
 
 __all__ = [
     "Cancelled",

@@ -11,7 +11,7 @@ field so that changing only solver settings does not remesh.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -22,19 +22,21 @@ from .errors import Cancelled, MeshingError, OptionsError, TopologyError
 from .field.boundary2d import BoundaryField, lift_mismatch, solve_boundary_field
 from .field.constraints import TUBE, AffineOmega, build_constraints, tube_curvature
 from .field.develop import develop, symmetric_turn
-from .field.volume3d import LMReport, VolumeProblem
+from .field.handles import settle_handle_turns
+from .field.volume3d import VolumeProblem
 from .linalg.rotations import exp_so3
 from .mesh.embed import Embedding, embed_network
 from .mesh.linking import misaligned_curves
 from .mesh.refine import red_refine
-from .mesh.resolution import Plan, check_resolution, plan_resolution, uniform_tets
+from .mesh.resolution import TETS_PER_H3, Plan, check_resolution, plan_resolution, uniform_tets
 from .mesh.snapping import snap_to_features
 from .mesh.tetmesh import TetMesh
 from .mesh.tetwild import tetrahedralize
 from .mesh.tubes import build_tubes
 from .network.network import Network, PreparedNetwork
 from .network.validation import CheckedInput, check_input
-from .surface.corners import corners_text, transfer_quarters
+from .report import Report, adaptation_status, solution_status
+from .surface.corners import transfer_quarters
 from .surface.features import FeatureGraph, check_poincare_hopf, transfer_features
 
 INITS = ("zero", "constant", "random", "linear")
@@ -129,94 +131,6 @@ class Options:
         self.mesher = checks.choice("option 'mesher'", self.mesher, MESHER_CHOICES, E)
 
 
-@dataclass
-class Report:
-    """Sizes, timings (seconds per stage) and the solver history of a solve."""
-
-    stage_seconds: dict = field(default_factory=dict)
-    sizes: dict = field(default_factory=dict)
-    lm: LMReport | None = None
-    metrics: dict = field(default_factory=dict)
-    edge_length: float = 0.0
-    repairs: list = field(default_factory=list)  # intake.CurveRepair per interior curve
-    repair_scale: float = 0.0  # the h the curves were repaired at
-    mesher: str = ""  # the mesher that made the tet mesh, and why if not the one asked for
-    corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
-    status: str = ""  # 'converged' or 'not converged' (solution_status)
-    status_reason: str = ""
-
-    @property
-    def converged(self) -> bool:
-        return self.status == "converged"
-
-    @property
-    def total_seconds(self) -> float:
-        return float(sum(self.stage_seconds.values()))
-
-    def summary(self) -> str:
-        lines = [f"tets {self.sizes.get('tets', 0):,}  vertices {self.sizes.get('vertices', 0):,}  "
-                 f"edges {self.sizes.get('edges', 0):,}  (edge length {self.edge_length:.4g})"]
-        if self.status:
-            lines.insert(0, f"status: {self.status} ({self.status_reason})")
-        if self.mesher and self.mesher != "fTetWild":
-            lines.append(f"  meshed by {self.mesher}")
-        if self.sizes.get("graded_tets"):
-            lines.append(f"  graded towards the network: {self.sizes['graded_tets']:,} tets added by bisection, "
-                         f"edges down to {self.sizes['edge_length_min']:.4g}")
-        if self.sizes.get("budget_retries"):
-            lines.append(f"  fTetWild's mesh came out past 1.5x the tet budget or left no room under it for the "
-                         f"grading: meshed {self.sizes['budget_retries']} more time(s) with a coarser bulk, the "
-                         f"smallest mesh kept")
-        if self.sizes.get("resolution_floor"):
-            lines.append(f"  the network asked for edges down to {self.sizes['edge_length_needed']:.3g} "
-                         f"(~{self.sizes['needed_tets']:,} tets): held at {self.sizes['resolution_floor']:.3g} to keep "
-                         f"the tet budget; raise target_tets to resolve it")
-        if self.sizes.get("refine_levels"):
-            who = "TetGen" if self.mesher == "TetGen" else "fTetWild"
-            lines.append(f"  {who} meshed {self.sizes['mesher_tets']:,} tets, refined "
-                         f"{self.sizes['refine_levels']}x (each tet into 8)")
-        if self.sizes.get("flat_tets"):
-            left = self.sizes.get("flat_tets_left", 0)
-            lines.append(f"  fTetWild left {self.sizes['flat_tets']} flat tet(s): "
-                         f"{self.sizes.get('flat_moved_vertices', 0)} vertices moved off their plane"
-                         + (f", {left} still flat (no move of an interior vertex improved them)" if left else ""))
-        if self.sizes.get("snapped_vertices") is not None:
-            kept = self.sizes.get("snap_kept_vertices", 0)
-            lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "
-                         f"vertices moved" + (f", {kept:,} left where fTetWild put them (the move was too "
-                                              f"long or would have flattened a tet)" if kept else ""))
-        from .network.intake import repairs_text
-
-        rep = repairs_text(self.repairs, self.repair_scale)
-        if rep:
-            lines.append(rep)
-        rep = corners_text(self.corners)
-        if rep:
-            lines.append(rep)
-        for k, v in self.stage_seconds.items():
-            lines.append(f"  {k:<12s} {v:8.2f} s")
-        lines.append(f"  {'total':<12s} {self.total_seconds:8.2f} s")
-        if self.lm is not None:
-            f = self.lm.final
-            lines.append(f"LM ({self.lm.init} start): {self.lm.n_iterations} iterations, {self.lm.cg_iterations} CG "
-                         f"steps, energy {f.energy:.6g} (smoothness {f.smoothness:.6g}, penalty {f.penalty:.3g}); "
-                         f"{self.lm.reason}")
-        for k, v in self.metrics.items():
-            lines.append(f"  {k}: {v:.4g}" if isinstance(v, float) else f"  {k}: {v}")
-        return "\n".join(lines)
-
-    def as_dict(self) -> dict:
-        d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
-             "edge_length": self.edge_length, "repairs": [asdict(r) for r in self.repairs],
-             "repair_scale": self.repair_scale, "mesher": self.mesher,
-             "corners": [asdict(c) for c in self.corners], "status": self.status, "converged": self.converged,
-             "status_reason": self.status_reason}
-        if self.lm is not None:
-            d["lm"] = {"init": self.lm.init, "converged": self.lm.converged, "reason": self.lm.reason,
-                       "iterations": [asdict(it) for it in self.lm.iterations]}
-        return d
-
-
 class _Stages:
     """Times stages, reports progress and checks for cancellation."""
 
@@ -243,68 +157,6 @@ class _Stages:
         return out
 
 
-TETS_PER_H3 = 15.0  # fTetWild meshes hold about 15 tets per h^3 of volume
-
-
-# A solve is "converged" when LM met its stopping rule and the structure
-# penalty of Eq. 23 sits at the discretisation level: at most
-# PENALTY_ABS + PENALTY_REL * smoothness.  Calibration (default meshes of
-# the built-in examples): cube 3e-26, cylinder 0.002, ball 0.16, plate
-# ~0.1, against smoothness 0-120; the torus, whose twist the second-order
-# structure equation cannot represent exactly, 13.8 at smoothness 117.6
-# (an exactly integrable twisted field scores 37-65 there, README).  Runs
-# that failed to embed the network (curves without tubes, folded
-# boundaries) ended at 24-2180.
-PENALTY_ABS = 1.0
-PENALTY_REL = 0.25
-
-
-def solution_status(lm: LMReport) -> tuple[str, str]:
-    """('converged' | 'not converged', why) of a Levenberg-Marquardt run."""
-    f = lm.final
-    allowed = PENALTY_ABS + PENALTY_REL * f.smoothness
-    if not lm.converged:
-        why = f"Levenberg-Marquardt {lm.reason}"
-        E = [it.energy for it in lm.iterations if it.accepted]
-        if lm.capped and len(E) > 5 and f.penalty <= allowed:
-            # the iteration cap, not a failure to resolve the network: say how
-            # close it came (graded meshes around short curves end in a flat
-            # valley of the energy, falling by ~1e-5 of it per iteration;
-            # 16-31 iterations at 8,000 tets)
-            change = (E[-6] - E[-1]) / max(abs(E[-1]), 1e-300)
-            fell = f"{1.0 + change:.3g}-fold" if change > 1.0 else f"by {100.0 * change:.2g}%"
-            near = ", close to a minimum but not at it" if change < 1e-3 else ""
-            why += (f" with the penalty at the discretisation level ({f.penalty:.3g} <= {allowed:.3g}); the "
-                    f"energy fell {fell} over the last 5 iterations{near}. Raise max_iterations (command "
-                    f"line: --iterations) to finish")
-        return "not converged", why
-    if f.penalty > allowed:
-        return "not converged", (f"the structure penalty {f.penalty:.3g} is above the discretisation level "
-                                 f"({PENALTY_ABS:g} + {PENALTY_REL:g} x smoothness {f.smoothness:.3g} = "
-                                 f"{allowed:.3g}): the network is not resolved or the field cannot wind as "
-                                 f"prescribed; try a finer mesh")
-    return "converged", f"{lm.reason}; penalty {f.penalty:.3g} <= {allowed:.3g}"
-
-
-# mean adaptation a converged field stays within (degrees): solved networks
-# score <= 0.6 (tangent: bent and short curves included) and <= 0.3 (normal); a
-# field that cannot follow a curve (one the surface frames do not carry,
-# before mesh/linking.py refused them) scored 43 with a penalty of 3e-5
-ADAPTATION_DEG = 5.0
-
-
-def adaptation_status(metrics: dict) -> str | None:
-    """Why a field whose structure penalty passed is still not a solution:
-    frames off the curves' tangents or the surface normals on average by
-    more than ADAPTATION_DEG; None when they follow both."""
-    for key, what in (("tangent_adaptation", "the curves' tangents"), ("normal_adaptation", "the surface normals")):
-        mean = metrics.get(f"{key}_mean_deg", 0.0)
-        if mean > ADAPTATION_DEG:
-            return (f"the frames are {mean:.3g} degrees off {what} on average (worst "
-                    f"{metrics.get(f'{key}_max_deg', mean):.3g}; a solved field stays within {ADAPTATION_DEG:g}): "
-                    f"check that the network is valid (every curve meets the surface along the normal, the "
-                    f"singular curves a sharp corner or a bent curve needs are there) and refine near the curves")
-    return None
 
 
 def _volume(checked: CheckedInput) -> float:
@@ -634,28 +486,9 @@ class FieldProblem:
                     override[int(v)] = t
         bf = solve_boundary_field(B, G, fs, normal_override=override)
         # loops that bound in the solid: their turns must be what the
-        # singular curves through the spanning chain prescribe; a first
-        # correction, then once more with the opposite sense of rotation for
-        # any the first did not fix (_meridian_errors)
-        keys = [key for key, _ids, _signs in bf.generators]
-        fixed = _bounding_combinations(bf.generator_null_values) if keys else []
-        meridians = self._meridians(bf) if keys else []
-        wanted, first = {}, {}
-        for attempt in range(2):
-            wrong = self._meridian_errors(bf, meridians)
-            if not wrong:
-                break
-            for n, t in wrong:
-                # the second time, a loop the first correction did not fix
-                # gets that correction in the other sense
-                wanted[n] = -first[n] if attempt and n in first else wanted.get(n, 0) + t
-            if not attempt:
-                first = dict(wanted)
-            delta = _integer_turns(wanted, fixed, len(keys))
-            if delta is None:
-                break
-            extra = {keys[i]: int(d) for i, d in enumerate(delta) if d}
-            bf = solve_boundary_field(B, G, fs, generator_turns=extra, normal_override=override)
+        # singular curves through the spanning chain prescribe (field/handles.py)
+        bf = settle_handle_turns(mesh, self.embedding, bf, lambda turns: solve_boundary_field(
+            B, G, fs, generator_turns=turns, normal_override=override))
         self._check_carried(bf)
         self._check_lift(bf)
         return bf
@@ -700,95 +533,6 @@ class FieldProblem:
                 f"the boundary cross field could not be lifted to 3D on {len(bad)} boundary triangle(s) near "
                 f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}): the tet mesh's surface is probably folded there (a "
                 f"curve tube or feature close to the surface). Try another edge length (now {self.edge_length:.4g})")
-
-    def _meridian_errors(self, bf: BoundaryField, meridians: list) -> list:
-        """Quarter turns the boundary field's holonomy is off by around the
-        loops of the surface that bound in the solid (the meridians of a
-        handle).
-
-        Along such a loop the frames of the 3D lift (adapted to the boundary)
-        return rotated about the normal at the base by k quarter turns, read
-        in SU(2) so that k is known modulo 8: rotations form SO(3), whose
-        loops come in two homotopy classes, and only the trivial class
-        (+1 in SU(2)) extends over a disk without singularity.  The frames
-        extend over the spanning chain inside the solid only if k equals the
-        quarter turns of the singular curves crossing it (either sense; 0
-        without curves).  The 2D field's generator holonomy (Eq. 14) is
-        otherwise taken as the nearest quarter turn of the smoothest field,
-        which can be a quarter or a full turn off; LM then ends at its cap
-        with a penalty of 1e4 or more (a +-1/4 pair of curves on either side
-        of a hole).
-
-        The surface's generators need not bound one by one (tree-cotree
-        gives any basis: on a torus often meridian + longitude and the
-        longitude), so the bounding loops are the integer combinations
-        sum n_i eta_i (_meridians), read as one closed loop based off the
-        sharp features (_combined_loop): summing the generators' own turns
-        went wrong where a generator ran along a rim, whose holonomy there
-        turns about a face normal or the edge, not the vertex normal.
-        meridians : _meridians(bf).  Returns [(n as a tuple, quarter turns
-        to add)].
-        """
-        B = self.mesh.boundary
-        out = []
-        for n, through in meridians:
-            ids, signs = _combined_loop(B, bf, n)
-            q = _su2_holonomy(bf.omega0[ids] * signs[:, None])
-            base = B.edges[ids[0], 0] if signs[0] > 0 else B.edges[ids[0], 1]
-            sense = 1.0 if float(q[1:] @ bf.normals[base]) >= 0 else -1.0
-            k = 2.0 * np.arctan2(sense * np.linalg.norm(q[1:]), float(q[0])) / (np.pi / 2)  # (-4, 4]
-            if abs(k - np.round(k)) > 0.25:
-                continue  # not a whole number of quarter turns: nothing to read
-            k = int(np.round(k))
-            best = min((((t - k + 4) % 8) - 4 for t in (through, -through)), key=abs)
-            if best:
-                out.append((tuple(int(x) for x in n), int(best)))
-        return out
-
-    def _meridians(self, bf: BoundaryField) -> list:
-        """The integer combinations n of the surface's generators that bound
-        in the solid, with the quarter turns of the singular curves through
-        a chain spanning each: [(n, turns through)].  A loop bounds when no
-        part of it is left outside the boundaries of the solid's 2-chains
-        (least squares); the combinations are those whose leftovers cancel.
-        Depends on the mesh and the generators only."""
-        import scipy.sparse.linalg as spla
-
-        mesh = self.mesh
-        B = mesh.boundary
-        bv = mesh.boundary_vertices
-        # spanning chains may use any face: along a sharp rim a boundary edge
-        # often lies in no interior face (its one tet has both boundary
-        # faces), and with interior faces only no loop of a genus-1 block
-        # bounded.  Turns of the curves through each face, with the sign of
-        # the face's normal: |Omega_f| / 2 pi = sigma however obliquely the
-        # curve pierces it (Omega . N would count sigma cos(angle)).  The
-        # boundary face a curve ends on gets the value that balances its tet,
-        # so that the count is the same through every chain spanning a loop
-        Om = self.embedding.face_omega
-        flux = np.sign(np.einsum("ij,ij->i", Om, mesh.face_normals)) * np.linalg.norm(Om, axis=1) / (2 * np.pi)
-        for f, _ in self.embedding.boundary_end_faces:
-            T = mesh.face_tets[f, 0]
-            fs = mesh.tet_faces[T]
-            outward = np.sign(np.einsum("ij,ij->i", mesh.vertices[mesh.faces[fs]].mean(axis=1)
-                                        - mesh.vertices[mesh.tets[T]].mean(axis=0), mesh.face_normals[fs]))
-            me = fs == f
-            flux[f] = -float(outward[~me] @ flux[fs[~me]]) / float(outward[me][0])
-        d1t = mesh.d1.T.tocsr()
-        chains, resid = [], []
-        for _key, ids, signs in bf.generators:
-            ge = mesh.edge_index(bv[B.edges[ids, 0]], bv[B.edges[ids, 1]])
-            eta = np.zeros(mesh.n_edges)
-            np.add.at(eta, ge, signs)
-            # atol=0: stop at the least-squares solution to machine precision
-            chain = spla.lsqr(d1t, eta, atol=0.0, btol=1e-12, iter_lim=50000)[0]
-            chains.append(chain)
-            resid.append(d1t @ chain - eta)  # unscaled: integer combinations stay so
-        out = []
-        for n in _bounding_combinations(np.array(resid)):
-            chain = sum(int(n[i]) * chains[i] for i in np.nonzero(n)[0])
-            out.append((n, int(np.round(4 * float(chain @ flux)))))
-        return out
 
     # ----------------------------------------------------------------- solve
     @property
@@ -997,116 +741,3 @@ def solve(V, F, network: Network, options: Options | None = None, progress=None,
         opts = Options(**{**asdict(opts), **kw})
     problem = FieldProblem(V, F, network, opts, progress=progress, cancel=cancel)
     return problem.solve(progress=progress, cancel=cancel)
-
-
-def _su2_holonomy(steps: np.ndarray) -> np.ndarray:
-    """Product of the unit quaternions exp(w/2) of rotation vectors w (n, 3),
-    applied in order, tracked in SU(2) (w, x, y, z)."""
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    for w in steps:
-        th = np.linalg.norm(w)
-        a = w / th if th > 0 else np.zeros(3)
-        p = np.r_[np.cos(th / 2), np.sin(th / 2) * a]
-        q = np.r_[p[0] * q[0] - p[1:] @ q[1:], p[0] * q[1:] + q[0] * p[1:] + np.cross(p[1:], q[1:])]
-    return q
-
-
-def _bounding_combinations(resid: np.ndarray, max_denominator: int = 12) -> list[np.ndarray]:
-    """Integer vectors n with sum n_i resid_i = 0: the combinations of loops
-    whose residuals (the part no 2-chain of the solid spans) cancel.
-
-    resid : (#loops, #edges).  The null space of their Gram matrix, put in
-    reduced row echelon form and scaled to integers, primitive.
-    """
-    from fractions import Fraction
-
-    G = resid @ resid.T
-    scale = max(float(np.abs(np.diag(G)).max()), 1e-300)
-    w, U = np.linalg.eigh(G / scale)
-    N = U[:, w < 1e-8]  # (#loops, dim)
-    if N.shape[1] == 0:
-        return []
-    # reduced row echelon form of N^T
-    M = N.T.copy()
-    r = 0
-    for c in range(M.shape[1]):
-        if r == M.shape[0]:
-            break
-        p = r + int(np.argmax(np.abs(M[r:, c])))
-        if abs(M[p, c]) < 1e-6:
-            continue
-        M[[r, p]] = M[[p, r]]
-        M[r] /= M[r, c]
-        for i in range(M.shape[0]):
-            if i != r:
-                M[i] -= M[i, c] * M[r]
-        r += 1
-    out = []
-    for row in M[:r]:
-        fr = [Fraction(float(x)).limit_denominator(max_denominator) for x in row]
-        den = int(np.lcm.reduce([f.denominator for f in fr]))
-        v = np.array([int(f * den) for f in fr])
-        g = int(np.gcd.reduce(np.abs(v[v != 0]))) if np.any(v) else 1
-        v = v // max(g, 1)
-        if np.any(v) and np.abs(v @ resid).max() <= 1e-6 * np.abs(resid).max() * np.abs(v).sum():
-            out.append(v)
-    return out
-
-
-def _integer_turns(wanted: dict, fixed: list, n: int, reach: int = 4):
-    """Integer turns d per generator with n . d = t for each bounding
-    combination n -> t in `wanted`, and c . d = 0 for each combination c the
-    alignment rows fix; the smallest (sum |d|) for up to 4 generators, by
-    search within +-reach, otherwise by least squares if that is integral.
-    None when there is none."""
-    A = np.array([list(k) for k in wanted] + [list(c) for c in fixed], dtype=float).reshape(-1, n)
-    b = np.r_[list(wanted.values()), np.zeros(len(fixed))]
-    if n <= 4:
-        grid = np.stack(np.meshgrid(*[np.arange(-reach, reach + 1)] * n, indexing="ij"), axis=-1).reshape(-1, n)
-        ok = np.all(grid @ A.T == b, axis=1)
-        if not np.any(ok):
-            return None
-        cand = grid[ok]
-        return cand[np.argmin(np.abs(cand).sum(axis=1))]
-    d = np.round(np.linalg.lstsq(A, b, rcond=None)[0])
-    return d.astype(int) if np.allclose(A @ d, b) else None
-
-
-def _combined_loop(B, bf: BoundaryField, n) -> tuple[np.ndarray, np.ndarray]:
-    """One closed edge loop for the combination sum n_i eta_i of the boundary
-    field's generators: from a vertex s off the sharp features, for each
-    generator a tree path to its base, the loop |n_i| times (reversed when
-    n_i < 0), and the path back.  Returns (edge ids, signs)."""
-    from scipy.sparse import csgraph
-
-    E = B.edges
-    nV = len(B.V)
-    loops = [(ids, signs) for _key, ids, signs in bf.generators]
-    used = [i for i in range(len(loops)) if n[i]]
-    starts = [np.where(loops[i][1] > 0, E[loops[i][0], 0], E[loops[i][0], 1]) for i in used]
-    cand = np.concatenate(starts)
-    smooth = cand[~bf.is_feature_vertex[cand]]
-    if len(smooth):
-        s = int(smooth[0])
-    else:
-        s = int(np.nonzero(~bf.is_feature_vertex)[0][0]) if np.any(~bf.is_feature_vertex) else int(cand[0])
-    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nV, nV))
-    _, pred = csgraph.breadth_first_order((A + A.T).tocsr(), s, directed=False, return_predecessors=True)
-    out_ids, out_signs = [], []
-    for i, st in zip(used, starts):
-        ids, signs = loops[i]
-        j = int(np.nonzero(st == s)[0][0]) if np.any(st == s) else 0
-        ids, signs, st = np.roll(ids, -j), np.roll(signs, -j), np.roll(st, -j)
-        path = [int(st[0])]
-        while path[-1] != s:
-            path.append(int(pred[path[-1]]))
-        path = path[::-1]  # s -> base
-        a, b = np.array(path[:-1], np.int64), np.array(path[1:], np.int64)
-        pid = B.edge_index(a, b)
-        psg = np.where(a < b, 1.0, -1.0)
-        if n[i] < 0:
-            ids, signs = ids[::-1], -signs[::-1]
-        out_ids += [pid] + [ids] * abs(int(n[i])) + [pid[::-1]]
-        out_signs += [psg] + [signs] * abs(int(n[i])) + [-psg[::-1]]
-    return np.concatenate(out_ids).astype(np.int64), np.concatenate(out_signs)
-

@@ -104,7 +104,7 @@ COLUMNS = [
 COLUMN_NOTES = """\
 * **h**: target edge length; **tets**, **time** (meshing + all stages of the zero-start solve, wall clock),
   **LM it**: Levenberg–Marquardt iterations of the zero start; **penalty**: its structure term a·R(ω) (Eq. 23),
-  which `solver/pipeline.py` calls converged at ≤ 1 + 0.25 × smoothness.
+  which `solver/report.py` calls converged at ≤ 1 + 0.25 × smoothness.
   **NAME/tet-edge**: NAME's curves routed along the edges of an independent fTetWild mesh at 1.5 h
   (`solver/tetedge.py`) and repaired by the curve intake; tangent adaptation is to the repaired curves.
 * **mono mean/max°**: per-face monodromy angle (Eq. 9) over the *regular* faces: interior, not pierced by a curve,

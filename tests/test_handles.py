@@ -19,8 +19,8 @@ import pytest
 from solver import Options, solve
 from solver.examples import _segment, voxel_surface
 from solver.field.boundary2d import edge_angles, solve_boundary_field, vertex_coordinates
+from solver.field.handles import bounding_combinations, combined_loop, su2_holonomy
 from solver.network.network import Curve, Network
-from solver.pipeline import _bounding_combinations, _combined_loop, _su2_holonomy
 from solver.surface.features import FeatureGraph, sharp_edges_by_angle
 from solver.surface.trisurface import TriSurface
 from tests.test_examples import check_omega_singular_set
@@ -67,7 +67,7 @@ def test_the_2d_field_follows_every_sharp_edge_past_corners_and_around_the_hole(
     # is: no triangle without a singularity gets one (the lift's closest
     # representatives at the hole's concave corners once did)
     turn = np.array([2 * np.arctan2(np.linalg.norm(q[1:]), q[0]) for q in
-                     (_su2_holonomy(bf.omega0[S.face_edges[f]] * S.face_edge_signs[f][:, None])
+                     (su2_holonomy(bf.omega0[S.face_edges[f]] * S.face_edge_signs[f][:, None])
                       for f in range(len(S.F)))])
     spurious = (np.abs(bf.Omega) < 1e-9) & (turn > np.pi / 4)
     assert not np.any(spurious), S.V[S.F[np.nonzero(spurious)[0]]].mean(axis=1)
@@ -78,9 +78,9 @@ def test_bounding_combinations_are_integer_and_primitive():
     a, b = rng.normal(size=(2, 40))
     # loops 0 and 2 do not bound alone; 2 * loop0 - loop2 does, loop 1 does
     resid = np.array([a, np.zeros(40), 2 * a, b])
-    combos = {tuple(v * np.sign(v[np.nonzero(v)[0][0]])) for v in _bounding_combinations(resid)}
+    combos = {tuple(v * np.sign(v[np.nonzero(v)[0][0]])) for v in bounding_combinations(resid)}
     assert combos == {(0, 1, 0, 0), (2, 0, -1, 0)}
-    assert _bounding_combinations(np.array([a, b])) == []
+    assert bounding_combinations(np.array([a, b])) == []
 
 
 @pytest.mark.parametrize("n", [(1, 0), (1, -1), (2, 1), (0, -1)])
@@ -92,7 +92,7 @@ def test_a_combination_of_generators_is_read_along_one_closed_loop_off_the_sharp
     V, F = ring()
     S = TriSurface(V, F)
     bf = solve_boundary_field(S, FeatureGraph(S, sharp_edges_by_angle(S, 30.0)), np.zeros(len(S.F)))
-    ids, signs = _combined_loop(S, bf, np.array(n))
+    ids, signs = combined_loop(S, bf, np.array(n))
     E = S.edges
     tail = np.where(signs > 0, E[ids, 0], E[ids, 1])
     head = np.where(signs > 0, E[ids, 1], E[ids, 0])

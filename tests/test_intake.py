@@ -432,7 +432,7 @@ def test_tet_edge_network_solves_with_defaults(tet_edge_solves, name):
     tn, r = tet_edge_solves(name)
     m = r.report.metrics
     print(name, r.report.summary())
-    # the structure penalty at the discretisation level (pipeline.solution_status):
+    # the structure penalty at the discretisation level (report.solution_status):
     # measured 0.006-0.008 (cylinder) and 0.35-0.40 (ball), against 0.002 and 0.18
     # for the clean networks at the same h
     assert r.report.converged, r.report.status_reason

@@ -84,7 +84,7 @@ def test_a_flat_tet_with_only_boundary_vertices_is_reported_not_moved():
 
 
 def test_the_report_says_how_many_flat_tets_were_repaired():
-    from solver.pipeline import Report
+    from solver.report import Report
 
     r = Report(sizes={"tets": 10, "flat_tets": 3, "flat_tets_left": 1, "flat_moved_vertices": 2})
     assert "fTetWild left 3 flat tet(s): 2 vertices moved off their plane, 1 still flat" in r.summary()

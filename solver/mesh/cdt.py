@@ -30,11 +30,12 @@ import numpy as np
 
 from ..errors import MeshingError
 from ..surface.trisurface import TriSurface
+from .resolution import TETS_PER_H3
 from .tetmesh import TetMesh
 from .tetwild import SIMPLIFY_DENSITY, _normalisation, run_tetwild
 
-TETS_PER_H3 = 15.0  # the budget's density (pipeline.TETS_PER_H3), which ...
-VOLUME_BOUND = 2.0 / TETS_PER_H3  # ... a bound of 2 h^3 / 15 gives (mean volume ~ half the bound)
+# the budget's density, which a volume bound of 2 h^3 / 15 gives (mean volume ~ half the bound)
+VOLUME_BOUND = 2.0 / TETS_PER_H3
 
 
 def tetgen_available() -> bool:

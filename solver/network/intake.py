@@ -120,7 +120,7 @@ BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length where
 BEND_FRACTION_ONE_END = 0.8  # ... or this fraction where only one end is (its other end a node)
 END_GAP = 2.0  # boundary ends at most this many h outside or inside the surface are cut back or extended onto it
 NODE_GAP = 1.0  # loose curve ends within this many h of (the centre of) others join them at a node
-TETS_PER_H3 = 15.0  # as pipeline.TETS_PER_H3
+TETS_PER_H3 = 15.0  # as mesh/resolution.py's (network/ sits below mesh/)
 
 
 def solid_scale(S: TriSurface, target_tets: int = 15000) -> float:

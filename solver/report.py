@@ -1,0 +1,157 @@
+"""What a solve reports: sizes, timings, the curve and corner repairs, the
+LM history, and whether it converged (solution_status, adaptation_status)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+from .field.volume3d import LMReport
+from .network.intake import repairs_text
+from .surface.corners import corners_text
+
+
+@dataclass
+class Report:
+    """Sizes, timings (seconds per stage) and the solver history of a solve."""
+
+    stage_seconds: dict = field(default_factory=dict)
+    sizes: dict = field(default_factory=dict)
+    lm: LMReport | None = None
+    metrics: dict = field(default_factory=dict)
+    edge_length: float = 0.0
+    repairs: list = field(default_factory=list)  # intake.CurveRepair per interior curve
+    repair_scale: float = 0.0  # the h the curves were repaired at
+    mesher: str = ""  # the mesher that made the tet mesh, and why if not the one asked for
+    corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
+    status: str = ""  # 'converged' or 'not converged' (solution_status)
+    status_reason: str = ""
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
+
+    @property
+    def total_seconds(self) -> float:
+        return float(sum(self.stage_seconds.values()))
+
+    def summary(self) -> str:
+        lines = [f"tets {self.sizes.get('tets', 0):,}  vertices {self.sizes.get('vertices', 0):,}  "
+                 f"edges {self.sizes.get('edges', 0):,}  (edge length {self.edge_length:.4g})"]
+        if self.status:
+            lines.insert(0, f"status: {self.status} ({self.status_reason})")
+        if self.mesher and self.mesher != "fTetWild":
+            lines.append(f"  meshed by {self.mesher}")
+        if self.sizes.get("graded_tets"):
+            lines.append(f"  graded towards the network: {self.sizes['graded_tets']:,} tets added by bisection, "
+                         f"edges down to {self.sizes['edge_length_min']:.4g}")
+        if self.sizes.get("budget_retries"):
+            lines.append(f"  fTetWild's mesh came out past 1.5x the tet budget or left no room under it for the "
+                         f"grading: meshed {self.sizes['budget_retries']} more time(s) with a coarser bulk, the "
+                         f"smallest mesh kept")
+        if self.sizes.get("resolution_floor"):
+            lines.append(f"  the network asked for edges down to {self.sizes['edge_length_needed']:.3g} "
+                         f"(~{self.sizes['needed_tets']:,} tets): held at {self.sizes['resolution_floor']:.3g} to keep "
+                         f"the tet budget; raise target_tets to resolve it")
+        if self.sizes.get("refine_levels"):
+            who = "TetGen" if self.mesher == "TetGen" else "fTetWild"
+            lines.append(f"  {who} meshed {self.sizes['mesher_tets']:,} tets, refined "
+                         f"{self.sizes['refine_levels']}x (each tet into 8)")
+        if self.sizes.get("flat_tets"):
+            left = self.sizes.get("flat_tets_left", 0)
+            lines.append(f"  fTetWild left {self.sizes['flat_tets']} flat tet(s): "
+                         f"{self.sizes.get('flat_moved_vertices', 0)} vertices moved off their plane"
+                         + (f", {left} still flat (no move of an interior vertex improved them)" if left else ""))
+        if self.sizes.get("snapped_vertices") is not None:
+            kept = self.sizes.get("snap_kept_vertices", 0)
+            lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "
+                         f"vertices moved" + (f", {kept:,} left where fTetWild put them (the move was too "
+                                              f"long or would have flattened a tet)" if kept else ""))
+        rep = repairs_text(self.repairs, self.repair_scale)
+        if rep:
+            lines.append(rep)
+        rep = corners_text(self.corners)
+        if rep:
+            lines.append(rep)
+        for k, v in self.stage_seconds.items():
+            lines.append(f"  {k:<12s} {v:8.2f} s")
+        lines.append(f"  {'total':<12s} {self.total_seconds:8.2f} s")
+        if self.lm is not None:
+            f = self.lm.final
+            lines.append(f"LM ({self.lm.init} start): {self.lm.n_iterations} iterations, {self.lm.cg_iterations} CG "
+                         f"steps, energy {f.energy:.6g} (smoothness {f.smoothness:.6g}, penalty {f.penalty:.3g}); "
+                         f"{self.lm.reason}")
+        for k, v in self.metrics.items():
+            lines.append(f"  {k}: {v:.4g}" if isinstance(v, float) else f"  {k}: {v}")
+        return "\n".join(lines)
+
+    def as_dict(self) -> dict:
+        d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
+             "edge_length": self.edge_length, "repairs": [asdict(r) for r in self.repairs],
+             "repair_scale": self.repair_scale, "mesher": self.mesher,
+             "corners": [asdict(c) for c in self.corners], "status": self.status, "converged": self.converged,
+             "status_reason": self.status_reason}
+        if self.lm is not None:
+            d["lm"] = {"init": self.lm.init, "converged": self.lm.converged, "reason": self.lm.reason,
+                       "iterations": [asdict(it) for it in self.lm.iterations]}
+        return d
+
+
+# A solve is "converged" when LM met its stopping rule and the structure
+# penalty of Eq. 23 sits at the discretisation level: at most
+# PENALTY_ABS + PENALTY_REL * smoothness.  Calibration (default meshes of
+# the built-in examples): cube 3e-26, cylinder 0.002, ball 0.16, plate
+# ~0.1, against smoothness 0-120; the torus, whose twist the second-order
+# structure equation cannot represent exactly, 13.8 at smoothness 117.6
+# (an exactly integrable twisted field scores 37-65 there, README).  Runs
+# that failed to embed the network (curves without tubes, folded
+# boundaries) ended at 24-2180.
+PENALTY_ABS = 1.0
+PENALTY_REL = 0.25
+
+
+def solution_status(lm: LMReport) -> tuple[str, str]:
+    """('converged' | 'not converged', why) of a Levenberg-Marquardt run."""
+    f = lm.final
+    allowed = PENALTY_ABS + PENALTY_REL * f.smoothness
+    if not lm.converged:
+        why = f"Levenberg-Marquardt {lm.reason}"
+        E = [it.energy for it in lm.iterations if it.accepted]
+        if lm.capped and len(E) > 5 and f.penalty <= allowed:
+            # the iteration cap, not a failure to resolve the network: say how
+            # close it came (graded meshes around short curves end in a flat
+            # valley of the energy, falling by ~1e-5 of it per iteration;
+            # 16-31 iterations at 8,000 tets)
+            change = (E[-6] - E[-1]) / max(abs(E[-1]), 1e-300)
+            fell = f"{1.0 + change:.3g}-fold" if change > 1.0 else f"by {100.0 * change:.2g}%"
+            near = ", close to a minimum but not at it" if change < 1e-3 else ""
+            why += (f" with the penalty at the discretisation level ({f.penalty:.3g} <= {allowed:.3g}); the "
+                    f"energy fell {fell} over the last 5 iterations{near}. Raise max_iterations (command "
+                    f"line: --iterations) to finish")
+        return "not converged", why
+    if f.penalty > allowed:
+        return "not converged", (f"the structure penalty {f.penalty:.3g} is above the discretisation level "
+                                 f"({PENALTY_ABS:g} + {PENALTY_REL:g} x smoothness {f.smoothness:.3g} = "
+                                 f"{allowed:.3g}): the network is not resolved or the field cannot wind as "
+                                 f"prescribed; try a finer mesh")
+    return "converged", f"{lm.reason}; penalty {f.penalty:.3g} <= {allowed:.3g}"
+
+
+# mean adaptation a converged field stays within (degrees): solved networks
+# score <= 0.6 (tangent: bent and short curves included) and <= 0.3 (normal); a
+# field that cannot follow a curve (one the surface frames do not carry,
+# before mesh/linking.py refused them) scored 43 with a penalty of 3e-5
+ADAPTATION_DEG = 5.0
+
+
+def adaptation_status(metrics: dict) -> str | None:
+    """Why a field whose structure penalty passed is still not a solution:
+    frames off the curves' tangents or the surface normals on average by
+    more than ADAPTATION_DEG; None when they follow both."""
+    for key, what in (("tangent_adaptation", "the curves' tangents"), ("normal_adaptation", "the surface normals")):
+        mean = metrics.get(f"{key}_mean_deg", 0.0)
+        if mean > ADAPTATION_DEG:
+            return (f"the frames are {mean:.3g} degrees off {what} on average (worst "
+                    f"{metrics.get(f'{key}_max_deg', mean):.3g}; a solved field stays within {ADAPTATION_DEG:g}): "
+                    f"check that the network is valid (every curve meets the surface along the normal, the "
+                    f"singular curves a sharp corner or a bent curve needs are there) and refine near the curves")
+    return None
