@@ -14,7 +14,8 @@ import pytest
 from solver import Curve, Network, NetworkError, Options, solve
 from solver.analysis.measures import normal_adaptation, tangent_adaptation
 from solver.examples import load_example
-from solver.network.intake import repairs_text, turning
+from solver.network.intake import repairs_text
+from solver.network.polyline import turning
 from solver.network.validation import check_input
 from solver.surface.trisurface import TriSurface
 from solver.tetedge import end_angles, tet_edge_network
@@ -41,7 +42,7 @@ def axial(x, y, n=9):
 def end_normal_angle(S: TriSurface, P) -> float:
     """Angle (degrees) of the last segment of P to the surface normal at its
     end (the pseudo-normal where the end lies on an edge or a vertex)."""
-    from solver.network.intake import surface_normal_at
+    from solver.network.curve_ends import surface_normal_at
 
     _, f, q = S.closest_points(P[-1:])
     t = (P[-1] - P[-2]) / np.linalg.norm(P[-1] - P[-2])
@@ -103,7 +104,7 @@ def test_a_closed_zigzag_loop_is_faired_all_round():
     (zig-zagging ~30 degrees; h = 0.15): faired into a round loop, its seam
     included, no corner kept.  It shrinks by the Laplacian's 4.5 l^2 / R
     (0.07 here: the price of removing the zig-zag of tet-edge chains)."""
-    from solver.network.intake import fair_curve
+    from solver.network.fairing import fair_curve
 
     t = np.linspace(0.0, 2 * np.pi, 61)
     r = 1.0 + 0.03 * np.where(np.arange(61) % 2 == 0, 1.0, -1.0)
@@ -153,7 +154,7 @@ def test_least_bending_straightens_a_bow_within_an_edge(cylinder):
     field pays for the curvature.  Bent as little as it can be within one
     edge of the input, it comes out straight and square to both caps.  A
     smooth bow of 0.5, a shape of the curve, is kept to within an edge."""
-    from solver.network.intake import BAND
+    from solver.network.fairing import BAND
 
     V, F, net = cylinder
     z = np.linspace(-1.0, 1.0, 9)
@@ -194,7 +195,7 @@ def test_oblique_end_is_turned_onto_the_normal(cylinder):
     and what is left is bent; the curve meets the cap along its normal, the
     report gives the angle, the slide and the length bent, and the curve
     stays inside."""
-    from solver.network.intake import SLIDE_MAX
+    from solver.network.fairing import SLIDE_MAX
 
     V, F, net = cylinder
     t = np.tan(np.radians(30))
@@ -221,7 +222,7 @@ def test_oblique_end_is_turned_onto_the_normal(cylinder):
 def test_a_long_oblique_stretch_is_slid_then_bent(cylinder):
     """45 degrees off the normal over the whole curve: sliding alone
     (capped at SLIDE_MAX l) cannot turn it, so the rest is bent."""
-    from solver.network.intake import SLIDE_MAX
+    from solver.network.fairing import SLIDE_MAX
 
     V, F, net = cylinder
     # square to the bottom cap, then 45 degrees off the top cap's normal for its last 1.1
@@ -274,7 +275,8 @@ def test_ends_off_the_surface_are_cut_back_or_extended(cylinder):
 def test_ends_far_off_the_surface_are_refused_with_the_distance(cylinder, past):
     """Beyond END_GAP h the end is not moved: a curve meant to end at a node,
     or drawn for another object.  The message gives the distance in h."""
-    from solver.network.intake import END_GAP, solid_scale
+    from solver.network.curve_ends import END_GAP
+    from solver.network.intake import solid_scale
 
     V, F, net = cylinder
     h = solid_scale(TriSurface(V, F))
@@ -618,7 +620,7 @@ def test_a_curve_from_a_node_is_bent_over_most_of_its_length():
     corrected, not yet the faces around them).  The curve still leaves the
     node as given, and meets the surface along the normal."""
     from solver.examples import ball_example
-    from solver.network.intake import BEND_FRACTION, BEND_FRACTION_ONE_END
+    from solver.network.curve_ends import BEND_FRACTION, BEND_FRACTION_ONE_END
 
     V, F, net = ball_example()
     S = np.array([2.0, 1.0, 0.6])

@@ -28,8 +28,8 @@ from ..linalg.rotations import exp_so3, log_so3
 from ..mesh.embed import Embedding
 from ..mesh.tetmesh import TetMesh
 from ..network.curves import CurveGeometry
-from ..network.intake import resample
 from ..network.network import PreparedNetwork, Torsion
+from ..network.polyline import resample
 from .boundary2d import BoundaryField, wrap
 from .structure import StructureEquation
 

@@ -1,6 +1,7 @@
 """The singularity network (§1.2): curves with an index, a role and a
 torsion mode (network.py), their geometry along the curve (curves.py), the
-repair of real-world curves at the mesh scale (intake.py), and the checks of
+repair of real-world curves at the mesh scale (intake.py: polylines in
+polyline.py, fairing in fairing.py, their ends in curve_ends.py), and the checks of
 a network against the solid before any heavy work (validation.py)."""
 
 from .network import Curve, Network, PreparedNetwork, Role, Torsion

@@ -21,8 +21,11 @@ from ..surface.features import (
     sharp_edges_from_pairs,
 )
 from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
-from .intake import END_GAP, MAX_KINK, join_loose_ends, repair_network, solid_scale, turning
+from .curve_ends import END_GAP, join_loose_ends
+from .fairing import MAX_KINK
+from .intake import repair_network, solid_scale
 from .network import Network, PreparedNetwork, _fmt, check_curve_basics, check_tolerances, prepare_network
+from .polyline import turning
 
 MAX_END_ANGLE = 30.0  # degrees between a curve's end tangent and the surface normal
 CROSSING_TOLERANCE = 0.01  # curves closer than this times h touch

@@ -1,0 +1,280 @@
+"""Fairing: a chain of mesh edges made a smooth curve at the scale of the mesh.
+
+A chain of mesh edges zig-zags and holds tiny segments (intake.py); at the
+scale h of the tet mesh it is a smooth curve.  ``fair_curve`` cleans and
+fairs it at a length tied to the mesh, never to the bounding box:
+
+1. *merge*: consecutive points closer than ``MERGE * h`` are dropped;
+2. *fairing length*: ``l = max(h, median segment length)`` -- a chain of
+   mesh edges carries no shape below its own edge length;
+3. *corners*: where the curve turns by more than ``MAX_KINK``
+   between chords of length ``CORNER_WINDOW * l`` on either side and
+   between chords twice as long (both fitting on the curve), but there by
+   less than 1.5 times as much (a corner, not an arc or a bump), the
+   input vertex nearest the largest turn is kept as a knot (a real
+   corner survives and validation reports it as it would have);
+4. *resample* between ends and corners by arc length at spacing ``l / 2``;
+5. *fair*: ``SMOOTH_ITERATIONS`` = 72 steps of Laplacian smoothing
+   ``P_i += 1/2 (P_(i-1) + P_(i+1) - 2 P_i) / 2`` with ends, nodes and corners
+   fixed -- a Gaussian of width 3 l along the curve: the zig-zag of mesh
+   edges goes, and so does a bend shorter than a few l between fixed points
+   (a chain of 3-4 mesh edges carries no shape of its own), and an arc of
+   radius R moves inwards by about 4.5 l^2 / R (a loop of radius 6.7 h by
+   0.5 h; reported).  A curve whose faired points would leave the solid
+   keeps its resampled points;
+5b. *least bending*: the Gaussian keeps the long bow of a chain that
+   strays to one side along its whole length, and the field pays for
+   every bend of a singular curve (the structure penalty grows with the
+   square of the curvature: the straight clean cylinder network scores
+   0.0018, its curves bowed to turn 2.3 degrees over h 0.0099, 7 degrees
+   0.090, with fairing alone, which kept those bows).  So an open curve
+   is then bent as little as it can be while every point stays within
+   ``BAND * l`` of the input -- again the chain's own uncertainty
+   (``_least_bending``): the least sum of |P_(i-1) - 2 P_i + P_(i+1)|^2
+   (a discrete cubic spline) with nodes and corners held, boundary ends
+   free to move in their tangent plane (by at most ``SLIDE_MAX * l`` from
+   the input end) and the curve meeting the surface along the normal
+   (each end's neighbour against its mirror image in that plane); points
+   beyond the band are pulled back to its edge by a penalty that grows
+   from faint round by round.  A shape smaller than an edge of the chain
+   goes (the tet-edge cylinder's curves come out straight), a larger one
+   is kept to within l;
+6. *sliding ends*: a boundary end slides along the surface while the curve is
+   faired: it is smoothed against the mirror image of its neighbour in the
+   tangent plane (the curve continued by reflection, which crosses the
+   surface at right angles), so it moves towards the foot of the curve
+   and the last stretch turns onto the normal smoothly, over the fairing
+   width (by at most ``SLIDE_MAX * l``: the chain's own uncertainty,
+   about an edge of its mesh; the plane follows the surface).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+from .curves import CurveGeometry
+from .polyline import arclength, merge_close, resample, turning
+
+MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of h/2 each side)
+MERGE = 0.05  # points closer than MERGE * h are merged
+CORNER_WINDOW = 2.0  # chords of CORNER_WINDOW * l on each side detect real corners
+SMOOTH_ITERATIONS = 72  # Laplacian steps of 1/2 at spacing l / 2: a Gaussian of width 3 l
+BAND = 1.0  # least bending keeps every point within BAND * l of the input
+SLIDE_MAX = 1.0  # a boundary end slides along the surface by at most this many l while faired
+
+
+def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
+    """Indices of input vertices where the curve really turns: the turn
+    between chords of CORNER_WINDOW * ell exceeds MAX_KINK, at its largest."""
+
+    if len(P) < 3:
+        return np.zeros(0, int)
+    cum = arclength(P)
+    fine = resample(P, ell / 4.0)
+    sf = arclength(fine)
+    w = CORNER_WINDOW * ell
+    ang = turning(fine, w, closed)
+    # A corner has straight arms: the turn is over MAX_KINK between chords
+    # of w and still between chords of 2 w, but there less than 1.5 times
+    # as much.  An arc's turn doubles with the chords; a bump's -- a
+    # tet-edge chain straying by an edge to one side and back -- averages
+    # out.  Both chords of 2 w must fit on the curve: nearer an end (or on
+    # a curve shorter than four windows) a corner cannot be told from a
+    # bump of the chain's own edges.  (With chords of w alone, bumps on
+    # the tet-edge cylinder turning 45-50 degrees between chords of 2 l
+    # were kept as corners in about 1 chain in 10; the faired curves then
+    # kinked by 16-32 degrees over h, and LM ended with a penalty of 3-31
+    # or at its cap.)
+    wide = turning(fine, 2.0 * w, closed)
+    big = (ang > MAX_KINK) & (wide > MAX_KINK) & (wide < 1.5 * ang)
+    if not closed:
+        big &= (sf >= 2.0 * w) & (sf <= sf[-1] - 2.0 * w)
+    knots = []
+    i = 0
+    while i < len(ang):
+        if not big[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(ang) and big[j + 1]:
+            j += 1
+        m = i + int(np.argmax(ang[i : j + 1]))
+        v = int(np.argmin(np.abs(cum - sf[m])))
+        if 0 < v < len(P) - 1:
+            knots.append(v)
+        i = j + 1
+    return np.unique(np.array(knots, int))
+
+
+def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: int,
+                    slide: dict | None = None, slide_max: float = 0.0, project=None) -> np.ndarray:
+    """Explicit Laplacian smoothing (step 1/2) with the fixed vertices held.
+    k steps at spacing s act like a Gaussian of width s sqrt(k / 2) along the
+    curve.  (Taubin's lambda|mu filter, tried first, keeps bends longer than
+    ~6 l: on tet-edge chains of 3-4 edges that is the zig-zag itself, and the
+    ball's LM then ended at its cap with a penalty of 956.)
+
+    slide : {0 or -1: outward unit normal} -- open ends lying on the surface.
+    Such an end is smoothed against the mirror image of its neighbour in the
+    tangent plane (the curve continued by reflection, which meets the plane
+    at right angles): it slides in the plane towards the foot of its
+    neighbour, by at most slide_max in all, and the curve's last stretch
+    turns towards the normal smoothly, over the filter's width.  project(x)
+    -> (closest surface point, its outward normal): every 8 steps the end
+    is put back on the surface and the plane follows it."""
+    Q = P.copy()
+    n = len(Q) - 1 if closed else len(Q)
+    core = Q[:n]
+    free = ~fixed[:n].copy()
+    if not closed:
+        free[[0, -1]] = False
+    ends = [] if closed or not slide else [[i % n, (1 if i == 0 else n - 2), np.asarray(v, float)]
+                                           for i, v in slide.items() if n > 2]
+    start = {e[0]: core[e[0]].copy() for e in ends}
+    for step in range(iterations):
+        if project is not None and step and step % 8 == 0:
+            for e in ends:
+                core[e[0]], e[2] = project(core[e[0]])
+        if closed:
+            lap = 0.5 * (np.roll(core, 1, axis=0) + np.roll(core, -1, axis=0)) - core
+        else:
+            lap = np.zeros_like(core)
+            lap[1:-1] = 0.5 * (core[:-2] + core[2:]) - core[1:-1]
+        for i, j, nrm in ends:
+            d = core[j] - core[i]
+            lap[i] = d - (d @ nrm) * nrm
+        core[free] += 0.5 * lap[free]
+        for i, _, _ in ends:
+            x = core[i] + 0.5 * lap[i]
+            off = x - start[i]
+            r = np.linalg.norm(off)
+            core[i] = x if r <= slide_max else start[i] + off * (slide_max / r)
+    Q[:n] = core
+    if closed:
+        Q[-1] = Q[0]
+    return Q
+
+
+def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None, project=None):
+    """Steps 1-5 of the module docstring.  slide: {0 or -1: outward normal}
+    of boundary ends that may slide along the surface (``_laplacian_fair``;
+    by at most ``SLIDE_MAX * l``; project: its surface projection).
+    Returns (points, merged count, fairing length l, corner count, fixed
+    mask)."""
+    Pm = merge_close(P, MERGE * h, closed)
+    merged = len(P) - len(Pm)
+    seg = np.linalg.norm(np.diff(Pm, axis=0), axis=1)
+    ell = max(h, float(np.median(seg)))
+    L = float(seg.sum())
+    knots = _corner_knots(Pm, ell, closed)
+    cuts = np.r_[0, knots, len(Pm) - 1]
+    pieces, fixed = [], []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        R = resample(Pm[a : b + 1], 0.5 * min(ell, max(L / 4.0, 1e-300)))
+        pieces.append(R if not pieces else R[1:])
+        f = np.zeros(len(pieces[-1]), bool)
+        f[-1] = True
+        if len(fixed) == 0:
+            f[0] = True
+        fixed.append(f)
+    Q = np.vstack(pieces)
+    fx = np.concatenate(fixed)
+    if closed and not len(knots):
+        fx[[0, -1]] = False  # a loop's seam is no end
+    # (Tukey's twicing, adding back the smoothed residual, kept a loop of
+    # radius 6.7 h round (0.5 h of shrinking -> 0.01 h) but also the bow of
+    # tet-edge chains near their ends: on the tet-edge cylinder curves moved
+    # by up to 1.1 h, turned 19 degrees over h, and LM took 19 iterations to
+    # a penalty of 157, against 0.8 h, 9 degrees, 7-9 and 67 without)
+    Q = _laplacian_fair(Q, fx, closed, SMOOTH_ITERATIONS, slide, SLIDE_MAX * ell, project)
+    if not closed and len(Q) > 2:
+        ends = []
+        for e in slide or {}:
+            i = e % len(Q)
+            nrm = project(Q[i])[1] if project is not None else np.asarray(slide[e], float)
+            ends.append((i, 1 if i == 0 else len(Q) - 2, nrm))
+        Q = _least_bending(Q, fx, ends, Pm, BAND * ell, SLIDE_MAX * ell)
+        if project is not None:
+            for i, _, _ in ends:
+                Q[i] = project(Q[i])[0]
+    return Q, merged, ell, len(knots), fx
+
+
+def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarray, band: float,
+                   slide_max: float, rounds: int = 80) -> np.ndarray:
+    """Step 5b of the module docstring: the open polyline Q bent as little
+    as it can be -- the least sum of |P_(i-1) - 2 P_i + P_(i+1)|^2 over the
+    points not centred on a fixed one -- with the fixed points held and
+    every point within band of the polyline guide.  (Not for loops: with
+    nothing held the sum shrinks a loop.)
+
+    ends : (end index, its neighbour, unit outward normal) of boundary ends.
+           Such an end moves in its tangent plane only (a stiff term
+           PLANE (n . (P - P_end))^2); the term |2 (I - n n^T)(P_neighbour -
+           P_end)|^2 (the neighbour against its mirror image in the plane)
+           makes the curve meet the surface along the normal; it stays
+           within slide_max of the guide's end.  The other end points
+           stay where they are.
+    Points beyond the band (ends: beyond slide_max) are pulled to its edge
+    with a weight mu that starts faint (1e-4, against bending terms of
+    order 1) and doubles each round up to PLANE, until none is 1 % past
+    it: the pull follows the least-bending curve as the band closes in.
+    (Starting stiff froze the first round's points at the band's edge:
+    where no straight line fits, the bend gathered into a bump of 12
+    degrees over h at the input's apex instead of spreading over the curve
+    at 2.)
+    """
+    n = len(Q)
+    PLANE = 1e6
+    free = ~fixed
+    free[[0, -1]] = False
+    c = np.arange(1, n - 1)
+    c = c[free[c]]
+    D = sp.csr_matrix((np.tile([1.0, -2.0, 1.0], len(c)),
+                       (np.repeat(np.arange(len(c)), 3), np.stack([c - 1, c, c + 1], 1).ravel())),
+                      shape=(len(c), n))
+    blocks = [sp.kron(D, sp.identity(3), format="csr")]
+    stiff = sp.lil_matrix((3 * n, 3 * n))
+    plane_rhs = np.zeros(3 * n)
+    r, k = np.repeat(np.arange(3), 3), np.tile(np.arange(3), 3)
+    for i, j, nrm in ends:
+        T = 2.0 * (np.eye(3) - np.outer(nrm, nrm))
+        blocks.append(sp.csr_matrix((np.r_[T.ravel(), -T.ravel()], (np.r_[r, r], np.r_[3 * j + k, 3 * i + k])),
+                                    shape=(3, 3 * n)))
+        N = PLANE * np.outer(nrm, nrm)
+        stiff[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = N
+        plane_rhs[3 * i : 3 * i + 3] = N @ Q[i]
+        free[i] = True
+    if not free.any():
+        return Q
+    G = sp.vstack(blocks).tocsr()
+    H = (G.T @ G + stiff.tocsr()).tocsr()
+    f3 = np.repeat(free, 3)
+    x = Q.ravel().copy()
+    target = x.copy()
+    w = np.full(3 * n, 1e-8)  # the faintest pull: to the faired curve, then to the last round's
+    geo = CurveGeometry(guide)
+    mu = 1e-4
+    for _ in range(rounds):
+        A = (H + sp.diags(w)).tocsr()
+        x[f3] = spsolve(A[f3][:, f3].tocsc(), (w * target + plane_rhs)[f3] - A[f3][:, ~f3] @ x[~f3])
+        X = x.reshape(n, 3)
+        s, t, d = geo.closest(X)
+        foot = geo.point(s, t)
+        lim = np.full(n, band)
+        for i, _, _ in ends:
+            foot[i] = guide[0] if i == 0 else guide[-1]
+            d[i] = np.linalg.norm(X[i] - foot[i])
+            lim[i] = slide_max
+        out = free & (d > lim)
+        if not np.any(free & (d > 1.01 * lim)):
+            break
+        target = x.copy()
+        tg = target.reshape(n, 3)
+        tg[out] = foot[out] + (lim[out] / d[out])[:, None] * (X[out] - foot[out])
+        w = np.full(3 * n, 1e-8)
+        w.reshape(n, 3)[out] = mu
+        mu = min(2.0 * mu, PLANE)
+    return x.reshape(n, 3)

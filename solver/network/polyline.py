@@ -1,0 +1,67 @@
+"""Polylines: arc length, points at arc length, turning over a length,
+merging close points, resampling and the Hausdorff distance."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def arclength(P: np.ndarray) -> np.ndarray:
+    return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+
+
+def at_arclength(P: np.ndarray, s: np.ndarray, cum: np.ndarray | None = None) -> np.ndarray:
+    """Points of the polyline P at arc lengths s (clamped to the ends)."""
+    cum = arclength(P) if cum is None else cum
+    return np.stack([np.interp(s, cum, P[:, k]) for k in range(3)], axis=1)
+
+
+def turning(P: np.ndarray, window: float, closed: bool = False) -> np.ndarray:
+    """Angle (degrees) at each vertex between the chords to the points at arc
+    length ``window`` behind and ahead of it (clamped at open ends): the turn
+    of the curve over a length comparable to window, not across one segment."""
+    cum = arclength(P)
+    L = cum[-1]
+    s = cum
+    if closed:
+        back = at_arclength(P, np.mod(s - window, L), cum)
+        ahead = at_arclength(P, np.mod(s + window, L), cum)
+    else:
+        back = at_arclength(P, np.maximum(s - window, 0.0), cum)
+        ahead = at_arclength(P, np.minimum(s + window, L), cum)
+    u, v = P - back, ahead - P
+    nu, nv = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
+    ok = (nu > 1e-12 * max(L, 1e-300)) & (nv > 1e-12 * max(L, 1e-300))
+    c = np.einsum("ij,ij->i", u, v) / np.where(ok, nu * nv, 1.0)
+    out = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+    out[~ok] = 0.0
+    return out
+
+
+def merge_close(P: np.ndarray, tol: float, closed: bool) -> np.ndarray:
+    """Drop points closer than tol to the last kept one (ends are kept)."""
+    keep = [0]
+    for i in range(1, len(P) - 1):
+        if np.linalg.norm(P[i] - P[keep[-1]]) > tol:
+            keep.append(i)
+    last = len(P) - 1
+    if len(keep) > 1 and np.linalg.norm(P[last] - P[keep[-1]]) <= tol:
+        keep[-1] = last
+    else:
+        keep.append(last)
+    return P[keep]
+
+
+def resample(P: np.ndarray, spacing: float) -> np.ndarray:
+    """Uniform resampling by arc length (ends kept)."""
+    cum = arclength(P)
+    n = max(1, int(np.ceil(cum[-1] / spacing - 1e-9)))
+    return at_arclength(P, np.linspace(0.0, cum[-1], n + 1), cum)
+
+
+def hausdorff(A: np.ndarray, B: np.ndarray, step: float) -> float:
+    """Symmetric Hausdorff distance between two polylines, sampled at step."""
+    a = resample(A, step) if len(A) > 1 else A
+    b = resample(B, step) if len(B) > 1 else B
+    return float(max(cKDTree(b).query(a)[0].max(), cKDTree(a).query(b)[0].max()))
