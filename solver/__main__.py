@@ -57,6 +57,9 @@ def _parser() -> argparse.ArgumentParser:
                    ".ovm (OpenVolumeMesh) or .qtn (AlgoHex); may be repeated")
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
     p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
+    p.add_argument("--grading", type=float, help="with the automatic edge length: growth of the edge length per "
+                   "unit distance from the network where it needs a finer mesh (0.1-1, default 0.5; lower it, with "
+                   "a larger --target-tets, around node-to-node curves shorter than an edge)")
     p.add_argument("--max-tets", type=int, help="refuse meshes estimated past this many tets (default 1,000,000, "
                    "or what fits in 3/4 of the memory); raise it to solve larger meshes on a big machine")
     p.add_argument("--refine", type=int, help="red-refinement levels after fTetWild (default: automatic, 0-2)")
@@ -78,7 +81,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _options(args, file_options: dict):
     d = dict(file_options)
-    for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets),
+    for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets), ("grading", args.grading),
                      ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init),
                      ("refine", args.refine), ("max_tets", args.max_tets), ("mesher", args.mesher)):
         if val is not None:

@@ -63,6 +63,10 @@ class Options:
     target_tets    : tet budget when edge_length is None: the mesh is graded
                      (fine only where the network needs it, resolution.py)
                      and stays within 1.5x of it whatever the network
+    grading        : growth of that graded mesh's edge length per unit
+                     distance from the network (0.1-1; default 0.5).  Lower
+                     it together with a larger target_tets to resolve
+                     node-to-node curves shorter than an edge better
     max_tets       : refuse a solve whose estimated tet count exceeds this;
                      None: 1,000,000 tets, or fewer if their estimated
                      memory exceeds 3/4 of this machine's (resolution.py)
@@ -95,6 +99,7 @@ class Options:
     node_radius: float = 1.5
     epsilon: float = 1e-3
     target_tets: int = 15000
+    grading: float = 0.5
     check_intersections: bool = True
     refine: int | None = None
     snap_features: bool = True
@@ -122,6 +127,8 @@ class Options:
                                                  "the default is 1e-3")
         self.target_tets = checks.integer("option 'target_tets'", self.target_tets, E, low=1,
                                           fix="the default is 15000")
+        self.grading = checks.real("option 'grading'", self.grading, E, low=0.1, high=1.0,
+                                     fix="a growth of the edge length per unit distance, the default is 0.5")
         self.check_intersections = checks.boolean("option 'check_intersections'", self.check_intersections, E)
         self.refine = checks.integer("option 'refine'", self.refine, E, low=0, high=3, allow_none=True,
                                      fix="0-3 red-refinement levels, or null/None for automatic")
@@ -192,7 +199,7 @@ def resolution_plan(checked: CheckedInput, opts: Options) -> Plan:
     else:
         target = int(opts.target_tets)
         check_resolution(target, opts.max_tets, f"target_tets = {target:,}")
-        plan = plan_resolution(vol, checked.surface, checked.network, target)
+        plan = plan_resolution(vol, checked.surface, checked.network, target, grading=opts.grading)
         what = f"target_tets = {target:,}"
     k = 0 if opts.refine is None else int(opts.refine)
     check_resolution(plan.tets, opts.max_tets, what, mesher_tets=plan.tets / 8.0**k, volume=vol)

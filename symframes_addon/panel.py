@@ -63,6 +63,9 @@ class SYMFRAMES_PT_advanced(SymFramesPanel, bpy.types.Panel):
         s = context.scene.symframes
         layout = _split(self.layout)
         col = layout.column()
+        sub = col.row()
+        sub.active = s.auto_resolution
+        sub.prop(s, "grading")
         col.prop(s, "penalty")
         col.prop(s, "max_iterations")
         col.prop(s, "init")

@@ -181,6 +181,12 @@ class SymFramesSettings(bpy.types.PropertyGroup):
         description="With Auto resolution: about how many tetrahedra to mesh the solid with (the edge length is "
         "then also kept small enough to resolve the network's smallest features)",
     )
+    grading: FloatProperty(
+        name="Grading", default=0.5, min=0.1, max=1.0, precision=2,
+        description="With Auto resolution: how fast the edge length grows away from the parts of the network "
+        "that need a finer mesh (per unit distance). Lower it, with more Target Tets, around curves shorter "
+        "than an edge",
+    )
     penalty: FloatProperty(
         name="Penalty", default=1000.0, min=1e-3, soft_max=1e5,
         description="Weight a of the structure-equation penalty (Eq. 23)",

@@ -44,14 +44,14 @@ class Inputs:
     def mesh_key(self) -> str:
         """Fingerprint of what the tet mesh depends on (surface, curve
         geometry and roles, node tolerance, edge length or, with Auto, the
-        target tet count); equal keys allow reusing the tet mesh."""
+        target tet count and the grading); equal keys allow reusing the tet mesh."""
         h = hashlib.sha1()
         for a in (self.V, self.F):
             h.update(np.ascontiguousarray(a).tobytes())
         for c in self.network.curves:
             h.update(c.role.value.encode())
             h.update(np.ascontiguousarray(c.points).tobytes())
-        auto = self.options.target_tets if self.options.edge_length is None else None
+        auto = (self.options.target_tets, self.options.grading) if self.options.edge_length is None else None
         h.update(repr((self.options.edge_length, auto, self.network.node_tolerance)).encode())
         return h.hexdigest()
 
@@ -196,6 +196,7 @@ def solver_options(settings) -> Options:
         init=settings.init,
         seed=int(settings.solve_seed),
         target_tets=int(settings.target_tets),
+        grading=float(settings.grading),
     )
 
 

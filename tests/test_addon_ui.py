@@ -172,6 +172,12 @@ def test_solve_seed_and_target_tets_reach_the_solver():
     assert scene_io.read_inputs(bpy.context).mesh_key() != key
     s.solve_seed = 8  # the seed does not change the mesh
     assert scene_io.read_inputs(bpy.context).mesh_key() == scene_io.read_inputs(bpy.context).mesh_key()
+    # nor does anything but the resolution: the grading does
+    key = scene_io.read_inputs(bpy.context).mesh_key()
+    s.grading = 0.3
+    inp = scene_io.read_inputs(bpy.context)
+    assert inp.options.grading == pytest.approx(0.3) and inp.mesh_key() != key
+    s.grading = 0.5
     # a fixed edge length decides it alone
     s.auto_resolution = False
     key = scene_io.read_inputs(bpy.context).mesh_key()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import Curve, FieldProblem, Network, Options, solve
+from solver import Curve, FieldProblem, Network, Options, OptionsError, solve
 from solver.__main__ import EXIT_NOT_CONVERGED
 from solver.__main__ import main as cli_main
 from solver.analysis.measures import normal_adaptation, omega_singular_faces, tangent_adaptation
@@ -80,6 +80,48 @@ def test_automatic_resolution_keeps_the_budget():
 
 
 # ----------------------------------------------------------------- grading
+def test_a_gentler_grading_spreads_the_fine_sizes_farther():
+    """Options.grading is the growth of the sizing field per unit distance:
+    with a budget that affords the network, the finest size is the same, the
+    field grows from it at that rate, and the graded region costs more
+    tets (~(0.5 / g)^3 times, the estimate's integral)."""
+    V, F, net = wall_network()
+    checked = check_input(V, F, net)
+    plans = {g: resolution_plan(checked, Options(target_tets=200_000, grading=g)) for g in (0.5, 0.25)}
+    for g, plan in plans.items():
+        assert plan.floor == 0 and plan.grading == g
+        assert plan.finest == pytest.approx(0.05 / 3, rel=0.05)
+        src = plan.sources[np.argmin(plan.sizes)]
+        X = src + np.array([[0.0, 0.0, 0.2], [0.0, 0.0, 0.4]])  # along the curve's wall, inside the box
+        assert np.allclose(plan.sizing(X), np.minimum(plan.edge_length, plan.finest + g * np.array([0.2, 0.4])),
+                           rtol=0.05)
+        assert plan.tets <= 1.5 * 200_000
+    assert plans[0.25].graded_tets > 3.0 * plans[0.5].graded_tets
+
+
+@pytest.mark.parametrize("g", [0.0, 0.05, 1.5, "0.3", float("nan")])
+def test_grading_out_of_range_is_refused(g):
+    with pytest.raises(OptionsError, match="option 'grading'"):
+        Options(grading=g)
+
+
+def test_grading_reaches_the_plan_from_the_command_line(capsys, tmp_path):
+    from solver.io.formats import write_network, write_obj
+
+    V, F, net = wall_network()
+    write_obj(str(tmp_path / "box.obj"), V, F)
+    write_network(str(tmp_path / "wall.json"), net, surface="box.obj")
+    expected = {}
+    for g in (0.5, 0.25):
+        assert cli_main([str(tmp_path / "wall.json"), "--check", "--target-tets", "200000", "--grading", str(g)]) == 0
+        line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("resolution:"))
+        plan = resolution_plan(check_input(V, F, net, True, None, True, 200_000),
+                               Options(target_tets=200_000, grading=g))
+        expected[g] = line
+        assert f"expected ~{plan.tets:,.0f} tets" in line, (line, plan.describe())
+    assert expected[0.5] != expected[0.25]
+
+
 def test_bisection_is_conforming():
     from solver.mesh.tetmesh import TetMesh
 

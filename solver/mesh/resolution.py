@@ -22,14 +22,19 @@ Three things, all decided before any heavy work:
   mesh aims at ``Options.target_tets`` tets whatever the network: the bulk
   gets the edge length H that the budget leaves once the network's needs
   are paid for, and the sizing field
-  h(x) = min(H, min_i (h_i + GRADING |x - p_i|)) is fine only near
+  h(x) = min(H, min_i (h_i + g |x - p_i|)) is fine only near
   network sample points p_i that need it: h_i = (local feature size) / 3,
   where the local feature size is the length of a curve between nodes,
   the distance of a curve to another or to the surface (as in
   network.validation.network_needs).  When the network's
   needs alone exceed the budget, h_i are floored (the report says so and
   by how much the budget would have to grow).  bisection.py refines the
-  bulk mesh to this field after meshing.
+  bulk mesh to this field after meshing.  The growth rate g is
+  ``Options.grading`` (default ``GRADING`` = 0.5): around a small part of
+  the network (node-to-node curves shorter than an edge) the field turns
+  like 1/r, so an edge turns it by about g and the structure residual of
+  every octave of distance is about the same, set by g; a gentler grading
+  costs ~(0.5 / g)^3 times the graded tets (docs/limitations.md).
 """
 
 from __future__ import annotations
@@ -51,7 +56,7 @@ SOLVER_BASE_MB = 100.0
 MESHER_KB_PER_TET = 8.5
 DEFAULT_MAX_TETS = 1_000_000
 RAM_FRACTION = 0.75
-GRADING = 0.5  # growth of the sizing field per unit distance
+GRADING = 0.5  # default growth of the sizing field per unit distance (Options.grading)
 BULK_SHARE_MIN = 0.5  # the bulk keeps at least half of the budget's tets
 # bisected tets are less regular than fTetWild's: grading a ball's mesh
 # from 0.2 down to a point of 0.02 (bisection.py, longest edges <= 1.5 h)
@@ -93,6 +98,7 @@ class Plan:
     floor       : edge length below which the network's needs were not
                   met to keep the budget (0: all met)
     needed_tets : the estimate had every need been met (== tets if floor 0)
+    grading     : growth of the edge length per unit distance from the sources
     """
 
     edge_length: float
@@ -104,6 +110,7 @@ class Plan:
     needed_tets: float = 0.0
     finest: float = 0.0
     need_min: float = 0.0
+    grading: float = GRADING
 
     @property
     def graded(self) -> bool:
@@ -111,7 +118,7 @@ class Plan:
 
     def sizing(self, X: np.ndarray) -> np.ndarray:
         """Edge length h(x) wanted at points X (n, 3)."""
-        return sizing_field(X, self.sources, self.sizes, self.edge_length)
+        return sizing_field(X, self.sources, self.sizes, self.edge_length, self.grading)
 
     def describe(self) -> str:
         s = f"edge length {self.edge_length:.4g}"
@@ -124,7 +131,7 @@ class Plan:
         return s
 
 
-def sizing_field(X, sources, sizes, H, k: int = 24) -> np.ndarray:
+def sizing_field(X, sources, sizes, H, grading: float = GRADING, k: int = 24) -> np.ndarray:
     X = np.asarray(X, float)
     out = np.full(len(X), float(H))
     if sources is None or len(sources) == 0:
@@ -133,7 +140,7 @@ def sizing_field(X, sources, sizes, H, k: int = 24) -> np.ndarray:
     d, j = tree.query(X, k=min(k, len(sources)))
     if d.ndim == 1:
         d, j = d[:, None], j[:, None]
-    return np.minimum(out, np.min(sizes[j] + GRADING * d, axis=1))
+    return np.minimum(out, np.min(sizes[j] + grading * d, axis=1))
 
 
 # ------------------------------------------------------------------ budget
@@ -150,7 +157,7 @@ def _unit_ball(n: int = 4000) -> np.ndarray:
     return _UNIT_BALL
 
 
-def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float) -> float:
+def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float, grading: float = GRADING) -> float:
     """Monte Carlo estimate of the tets the sizing field adds to a uniform
     mesh at H: the integral of 15 (h^-3 - H^-3) over the union of the balls
     where h < H (each sample weighted by 1 / the number of balls holding it,
@@ -160,7 +167,7 @@ def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float) -> float
     if not np.any(sel):
         return 0.0
     P, h = sources[sel], sizes[sel]
-    R = (H - h) / GRADING
+    R = (H - h) / grading
     vol = 4.0 / 3.0 * np.pi * R**3
     U, w = _unit_ball()
     cdf = np.cumsum(vol) / vol.sum()
@@ -171,13 +178,13 @@ def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float) -> float
     inside = d < R[flat]
     c = np.bincount(row[inside], minlength=len(X)).astype(float)
     hx = np.full(len(X), H)
-    np.minimum.at(hx, row[inside], h[flat[inside]] + GRADING * d[inside])
+    np.minimum.at(hx, row[inside], h[flat[inside]] + grading * d[inside])
     f = TETS_PER_H3 * (hx**-3 - H**-3)
     return float(GRADED_FACTOR * vol.sum() / len(X) * np.sum(f / np.maximum(c, 1.0)))
 
 
 def plan_resolution(volume: float, S: TriSurface, pn: PreparedNetwork, target_tets: int,
-                    graded: bool = True) -> Plan:
+                    graded: bool = True, grading: float = GRADING) -> Plan:
     """The automatic resolution: a bulk edge length and a sizing field whose
     estimated tet count is target_tets (module docstring)."""
     H0 = (TETS_PER_H3 * volume / target_tets) ** (1.0 / 3.0)
@@ -188,7 +195,7 @@ def plan_resolution(volume: float, S: TriSurface, pn: PreparedNetwork, target_te
         return Plan(edge_length=H0, tets=uniform_tets(volume, H0))
     pts, h = pts[sel], h[sel]
     need_min = float(h.min())
-    total = lambda H, hh: uniform_tets(volume, H) + graded_extra_tets(pts, hh, H)  # noqa: E731
+    total = lambda H, hh: uniform_tets(volume, H) + graded_extra_tets(pts, hh, H, grading)  # noqa: E731
     H_max = H0 / BULK_SHARE_MIN ** (1.0 / 3.0)
     needed = total(H0, h)
     floor = 0.0
@@ -207,9 +214,10 @@ def plan_resolution(volume: float, S: TriSurface, pn: PreparedNetwork, target_te
             lo, hi = (mid, hi) if total(H, np.maximum(h, mid)) > target_tets else (lo, mid)
         floor = hi
     hh = np.maximum(h, floor)
-    extra = graded_extra_tets(pts, hh, H)
+    extra = graded_extra_tets(pts, hh, H, grading)
     p = Plan(edge_length=float(H), tets=uniform_tets(volume, H) + extra, graded_tets=extra, sources=pts,
-             sizes=hh, floor=float(floor), needed_tets=float(needed), finest=float(hh.min()), need_min=need_min)
+             sizes=hh, floor=float(floor), needed_tets=float(needed), finest=float(hh.min()), need_min=need_min,
+             grading=float(grading))
     return p
 
 
