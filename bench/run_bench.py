@@ -6,6 +6,7 @@ example at several sizes, each size in a fresh process.
     ./dev.sh bench --write                  # also (re)write bench/RESULTS.md's solver table
     ./dev.sh bench --tets 130000 130000 130000   # the spread over fresh meshes of one size
     ./dev.sh bench --real-shape 3 --write   # a CAD-like part at default settings, 3 fresh runs
+    ./dev.sh bench --short-curves 2 --write # node-to-node curves shorter than an edge: budget and grading
 
 Sizes are targets: fTetWild's tet count lands within ~30% of them.
 """
@@ -27,15 +28,22 @@ sys.path.insert(0, ROOT)
 STAGES = ("validate", "tetmesh", "embed", "boundary2d", "constraints", "volume3d", "integrate")
 
 
-def run_one(example: str, tets: int, mesher: str = "auto") -> dict:
+def run_one(example: str, tets: int, mesher: str = "auto", grading: float = 0.5) -> dict:
     """Solve once in this process and return the figures (example 'lprism'
-    with tets 0: the real-shape row, default settings)."""
+    with tets 0: the real-shape row, default settings; 'short': the
+    cube-sphere network with curves 0.1 long, SHORT_CURVES)."""
     from solver import FieldProblem, Options
-    from solver.examples import l_prism_example, load_example
+    from solver.examples import ball_example, l_prism_example, load_example
 
-    V, F, net = l_prism_example() if example == "lprism" else load_example(example)
+    if example == "lprism":
+        V, F, net = l_prism_example()
+    elif example == "short":
+        V, F, net = ball_example(inner=0.05)
+    else:
+        V, F, net = load_example(example)
     t0 = time.perf_counter()
-    problem = FieldProblem(V, F, net, Options(target_tets=tets, mesher=mesher) if tets else Options(mesher=mesher))
+    opts = Options(mesher=mesher, grading=grading, **({"target_tets": tets} if tets else {}))
+    problem = FieldProblem(V, F, net, opts)
     result = problem.solve()
     wall = time.perf_counter() - t0
     rep = result.report
@@ -46,7 +54,8 @@ def run_one(example: str, tets: int, mesher: str = "auto") -> dict:
             "lm_iterations": rep.lm.n_iterations, "cg_iterations": rep.lm.cg_iterations,
             "lm_reason": rep.lm.reason, "energy": rep.lm.final.energy, "peak_mb": own, "mesher_peak_mb": child,
             "metrics": rep.metrics, "status": rep.status, "mesher_tets": rep.sizes.get("mesher_tets", 0),
-            "mesher": rep.mesher or "fTetWild", "mesher_option": mesher,
+            "mesher": rep.mesher or "fTetWild", "mesher_option": mesher, "grading": grading,
+            "penalty": rep.lm.final.penalty,
             "cpu": _cpu(resource.RUSAGE_SELF), "mesher_cpu": _cpu(resource.RUSAGE_CHILDREN)}
 
 
@@ -73,6 +82,25 @@ def real_shape_table(rows: list[dict]) -> str:
         lines.append(f"| {r.get('mesher_option', 'auto')} | {r.get('mesher', 'fTetWild')} | {r['tets']:,} | {tm:.1f} | "
                      f"{r['stages'].get('volume3d', 0.0):.1f} | {r['wall']:.1f} | {tm / tot:.0%} | {cpu_share:.0%} | "
                      f"{r['lm_iterations']} | {r['status']} |")
+    return "\n".join(lines)
+
+
+SHORT_CURVES = ("cube-sphere network with an inner cube 0.1 across (`ball_example(inner=0.05)`: 12 node-to-node "
+                "curves 0.1 long, shorter than the bulk edge length), default options but for target_tets and "
+                "grading")
+SHORT_RUNS = ((15000, 0.5), (45000, 0.5), (45000, 0.2))  # (target_tets, grading): the default, then the bar's
+
+
+def short_curves_table(rows: list[dict]) -> str:
+    """The structure penalty around short curves against the budget and the
+    grading (docs/limitations.md): the issue's bar is a penalty <= 1."""
+    lines = ["| target_tets | grading | tets | penalty | status | LM its | tangent mean / max ° | total s |",
+             "|---:|---:|---:|---:|---|---:|---:|---:|"]
+    for r in rows:
+        m = r["metrics"]
+        lines.append(f"| {r['target']:,} | {r['grading']:g} | {r['tets']:,} | {r['penalty']:.3g} | {r['status']} | "
+                     f"{r['lm_iterations']} | {m.get('tangent_adaptation_mean_deg', 0.0):.2f} / "
+                     f"{m.get('tangent_adaptation_max_deg', 0.0):.2f} | {r['wall']:.0f} |")
     return "\n".join(lines)
 
 
@@ -122,23 +150,30 @@ def main(argv=None) -> int:
     p.add_argument("--write", action="store_true", help="write the table into bench/RESULTS.md")
     p.add_argument("--real-shape", type=int, metavar="RUNS", help="the CAD-like part (an L-shaped prism with sharp "
                    "edges and a feature curve) at default settings, RUNS fresh runs")
+    p.add_argument("--short-curves", type=int, metavar="RUNS", help="node-to-node curves shorter than an edge at "
+                   "the default budget and grading, then at 45,000 tets with grading 0.5 and 0.2, RUNS fresh runs each")
     p.add_argument("--mesher", default="auto", help="Options.mesher for the solver rows (auto, TetGen, fTetWild)")
+    p.add_argument("--grading", type=float, default=0.5, help=argparse.SUPPRESS)  # internal, with --one
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: run one size, print JSON
     args = p.parse_args(argv)
     if args.one is not None:
-        print("RESULT " + json.dumps(run_one(args.example, args.one, args.mesher), default=float))
+        print("RESULT " + json.dumps(run_one(args.example, args.one, args.mesher, args.grading), default=float))
         return 0
-    runs = [(n, args.mesher) for n in args.tets]
+    runs = [(n, args.mesher, 0.5) for n in args.tets]
     if args.real_shape:
         # the default, then the same part with fTetWild forced, for comparison
         args.example = "lprism"
-        runs = [(0, m) for m in ("auto", "fTetWild") for _ in range(args.real_shape)]
+        runs = [(0, m, 0.5) for m in ("auto", "fTetWild") for _ in range(args.real_shape)]
+    if args.short_curves:
+        args.example = "short"
+        runs = [(n, "auto", g) for n, g in SHORT_RUNS for _ in range(args.short_curves)]
     rows, failed = [], []
-    for n, mesher in runs:
+    for n, mesher, grading in runs:
         print(f"[bench] {args.example} " + (f"~{n:,} tets ..." if n else "default settings ...")
-              + (f" (mesher {mesher})" if mesher != "auto" else ""), file=sys.stderr, flush=True)
+              + (f" (mesher {mesher})" if mesher != "auto" else "")
+              + (f" (grading {grading:g})" if grading != 0.5 else ""), file=sys.stderr, flush=True)
         out = subprocess.run([sys.executable, os.path.abspath(__file__), "--example", args.example, "--one", str(n),
-                              "--mesher", mesher], capture_output=True, text=True)
+                              "--mesher", mesher, "--grading", str(grading)], capture_output=True, text=True)
         line = [x for x in out.stdout.splitlines() if x.startswith("RESULT ")]
         if out.returncode != 0 or not line:
             # one failed size does not lose the others: it is reported
@@ -157,6 +192,8 @@ def main(argv=None) -> int:
         return 1
     if args.real_shape:
         return _real_shape_report(rows, failed, args.write)
+    if args.short_curves:
+        return _short_curves_report(rows, failed, args.write)
     text = table(rows)
     sizes = [r["tets"] for r in rows]
     if len(rows) >= 2 and max(sizes) < 1.5 * min(sizes):
@@ -209,6 +246,17 @@ def _real_shape_report(rows, failed, write) -> int:
     print(text)
     if write:
         write_results_block("real-shape-bench", text, "Real shape")
+    return 1 if failed else 0
+
+
+def _short_curves_report(rows, failed, write) -> int:
+    text = f"{SHORT_CURVES}:\n\n" + short_curves_table(rows)
+    for n, err in failed:
+        text += f"\n\nFailed: the {n:,}-tet target ({err})"
+    text += f"\n\nMachine: {machine()}, Python {platform.python_version()}."
+    print(text)
+    if write:
+        write_results_block("short-curve-bench", text, "Short curves")
     return 1 if failed else 0
 
 
