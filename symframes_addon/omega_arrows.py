@@ -117,10 +117,23 @@ def remove_unused_helpers() -> None:
     glyphs.remove_unused(NODE_GROUP, (MATERIAL[0],))
 
 
+def alignable(omega: np.ndarray) -> np.ndarray:
+    """omega (k, 3) with the components below 1e-9 of its length set to 0.
+
+    Align Rotation to Vector turns +z onto a vector within ~1e-19 of -z by
+    nothing: their cross product, the rotation axis, is not zero but does not
+    normalise in single precision (exactly opposite vectors it handles).  Such
+    arrows pointed up instead of down: 3 of 5,690 on a plate mesh, omega
+    (2e-26, 0, -0.18), a component the solver leaves as round-off."""
+    w = np.array(omega, dtype=float, copy=True).reshape(-1, 3)
+    w[np.abs(w) < 1e-9 * np.linalg.norm(w, axis=1, keepdims=True)] = 0.0
+    return w
+
+
 def new_arrow_mesh(points: np.ndarray, omega: np.ndarray, edges: np.ndarray, name: str = "SymFrames Omega Points"):
     """A mesh of loose points (k, 3) with the ``omega`` (k, 3) and ``edge``
     (k,) point attributes."""
-    return glyphs.new_point_mesh(name, points, {OMEGA_ATTRIBUTE: ("FLOAT_VECTOR", omega),
+    return glyphs.new_point_mesh(name, points, {OMEGA_ATTRIBUTE: ("FLOAT_VECTOR", alignable(omega)),
                                                 EDGE_ATTRIBUTE: ("INT", edges)})
 
 

@@ -742,6 +742,19 @@ def test_field_stores_the_solvers_omega(plate):
     assert mono.mean() == pytest.approx(plate.report["metrics"]["monodromy_mean_deg"], abs=1e-4)
 
 
+def test_an_arrow_along_minus_z_points_down():
+    """Align Rotation to Vector left +z in place for omega within ~1e-19 of
+    -z (a round-off component: 3 arrows of 5,690 on one plate mesh pointed
+    up); exactly opposite, nearly opposite and ordinary vectors all turn."""
+    omega = np.array([[2.4e-26, 0.0, -0.18], [3e-27, 0.0, -0.15], [0.0, 0.0, -0.2], [1e-14, 1e-14, -0.5],
+                      [0.0, 1e-30, 0.3], [0.1, -0.2, 0.05]])
+    points = np.arange(len(omega) * 3, dtype=float).reshape(-1, 3)
+    obj = omega_arrows.write_arrows(scene(), points, omega, np.arange(len(omega)), 0.5)
+    M = _instance_transforms(obj)
+    length = scene().symframes.omega_scale * 0.5
+    np.testing.assert_allclose(M[:, :3, 2], length * omega, atol=1e-6)
+
+
 def test_omega_arrows_match_the_stored_omega(plate):
     open_blend(plate.path)
     s = scene().symframes
