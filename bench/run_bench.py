@@ -25,10 +25,12 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
+from solver.mesh.resolution import GRADING  # noqa: E402
+
 STAGES = ("validate", "tetmesh", "embed", "boundary2d", "constraints", "volume3d", "integrate")
 
 
-def run_one(example: str, tets: int, mesher: str = "auto", grading: float = 0.5) -> dict:
+def run_one(example: str, tets: int, mesher: str = "auto", grading: float = GRADING) -> dict:
     """Solve once in this process and return the figures (example 'lprism'
     with tets 0: the real-shape row, default settings; 'short': the
     cube-sphere network with curves 0.1 long, SHORT_CURVES)."""
@@ -88,7 +90,7 @@ def real_shape_table(rows: list[dict]) -> str:
 SHORT_CURVES = ("cube-sphere network with an inner cube 0.1 across (`ball_example(inner=0.05)`: 12 node-to-node "
                 "curves 0.1 long, shorter than the bulk edge length), default options but for target_tets and "
                 "grading")
-SHORT_RUNS = ((15000, 0.5), (45000, 0.5), (45000, 0.2))  # (target_tets, grading): the default, then the bar's
+SHORT_RUNS = ((15000, GRADING), (45000, GRADING), (45000, 0.2))  # (target_tets, grading): the default, then the bar's
 
 
 def short_curves_table(rows: list[dict]) -> str:
@@ -153,17 +155,17 @@ def main(argv=None) -> int:
     p.add_argument("--short-curves", type=int, metavar="RUNS", help="node-to-node curves shorter than an edge at "
                    "the default budget and grading, then at 45,000 tets with grading 0.5 and 0.2, RUNS fresh runs each")
     p.add_argument("--mesher", default="auto", help="Options.mesher for the solver rows (auto, TetGen, fTetWild)")
-    p.add_argument("--grading", type=float, default=0.5, help=argparse.SUPPRESS)  # internal, with --one
+    p.add_argument("--grading", type=float, default=GRADING, help=argparse.SUPPRESS)  # internal, with --one
     p.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: run one size, print JSON
     args = p.parse_args(argv)
     if args.one is not None:
         print("RESULT " + json.dumps(run_one(args.example, args.one, args.mesher, args.grading), default=float))
         return 0
-    runs = [(n, args.mesher, 0.5) for n in args.tets]
+    runs = [(n, args.mesher, GRADING) for n in args.tets]
     if args.real_shape:
         # the default, then the same part with fTetWild forced, for comparison
         args.example = "lprism"
-        runs = [(0, m, 0.5) for m in ("auto", "fTetWild") for _ in range(args.real_shape)]
+        runs = [(0, m, GRADING) for m in ("auto", "fTetWild") for _ in range(args.real_shape)]
     if args.short_curves:
         args.example = "short"
         runs = [(n, "auto", g) for n, g in SHORT_RUNS for _ in range(args.short_curves)]
@@ -171,7 +173,7 @@ def main(argv=None) -> int:
     for n, mesher, grading in runs:
         print(f"[bench] {args.example} " + (f"~{n:,} tets ..." if n else "default settings ...")
               + (f" (mesher {mesher})" if mesher != "auto" else "")
-              + (f" (grading {grading:g})" if grading != 0.5 else ""), file=sys.stderr, flush=True)
+              + (f" (grading {grading:g})" if grading != GRADING else ""), file=sys.stderr, flush=True)
         out = subprocess.run([sys.executable, os.path.abspath(__file__), "--example", args.example, "--one", str(n),
                               "--mesher", mesher, "--grading", str(grading)], capture_output=True, text=True)
         line = [x for x in out.stdout.splitlines() if x.startswith("RESULT ")]

@@ -28,7 +28,7 @@ from .linalg.rotations import exp_so3
 from .mesh.embed import Embedding, embed_network
 from .mesh.linking import misaligned_curves
 from .mesh.refine import red_refine
-from .mesh.resolution import TETS_PER_H3, Plan, check_resolution, plan_resolution, uniform_tets
+from .mesh.resolution import GRADING, TETS_PER_H3, Plan, check_resolution, plan_resolution, uniform_tets
 from .mesh.snapping import snap_to_features
 from .mesh.tetmesh import TetMesh
 from .mesh.tetwild import tetrahedralize
@@ -99,7 +99,7 @@ class Options:
     node_radius: float = 1.5
     epsilon: float = 1e-3
     target_tets: int = 15000
-    grading: float = 0.5
+    grading: float = GRADING
     check_intersections: bool = True
     refine: int | None = None
     snap_features: bool = True
@@ -128,7 +128,7 @@ class Options:
         self.target_tets = checks.integer("option 'target_tets'", self.target_tets, E, low=1,
                                           fix="the default is 15000")
         self.grading = checks.real("option 'grading'", self.grading, E, low=0.1, high=1.0,
-                                     fix="a growth of the edge length per unit distance, the default is 0.5")
+                                     fix=f"a growth of the edge length per unit distance, the default is {GRADING:g}")
         self.check_intersections = checks.boolean("option 'check_intersections'", self.check_intersections, E)
         self.refine = checks.integer("option 'refine'", self.refine, E, low=0, high=3, allow_none=True,
                                      fix="0-3 red-refinement levels, or null/None for automatic")

@@ -15,34 +15,12 @@ Used by the tests (tests/test_intake.py) and available to bench scripts.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
-from .mesh.tetmesh import TetMesh
+from .mesh.tetmesh import TetMesh, edge_graph, shortest_path
 from .mesh.tetwild import tetrahedralize
 from .network.network import Curve, Network, prepare_network
 from .surface.trisurface import TriSurface
-
-
-def edge_graph(mesh: TetMesh) -> sp.csr_matrix:
-    """Symmetric #V by #V graph of the mesh edges weighted by their length."""
-    E = mesh.edges
-    w = np.linalg.norm(mesh.vertices[E[:, 1]] - mesh.vertices[E[:, 0]], axis=1)
-    n = mesh.n_vertices
-    return sp.coo_matrix((np.r_[w, w], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n)).tocsr()
-
-
-def shortest_edge_path(G: sp.csr_matrix, a: int, b: int) -> np.ndarray:
-    """Vertex ids of the shortest path from a to b in the graph G."""
-    _, pred = dijkstra(G, indices=a, return_predecessors=True)
-    path = [b]
-    while path[-1] != a:
-        p = pred[path[-1]]
-        if p < 0:
-            raise ValueError(f"no path between mesh vertices {a} and {b}")
-        path.append(int(p))
-    return np.array(path[::-1])
 
 
 def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: TetMesh | None = None,
@@ -59,7 +37,7 @@ def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: 
     diag = S.bbox_diagonal
     if mesh is None:
         mesh = tetrahedralize(S, h_src)
-    G = edge_graph(mesh)
+    G = edge_graph(mesh.n_vertices, mesh.edges, mesh.edge_lengths)
     X = mesh.vertices
     interior = ~mesh.is_boundary_vertex
     tree_in = cKDTree(X[interior])
@@ -81,7 +59,9 @@ def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: 
                 ids.append(node_vertex[end_node[(ci, s)]])
             else:
                 ids.append(int(id_b[tree_b.query(x)[1]]))
-        path = shortest_edge_path(G, ids[0], ids[1])
+        path = shortest_path(G, ids[0], ids[1])
+        if path is None:
+            raise ValueError(f"no path between mesh vertices {ids[0]} and {ids[1]}")
         P = X[path]
         if tiny and len(P) > 2:
             out = [P[0]]

@@ -157,6 +157,7 @@ def test_presets_set_the_documented_values():
     for key, value in properties.PRESETS["STANDARD"].items():
         assert rna[key].default == value, key
     assert (Options().target_tets, Options().max_iterations) == (15000, 50)
+    assert rna["grading"].default == pytest.approx(Options().grading)  # the panel's default is the solver's
 
 
 def test_solve_seed_and_target_tets_reach_the_solver():

@@ -28,24 +28,10 @@ solution among the faces no singular curve (nor a node region) touches.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.sparse.csgraph import dijkstra
 
 from .embed import Embedding
-from .tetmesh import TetMesh
-
-
-def _path(n: int, E: np.ndarray, w: np.ndarray, a: int, b: int) -> np.ndarray | None:
-    """Vertex ids of a shortest path from a to b over the edges E (weights w), or None."""
-    A = sp.coo_matrix((w, (E[:, 0], E[:, 1])), shape=(n, n)).tocsr()
-    dist, pred = dijkstra(A, directed=False, indices=a, return_predecessors=True)
-    if not np.isfinite(dist[b]):
-        return None
-    out = [b]
-    while out[-1] != a:
-        out.append(int(pred[out[-1]]))
-    return np.array(out[::-1])
+from .tetmesh import TetMesh, edge_graph, shortest_path
 
 
 def _edge_chain(mesh: TetMesh, path: np.ndarray) -> np.ndarray:
@@ -107,7 +93,7 @@ def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.
         free = ~cone
         free[[a, b]] = True
         keep = free[B.edges].all(axis=1)
-        outer = _path(len(B.V), B.edges[keep], bw[keep], a, b)
+        outer = shortest_path(edge_graph(len(B.V), B.edges[keep], bw[keep]), a, b)
         if outer is None:
             continue
         P = tr.polyline
@@ -138,7 +124,8 @@ def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.
     for i, a, b, outer, cos in candidates:
         tr = emb.traces[i]
         tube = np.unique(mesh.tet_edges[tr.tets].reshape(-1))
-        inner = _path(mesh.n_vertices, mesh.edges[tube], mesh.edge_lengths[tube], int(bv[b]), int(bv[a]))
+        inner = shortest_path(edge_graph(mesh.n_vertices, mesh.edges[tube], mesh.edge_lengths[tube]), int(bv[b]),
+                              int(bv[a]))
         if inner is None:
             continue
         eta = _edge_chain(mesh, bv[outer]) + _edge_chain(mesh, inner)

@@ -11,6 +11,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import dijkstra
 
 from ..errors import MeshingError
 from ..surface.trisurface import TriSurface, unique_rows
@@ -337,3 +338,20 @@ class TetMesh:
         n = self.n_vertices
         A = sp.coo_matrix((np.ones(2 * len(E)), (E.reshape(-1), E[:, ::-1].reshape(-1))), shape=(n, n))
         return A.tocsr()
+
+
+def edge_graph(n: int, E: np.ndarray, w: np.ndarray) -> sp.csr_matrix:
+    """Symmetric n by n graph of the edges E (k, 2) with weights w (k,)."""
+    return sp.coo_matrix((np.r_[w, w], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n)).tocsr()
+
+
+def shortest_path(G: sp.csr_matrix, a: int, b: int) -> np.ndarray | None:
+    """Vertex ids of a shortest path from a to b in the graph G (Dijkstra),
+    or None when b cannot be reached."""
+    dist, pred = dijkstra(G, indices=a, return_predecessors=True)
+    if not np.isfinite(dist[b]):
+        return None
+    path = [b]
+    while path[-1] != a:
+        path.append(int(pred[path[-1]]))
+    return np.array(path[::-1])
