@@ -178,14 +178,6 @@ def length_unit(checked: CheckedInput) -> float:
     return float((3.0 * _volume(checked) / (4.0 * np.pi)) ** (1.0 / 3.0))
 
 
-def default_edge_length(checked: CheckedInput, target_tets: int) -> float:
-    """The automatic bulk edge length for a budget of target_tets tets
-    (resolution.plan_resolution; the mesh is finer near the network where
-    it needs it).  It used to be reduced everywhere to a third of the
-    network's smallest feature, which could mean millions of tets."""
-    return plan_resolution(_volume(checked), checked.surface, checked.network, target_tets).edge_length
-
-
 def resolution_plan(checked: CheckedInput, opts: Options) -> Plan:
     """The resolution of a solve (resolution.py): a uniform edge length if
     one is given, else a graded mesh for the tet budget.  Raises
@@ -275,7 +267,6 @@ class FieldProblem:
         if snap is not None:
             self.report.sizes["snapped_vertices"] = snap.moved
             self.report.sizes["snap_kept_vertices"] = int(len(snap.kept))
-        self._stages = st
         self._volume = None
 
     # --------------------------------------------------------------- stages

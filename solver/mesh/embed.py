@@ -182,12 +182,6 @@ class TetLocator:
         return -1
 
 
-def _boundary_face_lookup(mesh: TetMesh):
-    bf = mesh.boundary_faces
-    P = mesh.vertices[mesh.faces[bf]]
-    return bf, P
-
-
 def _project_to_boundary(mesh: TetMesh, x: np.ndarray):
     """Closest point of the tet boundary to x, and the boundary face id."""
     S = mesh.boundary

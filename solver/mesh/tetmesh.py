@@ -303,17 +303,6 @@ class TetMesh:
         on_face = (T[:, :, None] == Fg[:, None, :]).any(axis=2)
         return T[np.arange(len(T)), np.argmin(on_face, axis=1)]
 
-    @cached_property
-    def boundary_face_sign(self) -> np.ndarray:
-        """(#bF,) +1 where the canonical face orientation a->b->c is outward."""
-        Fg = self.faces[self.boundary_faces]
-        Fl = self.boundary.F
-        Fg_local = np.searchsorted(self.boundary_vertices, Fg)
-        same = np.all(np.roll(Fl, 0, 1) == Fg_local, axis=1) | np.all(np.roll(Fl, 1, 1) == Fg_local, axis=1) | np.all(
-            np.roll(Fl, 2, 1) == Fg_local, axis=1
-        )
-        return np.where(same, 1.0, -1.0)
-
     def edge_index(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """Edge ids of vertex pairs (any order); -1 where no such edge."""
         n = self.n_vertices
