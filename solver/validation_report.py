@@ -185,7 +185,7 @@ def measure(result, others: dict | None = None, smoothing_iterations: int = SMOO
     row["mono_mean"], row["mono_max"] = float(mono.mean()), float(mono.max())
     row["regular_faces"] = len(reg)
     active = np.nonzero(~emb.face_excluded)[0]
-    res = an.structure_residual(mesh, result.omega, emb.equation_omega, active)
+    res = an.structure_residual(mesh, result.omega, result.structure_omega, active)
     row["res_mean"], row["res_max"] = float(res.mean()), float(res.max())
     # singular structure
     ss = an.network_singular_structure(result)
@@ -334,7 +334,7 @@ def refinement_point(name: str, h: float, away: float = AWAY, log=print) -> dict
         if len(f) == 0:
             continue
         mono = np.degrees(an.monodromy_angles(mesh, r.omega, f))
-        res = an.structure_residual(mesh, r.omega, r.embedding.equation_omega, f)
+        res = an.structure_residual(mesh, r.omega, r.structure_omega, f)
         out[f"{tag}_faces"] = len(f)
         out[f"{tag}_mono_mean"], out[f"{tag}_mono_max"] = float(mono.mean()), float(mono.max())
         out[f"{tag}_res_mean"], out[f"{tag}_res_max"] = float(res.mean()), float(res.max())

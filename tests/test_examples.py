@@ -331,7 +331,7 @@ def test_development_root_does_not_matter(solved):
     interior = np.nonzero(~mesh.is_boundary_vertex)[0]
     boundary = mesh.boundary_vertices
     for root in (int(rng.choice(interior)), int(rng.choice(interior)), int(rng.choice(boundary))):
-        F2 = r.problem.develop(r.omega, root)
+        F2 = r.develop(root)
         dev = np.degrees(cross_distance(r.frames, F2))
         assert dev.max() <= 1.0, (root, dev.max())
 
@@ -412,6 +412,7 @@ def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(solved)
 
     from solver.errors import MeshingError
     from solver.field.boundary2d import lift_mismatch
+    from solver.field.meshed_boundary import check_lift
 
     p = solved("ball").problem
     B, bf = p.mesh.boundary, p.boundary
@@ -424,5 +425,5 @@ def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(solved)
     d = lift_mismatch(B, bad)
     assert set(np.nonzero(d > np.pi / 4)[0]) == set(np.nonzero((B.face_edges == e).any(axis=1))[0])
     with pytest.raises(MeshingError, match=r"could not be lifted to 3D on 2 boundary triangle\(s\) near"):
-        p._check_lift(bad)
-    p._check_lift(bf)
+        check_lift(p.mesh, bad, p.edge_length)
+    check_lift(p.mesh, bf, p.edge_length)

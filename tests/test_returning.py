@@ -105,10 +105,10 @@ def test_a_field_off_its_curve_is_not_converged_whatever_its_penalty(monkeypatch
     """The quarter circle with the check switched off: LM meets its stopping
     rule with a penalty of ~3e-5, but the frames are ~43 degrees off the
     curve; the status says not converged, with the adaptation."""
-    import solver.pipeline as pipeline
+    import solver.field.meshed_boundary as meshed_boundary
     from solver.report import ADAPTATION_DEG
 
-    monkeypatch.setattr(pipeline, "misaligned_curves", lambda *a, **k: [])
+    monkeypatch.setattr(meshed_boundary, "misaligned_curves", lambda *a, **k: [])
     V, F = box(n=2)
     net = Network(curves=[Curve(quarter_circle(), sigma=0, role="feature", name="bend")], sharp_angle=30.0)
     res = solve(V, F, net, Options(edge_length=0.25))

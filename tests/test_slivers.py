@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from solver.mesh.refine import red_refine
-from solver.mesh.slivers import FLAT_QUALITY, repair_flat_tets, tet_quality
+from solver.mesh.slivers import FLAT_QUALITY, FlatRepair, repair_flat_tets, tet_quality
 from solver.mesh.tetmesh import TetMesh
 from tests.meshes import box_grid
 
@@ -41,7 +41,7 @@ def flattened_box(flip: bool, seed: int = 5):
 def test_flat_tet_is_lifted_off_its_plane_without_moving_the_boundary(flip):
     M, P, T, t, v = flattened_box(flip)
     P2, T2, info = repair_flat_tets(P, T, M.is_boundary_vertex, M.face_tets, M.tet_faces)
-    assert info["flat_tets"] == 1 and info["flat_tets_left"] == 0 and info["moved_vertices"] == 1
+    assert info == FlatRepair(flat_tets=1, moved_vertices=1, flat_tets_left=0)
     q = tet_quality(P2, T2)
     # every tet positive in one consistent orientation: the signed volumes
     # then add up to the box's, whatever the interior vertices do
@@ -61,7 +61,7 @@ def test_flat_tet_is_lifted_off_its_plane_without_moving_the_boundary(flip):
 def test_a_mesh_without_flat_tets_is_returned_unchanged():
     M = TetMesh(*box_grid(3, jitter=0.2, seed=1))
     P, T, info = repair_flat_tets(M.vertices, M.tets, M.is_boundary_vertex, M.face_tets, M.tet_faces)
-    assert info == {"flat_tets": 0, "moved_vertices": 0, "flat_tets_left": 0}
+    assert info == FlatRepair(flat_tets=0, moved_vertices=0, flat_tets_left=0)
     assert P is M.vertices and T is M.tets
 
 
@@ -78,8 +78,8 @@ def test_a_flat_tet_with_only_boundary_vertices_is_reported_not_moved():
     n /= np.linalg.norm(n)
     P[M.tets[t][3]] -= np.dot(d - a, n) * n
     P2, T2, info = repair_flat_tets(P, M.tets, np.ones(len(P), bool), M.face_tets, M.tet_faces)
-    assert info["flat_tets"] >= 1 and info["moved_vertices"] == 0
-    assert info["flat_tets_left"] == info["flat_tets"]
+    assert info.flat_tets >= 1 and info.moved_vertices == 0
+    assert info.flat_tets_left == info.flat_tets
     assert np.array_equal(P2, P)
 
 

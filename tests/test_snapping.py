@@ -101,7 +101,7 @@ def test_l_prism_field_is_the_identity():
     boundary is the prism's and the field the identity."""
     V, F = l_prism_surface()
     p = FieldProblem(V, F, Network([], sharp_angle=30.0), Options(edge_length=0.2))
-    stats = p.mesh.info["snap"]
+    stats = p.meshed.stats.snap
     assert stats.moved > 0
     assert p.report.sizes["snapped_vertices"] == stats.moved
     assert "boundary snapped" in p.report.summary()

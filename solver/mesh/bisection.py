@@ -106,9 +106,7 @@ def bisect(mesh: TetMesh, mark: np.ndarray, surface: TriSurface | None = None, c
         marked = np.intersect1d(marked, _edge_keys(T))
     if len(smooth) and len(P) > nv0:
         P = _project(P, T, nv0, smooth, surface, min_volume_ratio)
-    out = TetMesh(P, T)
-    out.info.update(mesh.info)
-    return out
+    return TetMesh(P, T)
 
 
 def _smooth_boundary_keys(mesh: TetMesh, crease_deg: float) -> np.ndarray:

@@ -68,9 +68,9 @@ class Embedding:
     face_omega    : (#F, 3) prescribed curvature Omega_f in R^3 (Eq. 17)
     face_excluded : (#F,) bool, True for faces left out of R(omega) (Eq. 19)
     pierce_count  : (#F,) number of curve crossings of each face
-    structure_omega : (#F, 3) Omega_f the structure equation uses: face_omega,
-                    corrected inside the curve tubes once the constraints are
-                    built (field.constraints.tube_curvature); None before
+
+    The structure equation's Omega_f is face_omega corrected inside the
+    curve tubes (field.constraints.tube_curvature).
     """
 
     traces: list[CurveTrace]
@@ -80,12 +80,6 @@ class Embedding:
     face_excluded: np.ndarray
     pierce_count: np.ndarray
     boundary_end_faces: list = field(default_factory=list)  # (face id, sigma)
-    structure_omega: np.ndarray | None = None
-
-    @property
-    def equation_omega(self) -> np.ndarray:
-        """Omega_f of the structure equation: structure_omega once set."""
-        return self.face_omega if self.structure_omega is None else self.structure_omega
 
     @property
     def node_region_tets(self) -> np.ndarray:

@@ -110,11 +110,7 @@ def red_refine(coarse: TetMesh, surface: TriSurface | None = None, crease_deg: f
     Tf = np.concatenate([corners, inner], axis=1).reshape(-1, 4)
     if surface is not None:
         Pf = _project_boundary_midpoints(coarse, Pf, Tf, surface, crease_deg, min_volume_ratio)
-    fine = TetMesh(Pf, Tf)
-    fine.info.update(coarse.info)
-    fine.info["refine_levels"] = coarse.info.get("refine_levels", 0) + 1
-    fine.info.setdefault("mesher_tets", coarse.n_tets)
-    return Refinement(fine=fine, coarse=coarse)
+    return Refinement(fine=TetMesh(Pf, Tf), coarse=coarse)
 
 
 def _project_boundary_midpoints(coarse, Pf, Tf, surface, crease_deg, min_ratio):

@@ -82,6 +82,11 @@ def memory_mb(tets: float, mesher_tets: float | None = None) -> float:
     return max(SOLVER_BASE_MB + SOLVER_KB_PER_TET * tets / 1024.0, SOLVER_BASE_MB + MESHER_KB_PER_TET * mesher / 1024.0)
 
 
+def solid_volume(surface: TriSurface) -> float:
+    """The volume the closed surface bounds (all its components)."""
+    return float(np.sum(np.abs(surface.signed_volumes())))
+
+
 def uniform_tets(volume: float, h: float) -> float:
     return TETS_PER_H3 * volume / h**3
 

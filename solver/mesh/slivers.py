@@ -19,6 +19,8 @@ mesher: curves are traced through the finished mesh, embed.py).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -81,8 +83,27 @@ def orient_flat(P: np.ndarray, T: np.ndarray, flat: np.ndarray, face_tets: np.nd
     return T
 
 
+@dataclass(frozen=True)
+class FlatRepair:
+    """What ``repair_flat_tets`` did.
+
+    Parameters
+    ----------
+    flat_tets : int
+        Tets that were flat.
+    moved_vertices : int
+        Interior vertices moved off a flat tet's plane.
+    flat_tets_left : int
+        Tets still flat after the repair.
+    """
+
+    flat_tets: int = 0
+    moved_vertices: int = 0
+    flat_tets_left: int = 0
+
+
 def repair_flat_tets(P: np.ndarray, T: np.ndarray, boundary: np.ndarray, face_tets: np.ndarray,
-                     tet_faces: np.ndarray, rounds: int = 5) -> tuple[np.ndarray, np.ndarray, dict]:
+                     tet_faces: np.ndarray, rounds: int = 5) -> tuple[np.ndarray, np.ndarray, FlatRepair]:
     """Move interior vertices of flat tets (quality < FLAT_QUALITY) so that
     every tet has positive quality.
 
@@ -91,13 +112,12 @@ def repair_flat_tets(P: np.ndarray, T: np.ndarray, boundary: np.ndarray, face_te
     face_tets, tet_faces : the mesh's face adjacency (TetMesh)
 
     Returns new vertices, the tets consistently oriented (flat ones by
-    orient_flat) and a summary: how many tets were flat, how many vertices
-    moved and how many flat tets remain."""
+    orient_flat) and a FlatRepair: how many tets were flat, how many
+    vertices moved and how many flat tets remain."""
     q = tet_quality(P, T)
     flat0 = np.flatnonzero(np.abs(q) < FLAT_QUALITY)
-    info = {"flat_tets": int(len(flat0)), "moved_vertices": 0, "flat_tets_left": int(len(flat0))}
     if len(flat0) == 0:
-        return P, T, info
+        return P, T, FlatRepair()
     T = orient_flat(P, T, flat0, face_tets, tet_faces)
     P = P.copy()
     nV = len(P)
@@ -142,9 +162,8 @@ def repair_flat_tets(P: np.ndarray, T: np.ndarray, boundary: np.ndarray, face_te
                 improved = True
         if not improved:
             break
-    info["moved_vertices"] = int(moved.sum())
-    info["flat_tets_left"] = int(np.sum(tet_quality(P, T) < FLAT_QUALITY))
-    return P, T, info
+    left = int(np.sum(tet_quality(P, T) < FLAT_QUALITY))
+    return P, T, FlatRepair(int(len(flat0)), int(moved.sum()), left)
 
 
 def _volume_gradient(P: np.ndarray, tet: np.ndarray, v: int, L: float) -> np.ndarray:

@@ -142,7 +142,4 @@ def snap_to_features(mesh: TetMesh, src: FeatureGraph, max_move: float = 0.25,
     stats.moved = int(active.sum())
     stats.kept = np.r_[bv[far], np.nonzero(wanted & ~active)[0]]
     stats.max_move = float(np.linalg.norm(delta[active], axis=1).max()) if stats.moved else 0.0
-    out = TetMesh(P, mesh.tets.copy())
-    out.info.update(mesh.info)
-    out.info["snap"] = stats
-    return out, stats
+    return TetMesh(P, mesh.tets.copy()), stats

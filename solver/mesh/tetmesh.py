@@ -6,7 +6,7 @@ boundary simplices are those of the boundary surface dK.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -33,7 +33,6 @@ class TetMesh:
 
     vertices: np.ndarray
     tets: np.ndarray
-    info: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.vertices = np.ascontiguousarray(self.vertices, dtype=float)

@@ -10,13 +10,11 @@ rounding are repaired (slivers.py).
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from ..errors import MeshingError
 from ..surface.trisurface import TriSurface
-from .slivers import repair_flat_tets
+from .slivers import FlatRepair, repair_flat_tets
 from .tetmesh import TetMesh
 
 
@@ -28,7 +26,21 @@ def tetrahedralize(
     cancel=None,
     sharp: bool = False,
 ) -> TetMesh:
-    """Tetrahedralise the solid bounded by ``surface`` with fTetWild (§5.1).
+    """The tet mesh of ``tetrahedralize_repaired`` (same parameters), without
+    the account of its flat-tet repair."""
+    return tetrahedralize_repaired(surface, edge_length, internal, epsilon, cancel, sharp)[0]
+
+
+def tetrahedralize_repaired(
+    surface: TriSurface,
+    edge_length: float,
+    internal: tuple[np.ndarray, np.ndarray] | None = None,
+    epsilon: float = 1e-3,
+    cancel=None,
+    sharp: bool = False,
+) -> tuple[TetMesh, FlatRepair]:
+    """Tetrahedralise the solid bounded by ``surface`` with fTetWild (§5.1),
+    and repair the flat tets its rounding left (slivers.py).
 
     edge_length : target edge length in the units of the surface.
     internal    : optional (V, F) triangles to embed inside the solid (the
@@ -42,7 +54,6 @@ def tetrahedralize(
     along faces lying on the domain surface) whose winding number with
     respect to the domain surface alone is one.
     """
-    t0 = time.perf_counter()
     V, F = surface.V, surface.F
     if internal is not None and len(internal[1]):
         Vi, Fi = internal
@@ -69,11 +80,9 @@ def tetrahedralize(
     # tets that fTetWild's rounding left flat: moved off their plane
     P, T, flat = repair_flat_tets(mesh.vertices, mesh.tets, mesh.is_boundary_vertex, mesh.face_tets,
                                   mesh.tet_faces)
-    if flat["moved_vertices"]:
+    if flat.moved_vertices:
         mesh = TetMesh(P, T)
-    mesh.info["flat_tets"] = flat
-    mesh.info["tetwild_seconds"] = time.perf_counter() - t0
-    return mesh
+    return mesh, flat
 
 
 def _normalisation(surface: TriSurface) -> tuple[np.ndarray, float]:
