@@ -25,7 +25,6 @@ from solver.analysis.measures import (
     monodromy_angles,
     normal_adaptation,
     omega_frame_mismatch,
-    omega_matchings,
     omega_singular_faces,
     pick_roots,
     root_independence,
@@ -36,6 +35,7 @@ from solver.analysis.measures import (
     tet_frames,
     vertices_near_polylines,
 )
+from solver.field.matchings import omega_matchings
 from solver.linalg.rotations import CUBE_GROUP, cross_distance, exp_so3, rotation_angle
 from solver.mesh.tetmesh import TetMesh
 from tests.meshes import box_mesh

@@ -16,17 +16,13 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from solver import solve
-from solver.analysis.measures import omega_matchings
 from solver.analysis.measures import tet_frames as karcher_tet_frames
 from solver.examples import load_example
+from solver.field.matchings import face_matchings, omega_matchings, omega_tet_frames
 from solver.io.interchange import (
-    GROUP_INVERSE,
-    GROUP_PRODUCT,
     boundary_triangles,
     export_field,
-    face_matchings,
     field_export,
-    omega_tet_frames,
     permutation_matrix,
     quaternion_frames,
     read_fra,
@@ -34,7 +30,6 @@ from solver.io.interchange import (
     read_perm,
     read_qtn,
     signed_permutation,
-    symmetry_index,
     vtu_field_data,
     write_medit,
     write_ovm,
@@ -45,7 +40,16 @@ from solver.io.tetnetwork import (
     read_tet_network,
     tag_sigma,
 )
-from solver.linalg.rotations import CUBE_GROUP, closest_symmetry, cross_distance, exp_so3, rotation_angle
+from solver.linalg.rotations import (
+    CUBE_GROUP,
+    GROUP_INVERSE,
+    GROUP_PRODUCT,
+    closest_symmetry,
+    cross_distance,
+    exp_so3,
+    rotation_angle,
+    symmetry_index,
+)
 from solver.mesh.tetmesh import TetMesh
 from tests.meshes import box_mesh
 

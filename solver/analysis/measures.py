@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from ..field.constraints import TUBE
 from ..field.develop import develop
+from ..field.matchings import omega_matchings
 from ..linalg.rotations import CUBE_GROUP, closest_symmetry, cross_distance, exp_so3, log_so3, match_to, rotation_angle
 from ..mesh.tetmesh import TetMesh
 from ..network.curves import CurveGeometry
@@ -101,16 +102,6 @@ def matched_singular_faces(mesh: TetMesh, frames: np.ndarray, faces: np.ndarray 
     sing = np.einsum("nii->n", P) < 2.5
     rot = log_so3(np.einsum("nij,njk,nlk->nil", frames[a], P, frames[a]))
     return sing, rot
-
-
-def omega_matchings(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-    """Index into CUBE_GROUP of g_ij with E_j g_ij closest to exp(omega_ij) E_i
-    (the frame at i carried to j by omega, Eq. 8), per ordered vertex pair."""
-    pairs = np.asarray(pairs)
-    e = mesh.edge_index(pairs[:, 0], pairs[:, 1])
-    sign = np.where(pairs[:, 0] < pairs[:, 1], 1.0, -1.0)
-    carried = exp_so3(sign[:, None] * omega[e]) @ frames[pairs[:, 0]]
-    return closest_symmetry(np.einsum("nji,njk->nik", carried, frames[pairs[:, 1]]))
 
 
 def omega_frame_mismatch(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> np.ndarray:

@@ -15,30 +15,9 @@ each writer's docstring states the format and the source it was checked
 against.  Readers for ``.ovm``, ``.fra``, ``.perm`` and ``.qtn`` are here too;
 VTU and MEDIT are read by meshio in the tests.
 
-Frames per tet and face matchings (paper §5.5)
-----------------------------------------------
-CubeCover and AlgoHex want one frame per tet; the solver has one per vertex.
-The paper took "the Karcher mean of frames at vertices" and matched tets by
-the closest rotation, noting that "in principle we should be able to make
-this step even more robust near singularities by using angle information
-from omega" (§5.5).  Here both steps use omega:
-
-* in tet t with reference vertex r (its first vertex) every other vertex k is
-  matched to r along the tet edge rk by the cube symmetry h_k that omega's
-  transport says: ``E_k G[h_k]`` is the representative of k's cross closest
-  to ``exp(omega_rk) E_r`` (Eq. 8 with R_ij = I); h_r = identity;
-* the tet frame is the chordal mean of the four matched frames projected back
-  to SO(3): ``F_t = polar(sum_k E_k G[h_k])``, the rotation nearest (in the
-  Frobenius norm) to their sum, i.e. the minimiser of
-  ``sum_k ||F - E_k G[h_k]||_F^2`` over SO(3) (via an SVD);
-* across an interior face shared by tets A and B, each face vertex p appears
-  in both means, as ``E_p G[h_A(p)]`` and ``E_p G[h_B(p)]``, so
-  ``F_A ~ F_B g`` with ``g = G[h_B(p)]^T G[h_A(p)]``: an exact cube symmetry
-  taken from omega, not from comparing F_A with F_B.  The three face vertices
-  vote (they agree unless a singular curve runs through the tets).
-
-G is ``rotations.CUBE_GROUP`` (identity first), frames have the cross axes as
-columns (rotations.py).
+The tet frames and face matchings the formats carry are the field's
+(field/matchings.py, paper §5.5); CubeCover's signed-permutation encoding of
+the matchings is here (``signed_permutation``).
 """
 
 from __future__ import annotations
@@ -50,32 +29,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..analysis.measures import matched_singular_faces, monodromy_angles, omega_matchings, omega_singular_faces
-from ..linalg.rotations import CUBE_GROUP, rotation_angle
+from ..analysis.measures import matched_singular_faces, monodromy_angles, omega_singular_faces
+from ..field.matchings import FaceMatchings, TetFrames, face_matchings, omega_tet_frames
+from ..linalg.rotations import CUBE_GROUP
 from ..mesh.tetmesh import TetMesh
 
-# ============================================================ cube group tables
-
-
-def _group_tables():
-    G = CUBE_GROUP
-    prod = np.einsum("aij,bjk->abik", G, G).reshape(-1, 9)
-    idx = np.argmax(prod @ G.reshape(24, 9).T, axis=1).reshape(24, 24)  # exact: entries are 0, +-1
-    inv = np.argmax(np.einsum("aij,bji->ab", G, G), axis=1)  # trace(G[a] G[b]) = 3 iff G[b] = G[a]^T
-    return idx, inv
-
-
-GROUP_PRODUCT, GROUP_INVERSE = _group_tables()
-"""(24, 24) index of G[a] @ G[b], and (24,) index of G[a]^T, into CUBE_GROUP."""
-
-
-def symmetry_index(M: np.ndarray) -> np.ndarray:
-    """Index into CUBE_GROUP of (n, 3, 3) signed permutation matrices; -1 for
-    matrices that are not rotations of the cube (e.g. reflections)."""
-    M = np.asarray(M, dtype=float).reshape(-1, 9)
-    score = M @ CUBE_GROUP.reshape(24, 9).T
-    k = np.argmax(score, axis=1)
-    return np.where(np.isclose(score[np.arange(len(k)), k], 3.0), k, -1)
+# ================================================================ signed permutations
 
 
 def signed_permutation(g: np.ndarray) -> np.ndarray:
@@ -97,120 +56,6 @@ def permutation_matrix(p: np.ndarray) -> np.ndarray:
     n = np.arange(len(p))[:, None]
     M[n, np.abs(p) - 1, np.arange(3)[None, :]] = np.sign(p)
     return M
-
-
-# ================================================================ frames per tet
-
-
-@dataclass
-class TetFrames:
-    """One frame per tet from the vertex frames and omega (module docs, §5.5).
-
-    frames   : (#T, 3, 3) rotations, columns are the cross axes
-    matching : (#T, 4) CUBE_GROUP index h_k per local vertex k:
-               E_{tets[t, k]} @ G[h_k] is the representative averaged
-               (identity, 0, at the reference vertex k = 0)
-    spread   : (#T,) largest angle (radians) between F_t and a matched
-               vertex frame
-    """
-
-    frames: np.ndarray
-    matching: np.ndarray
-    spread: np.ndarray
-
-
-def polar_rotation(M: np.ndarray) -> np.ndarray:
-    """The rotation nearest each (n, 3, 3) matrix in the Frobenius norm (the
-    orthogonal polar factor with its determinant forced to +1)."""
-    U, _, Vt = np.linalg.svd(M)
-    d = np.sign(np.linalg.det(U @ Vt))
-    d[d == 0] = 1.0
-    U[:, :, 2] *= d[:, None]
-    return U @ Vt
-
-
-def omega_tet_frames(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> TetFrames:
-    """Per-tet frames: the chordal mean, projected to SO(3), of the four vertex
-    frames matched to the tet's first vertex by omega's transport (§5.5 remark,
-    Eq. 8).  (``analysis.tet_frames`` is the Karcher mean with closest-rotation
-    matching, as the paper did; the two agree wherever no tet edge turns by
-    45 degrees or more.)
-
-    Parameters
-    ----------
-    mesh : TetMesh
-    omega : (#E, 3) float array, E_j = exp(omega_ij) E_i on edges i < j
-    frames : (#V, 3, 3) float array, columns are the cross axes
-
-    Returns
-    -------
-    TetFrames
-    """
-    T = mesh.tets
-    nT = len(T)
-    pairs = np.stack([np.repeat(T[:, 0], 3), T[:, 1:].reshape(-1)], axis=1)  # r -> k, k = 1..3
-    h = np.zeros((nT, 4), dtype=np.int64)
-    h[:, 1:] = omega_matchings(mesh, omega, frames, pairs).reshape(nT, 3)
-    matched = frames[T] @ CUBE_GROUP[h]  # (#T, 4, 3, 3)
-    F = polar_rotation(matched.sum(axis=1))
-    rel = np.swapaxes(F, 1, 2)[:, None] @ matched
-    spread = rotation_angle(rel).max(axis=1)
-    return TetFrames(F, h, spread)
-
-
-@dataclass
-class FaceMatchings:
-    """Cube symmetries across the interior faces (module docs, §5.5).
-
-    faces    : (k,) interior face ids
-    tets     : (k, 2) tets (A, B) on either side (mesh.face_tets)
-    symmetry : (k,) CUBE_GROUP index g with F_A ~ F_B @ G[g], from omega
-    agree    : (k,) bool, the three face vertices gave the same g
-    closest  : (k,) CUBE_GROUP index of the closest-rotation matching of the
-               two tet frames (what §5.5 used), for comparison
-    """
-
-    faces: np.ndarray
-    tets: np.ndarray
-    symmetry: np.ndarray
-    agree: np.ndarray
-    closest: np.ndarray
-
-    def signed_permutations(self) -> np.ndarray:
-        """(k, 3) CubeCover encoding of the matchings taking A's frame to B's."""
-        return signed_permutation(self.symmetry)
-
-
-def _local_index(tets: np.ndarray, verts: np.ndarray) -> np.ndarray:
-    """Position of each of verts (k, m) in its tet (k, 4)."""
-    return np.argmax(tets[:, None, :] == verts[:, :, None], axis=2)
-
-
-def face_matchings(mesh: TetMesh, tf: TetFrames) -> FaceMatchings:
-    """Omega-derived matchings across every interior face.
-
-    For face f between tets A and B and each face vertex p,
-    g_p = G[h_B(p)]^T G[h_A(p)] (module docs); the majority of the three is
-    kept, and where all three differ the one whose F_B G[g] is nearest F_A.
-    """
-    faces = np.nonzero(~mesh.is_boundary_face)[0]
-    ft = mesh.face_tets[faces]
-    A, B = ft[:, 0], ft[:, 1]
-    Fv = mesh.faces[faces]
-    hA = np.take_along_axis(tf.matching[A], _local_index(mesh.tets[A], Fv), axis=1)
-    hB = np.take_along_axis(tf.matching[B], _local_index(mesh.tets[B], Fv), axis=1)
-    cand = GROUP_PRODUCT[GROUP_INVERSE[hB], hA]  # (k, 3)
-    FA, FB = tf.frames[A], tf.frames[B]
-    M = np.swapaxes(FB, 1, 2) @ FA  # F_B^T F_A, ~ G[g]
-    # trace(G[c]^T M) = <G[c], M>: larger is nearer
-    score = M.reshape(-1, 9) @ CUBE_GROUP.reshape(24, 9).T  # (k, 24)
-    fit = np.take_along_axis(score, cand, axis=1)
-    c0, c1, c2 = cand.T
-    best = cand[np.arange(len(cand)), np.argmax(fit, axis=1)]
-    g = np.where((c0 == c1) | (c0 == c2), c0, np.where(c1 == c2, c1, best))
-    agree = (c0 == c1) & (c1 == c2)
-    closest = np.argmax(score, axis=1)
-    return FaceMatchings(faces, ft, g, agree, closest)
 
 
 # ============================================================ per-tet measures
@@ -856,5 +701,5 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
                 triangle_refs=1)
     write_fra(paths[1], fe.tet.frames)
     fm = fe.matchings
-    write_perm(paths[2], mesh.n_tets, fm.tets, fm.signed_permutations(), keep_identity=all_faces)
+    write_perm(paths[2], mesh.n_tets, fm.tets, signed_permutation(fm.symmetry), keep_identity=all_faces)
     return paths

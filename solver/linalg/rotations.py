@@ -120,6 +120,37 @@ def closest_symmetry(M: np.ndarray) -> np.ndarray:
     return np.argmax(traces, axis=1)
 
 
+def _group_tables():
+    G = CUBE_GROUP
+    prod = np.einsum("aij,bjk->abik", G, G).reshape(-1, 9)
+    idx = np.argmax(prod @ G.reshape(24, 9).T, axis=1).reshape(24, 24)  # exact: entries are 0, +-1
+    inv = np.argmax(np.einsum("aij,bji->ab", G, G), axis=1)  # trace(G[a] G[b]) = 3 iff G[b] = G[a]^T
+    return idx, inv
+
+
+GROUP_PRODUCT, GROUP_INVERSE = _group_tables()
+"""(24, 24) index of G[a] @ G[b], and (24,) index of G[a]^T, into CUBE_GROUP."""
+
+
+def symmetry_index(M: np.ndarray) -> np.ndarray:
+    """Index into CUBE_GROUP of (n, 3, 3) signed permutation matrices; -1 for
+    matrices that are not rotations of the cube (e.g. reflections)."""
+    M = np.asarray(M, dtype=float).reshape(-1, 9)
+    score = M @ CUBE_GROUP.reshape(24, 9).T
+    k = np.argmax(score, axis=1)
+    return np.where(np.isclose(score[np.arange(len(k)), k], 3.0), k, -1)
+
+
+def polar_rotation(M: np.ndarray) -> np.ndarray:
+    """The rotation nearest each (n, 3, 3) matrix in the Frobenius norm (the
+    orthogonal polar factor with its determinant forced to +1)."""
+    U, _, Vt = np.linalg.svd(M)
+    d = np.sign(np.linalg.det(U @ Vt))
+    d[d == 0] = 1.0
+    U[:, :, 2] *= d[:, None]
+    return U @ Vt
+
+
 def cross_distance(E1: np.ndarray, E2: np.ndarray) -> np.ndarray:
     """Angle (radians) between the crosses of frames E1, E2 : (n, 3, 3).
 
@@ -208,3 +239,4 @@ def best_adapted_frame(directions: list[np.ndarray], weights=None, init=None, it
             break
         E = E_new
     return E
+
