@@ -9,31 +9,38 @@ Each LM step solves the damped Gauss-Newton system
 
 by PCG (linalg/pcg.py).  H is assembled per LM iteration in a sparsity
 pattern fixed once per problem (hessian.py: one 9x9 block per face), so a
-CG step costs one sparse product, run on all cores (parallel.py).  Once
-the steps are small (< 1% of omega) H also gets the second-order term
-2 a P^T (sum_f r_f . d^2 r_f) P: the residual of Eq. 19 does not vanish at
-the minimiser, so Gauss-Newton alone converges only linearly there (ball,
-78k tets: 11 iterations; with the Newton term, 10 and a 100x smaller final
-gradient).  Where that Hessian is not positive definite, the step falls
-back to Gauss-Newton.  Marquardt's damping lambda diag(H) falls by up to
-10x per good step and by 100x more per good Newton step: damping comparable
-to H's smallest eigenvalues (modes around the node regions) slows LM to a
-linear rate.  On a 98k-tet ball lambda = 1.5e-8 still left Newton a rate
-of ~0.03, so those eigenvalues are near 5e-7 of the diagonal; with the
-faster decrease LM took 7 iterations and 1,638 CG steps there, not 10 and
-2,975.  Near the minimum CG stops as soon as its iterate is known to be
-below the step tolerance (pcg.pcg's ``small``), so confirming
-convergence costs ~50 CG steps, not a solve.  Once the steps are below 10%
-of omega, approximate eigenvectors of the smallest eigenvalues, found while
-solving one system (eigCG, pcg.RitzRecorder), deflate the next (ball,
-78k tets: 4,320 -> 2,700 CG steps).  Along any line the energy is
-exactly a quartic (Eq. 19 is quadratic in omega), so a step that would
-raise the energy, or a Gauss-Newton step that stops far short of the
-minimum along its line, is replaced by that minimum instead of being
-rejected and solved again (energy_along, line_minimum).  Where the full
-Hessian is indefinite (twisted fields, e.g. a torus), Newton's CG stops on
-a direction of negative curvature; LM then takes the Gauss-Newton step and
-moves on from it to the energy's minimum along that direction.
+CG step costs one sparse product, run on all cores (parallel.py).
+
+The iteration (``VolumeProblem.solve``: start, ``_lm_step``, ``_lm_update``,
+the stopping rule ``_lm_stop``), and why each part is there:
+
+* Newton phase.  The residual of Eq. 19 does not vanish at the minimiser,
+  so Gauss-Newton alone converges only linearly there: once the steps are
+  small H also gets the second-order term 2 a P^T (sum_f r_f . d^2 r_f) P.
+  Where that Hessian is not positive definite, the step falls back to
+  Gauss-Newton.
+* Damping.  Marquardt's lambda diag(H) falls by up to 10x per good step
+  and by 100x more per good Newton step: damping comparable to H's
+  smallest eigenvalues (modes around the node regions) slows LM to a
+  linear rate.
+* Early stop of CG.  Near the minimum CG stops as soon as its iterate is
+  known to be below the step tolerance (pcg.pcg's ``small``), so
+  confirming convergence costs a few dozen CG steps, not a solve.
+* Deflation.  Once the steps are small, approximate eigenvectors of the
+  smallest eigenvalues, found while solving one system (eigCG,
+  pcg.RitzRecorder), deflate the next.
+* Line minima.  Along any line the energy is exactly a quartic (Eq. 19 is
+  quadratic in omega), so a step that would raise the energy, or a
+  Gauss-Newton step that stops far short of the minimum along its line,
+  is replaced by that minimum instead of being rejected and solved again
+  (energy_along, line_minimum).
+* Negative curvature.  Where the full Hessian is indefinite (twisted
+  fields, e.g. a torus), Newton's CG stops on a direction of negative
+  curvature; LM then takes the Gauss-Newton step and moves on from it to
+  the energy's minimum along that direction.
+
+The measurements behind each choice and each default of ``LMSettings`` are
+in docs/performance.md ("The LM solver's settings").
 """
 
 from __future__ import annotations
@@ -93,6 +100,117 @@ class LMReport:
     @property
     def final(self) -> LMIteration:
         return self.iterations[-1]
+
+
+@dataclass(frozen=True)
+class LMSettings:
+    """The tuning of ``VolumeProblem.solve``.  Each default is measured: the
+    runs behind them are in docs/performance.md ("The LM solver's settings").
+
+    Parameters
+    ----------
+    cg_rtol : float
+        CG tolerance of Newton systems, and the cap of the Gauss-Newton
+        systems' Eisenstat-Walker forcing.
+    cg_rtol_floor : float
+        The forcing's floor.
+    step_tol : float
+        LM has converged once the distance left to the minimiser is below
+        this fraction of |omega| (the stopping rule, ``_lm_stop``).
+    reuse_step : float
+        The preconditioner is rebuilt once omega has moved by this fraction
+        of |omega| since it was built (or the damping changed 100-fold).
+    direct : bool
+        Solve each step by sparse LU instead of PCG (the baseline of
+        bench/lu_baseline.py); no Newton or deflation phase.
+    newton_step : float
+        The Newton phase starts after an accepted step below this fraction
+        of |omega|.
+    deflate : int
+        Ritz vectors kept for deflation (fewer than 2: none).
+    deflate_step : float
+        Ritz vectors are recorded after an accepted step below this
+        fraction of |omega|.
+    shrink : float
+        The smallest factor of the damping after a good step.
+    newton_shrink : float
+        A further factor of the damping after a good Newton step.
+    line_search : float
+        The longest multiple of a step its line minimum may take; 0: no
+        line search and no move along negative curvature.
+    extrapolate : float
+        A step that lowers the energy is replaced by its line minimum only
+        when that lies at least this many steps out.
+    """
+
+    cg_rtol: float = 1e-3
+    cg_rtol_floor: float = 1e-6
+    step_tol: float = 1e-6
+    reuse_step: float = 0.05
+    direct: bool = False
+    newton_step: float = 0.01
+    deflate: int = 8
+    deflate_step: float = 0.1
+    shrink: float = 0.1
+    newton_shrink: float = 0.01
+    line_search: float = 4.0
+    extrapolate: float = 1.5
+
+
+@dataclass
+class _LMState:
+    """What one LM iteration hands the next (VolumeProblem.solve)."""
+
+    x: np.ndarray
+    es: float  # smoothness and penalty energy at x
+    ep: float
+    g: np.ndarray  # gradient at x
+    Hgn: np.ndarray  # Gauss-Newton Hessian values at x (the assembly's pattern)
+    blocks: tuple  # its diagonal blocks (linearise)
+    g0: float  # |g| at the start
+    g_prev: float  # |g| where the last accepted step started
+    om_floor: float  # the smallest |omega| steps are measured against
+    Mbuf: np.ndarray  # the damped matrix's values
+    lam: float = 1e-4  # Marquardt's damping
+    nu: float = 2.0  # its growth after a rejection
+    newton: bool = False  # in the Newton phase
+    K: np.ndarray | None = None  # the Newton term at x (Newton phase)
+    Kbuf: np.ndarray | None = None
+    Hsum: np.ndarray | None = None  # Hgn + K
+    pc: object = None  # the preconditioner, built at damping pc_lam
+    pc_lam: float = 1e-4
+    moved: float = 0.0  # how far omega moved since, relative to |omega|
+    pc_builds: int = 0
+    U: np.ndarray | None = None  # deflation vectors
+    recording: bool = False  # recording Ritz vectors
+    rejected: int = 0  # steps rejected in a row
+    prev_step: float | None = None  # the sizes of the last two accepted steps
+    last_step: float | None = None
+
+    @property
+    def F(self) -> float:
+        return self.es + self.ep
+
+
+@dataclass
+class _Step:
+    """An LM iteration's trial: the step, where it leads, how it was found."""
+
+    res: PCGResult
+    cg_steps: int
+    newton: bool  # solved with the full Hessian
+    dx: np.ndarray
+    x: np.ndarray  # x + dx
+    es: float
+    ep: float
+    rho: float  # actual over predicted decrease of the full step
+    line_step: float  # the multiple of the solved step taken
+    curvature_move: bool  # moved on along a direction of negative curvature
+    size: float  # |d omega| / |omega|
+
+    @property
+    def F(self) -> float:
+        return self.es + self.ep
 
 
 class VolumeProblem:
@@ -214,9 +332,8 @@ class VolumeProblem:
 
     def _face_blocks(self) -> np.ndarray:
         """Scratch space for the (m, 9, 9) face blocks, kept between LM
-        iterations: a fresh array this size (123 MB at 98k tets) costs
-        more to fault in than to fill (gauss_newton_blocks 0.07 s into a
-        kept array, 0.08-0.24 s into a new one)."""
+        iterations: a fresh array this size (over 100 MB at 100k tets)
+        costs more to fault in than to fill (docs/performance.md)."""
         if self._blocks_scratch is None:
             self._blocks_scratch = np.empty((len(self.faces), 9, 9))
         return self._blocks_scratch
@@ -301,9 +418,9 @@ class VolumeProblem:
 
         def apply(r):
             # einsum, not BLAS (see pcg.pcg), by index ranges on all
-            # cores; both products read the vectors row by row (U y as
-            # "ij,j->i" on U's columns took 1.1 ms per CG step at 78k tets,
-            # as "i,ij->j" on its rows 0.5 ms)
+            # cores; both products read the vectors row by row (U y on
+            # U's rows, "i,ij->j", takes half the time of "ij,j->i" on its
+            # columns)
             y = Einv @ sum(run(lambda i, j: np.einsum("ij,j->i", U32T[:, i:j], r[i:j].astype(np.float32)), parts))
             out = pc(r)
 
@@ -336,7 +453,7 @@ class VolumeProblem:
         G = self.covariant_gradient(omega)
         GT = G.T.tocsr()
         # both products CSR times CSR: with G.T (CSC) SciPy converts M G
-        # (7.1 M nonzeros at 98k tets) to CSC and the product back to CSR
+        # (millions of nonzeros) to CSC and the product back to CSR
         Ac = GT @ (self.lm_matrix(Hdata, damping, diagH, out=scratch) @ G)
         # the coarse operator's pattern is the same in every build: the
         # aggregates' roots of the last build are reused (amg.py)
@@ -372,9 +489,8 @@ class VolumeProblem:
         instead crawl: its model is convex and sees no descent along p.  E
         along p is a quartic (energy_along) and falls first like its
         negative curvature, so its minimum there is a cheap and large
-        decrease (as Newton-CG methods use negative curvature).  Torus,
-        h = 0.3: a mesh whose Gauss-Newton steps crawled for 15 iterations
-        and stopped at the 30-iteration cap converged in 21 with it."""
+        decrease (as Newton-CG methods use negative curvature; what it
+        saved on the torus: docs/performance.md)."""
         xn = x + dx
         es, ep = terms
         Fn = es + ep
@@ -394,262 +510,281 @@ class VolumeProblem:
         return dx, xn, es, ep, Fn
 
     # --------------------------------------------------------------------- LM
-    def solve(
-        self,
-        x0: np.ndarray,
-        max_iterations: int = 50,
-        tol: float = 1e-10,
-        init: str = "",
-        linear: bool = False,
-        progress=None,
-        cancel=None,
-        cg_rtol: float = 1e-3,
-        cg_rtol_floor: float = 1e-6,
-        step_tol: float = 1e-6,
-        reuse_step: float = 0.05,
-        direct: bool = False,
-        newton_step: float = 0.01,
-        deflate: int = 8,
-        deflate_step: float = 0.1,
-        shrink: float = 0.1,
-        newton_shrink: float = 0.01,
-        line_search: float = 4.0,
-        extrapolate: float = 1.5,
-    ):
+    def solve(self, x0: np.ndarray, max_iterations: int = 50, tol: float = 1e-10, init: str = "",
+              linear: bool = False, progress=None, cancel=None, **tuning) -> tuple[np.ndarray, LMReport]:
+        """Minimise Eq. 23 from x0 by Levenberg-Marquardt (module docs).
+
+        Each iteration is one ``_lm_step`` (solve the damped system, try
+        the step), one ``_lm_update`` (accept or reject it, adjust the
+        damping, enter the Newton and deflation phases) and the stopping
+        rule ``_lm_stop``.
+
+        Parameters
+        ----------
+        x0 : (n,) float array
+            The start, n = cons.n_unknowns.
+        max_iterations : int
+            LM iterations at most (the report says ``capped`` when reached).
+        tol : float
+            Relative energy decrease that stops LM together with a small step.
+        init : str
+            The start's name, kept in the report.
+        linear : bool
+            Solve the linearised structure equation (Eq. 19 without the
+            wedge term): the 'linear' initialisation.
+        progress : callable(iteration, energy) or None
+        cancel : callable() -> bool, or None
+            Asked before every iteration; True raises Cancelled.
+        **tuning
+            Fields of ``LMSettings``.
+
+        Returns
+        -------
+        x : (n,) float array
+            The minimiser found.
+        report : LMReport
+        """
+        s = LMSettings(**tuning)
         rep = LMReport(init=init, setup_seconds=self.setup_seconds)
         t0 = time.perf_counter()
-        x = x0.copy()
-        es, ep = self.energy_terms(x, linear)
-        F = es + ep
-        lam = 1e-4
-        nu = 2.0
-        g, Hgn, blocks = self.linearise(x, linear)
-        # the matrices' values (~10 M at 98k tets) go into arrays kept for
-        # the whole solve: the damped matrix, the Newton term and the
-        # Hessian's sum; the Gauss-Newton values of an accepted step
-        # overwrite those of the last (fresh arrays this size are new pages
-        # each time, see hessian.FaceAssembly.data)
-        Mbuf, Kbuf, Hsum = np.empty_like(Hgn), None, None
-        g0 = np.linalg.norm(g)
-        rep.iterations.append(LMIteration(0, F, es, ep, g0, lam, 0, True, 0.0))
-        pc, pc_lam, moved = None, lam, 0.0
-        # Newton near the minimum: Gauss-Newton converges only linearly here
-        # (the residual r of Eq. 19 does not vanish at the minimiser), so
-        # once the steps are small the Hessian gets its second-order term
-        newton, K = False, None
-        # deflation (pcg.RitzRecorder): once the steps are small, the
-        # systems change little from one iteration to the next and keep the
-        # same few very small eigenvalues (modes around node regions and
-        # curves that the preconditioner misses); eigenvectors found while
-        # solving one system are added as a coarse space to the next
-        U, recording = None, False
-        rejected = 0
-        g_prev = g0
-        prev_step = last_step = None  # the steps of the last two accepted iterations
-        # steps are measured relative to |omega|, but not below an rms of
-        # 1e-6 rad per edge: a field without turning (a cube's, omega = 0)
-        # would otherwise never meet the step test (its steps stay at
-        # round-off, a fixed fraction of an omega that is round-off too)
-        om_floor = 1e-6 * np.sqrt(self.mesh.n_edges)
+        st = self._lm_start(x0, linear)
+        rep.iterations.append(LMIteration(0, st.F, st.es, st.ep, st.g0, st.lam, 0, True, 0.0))
         for it in range(1, max_iterations + 1):
             if cancel is not None and cancel():
                 raise Cancelled()
             ti = time.perf_counter()
-            gn = np.linalg.norm(g)
-            # Eisenstat-Walker forcing, capped at cg_rtol: tighten as the
-            # gradient falls (superlinear overall).  Loose early solves
-            # (cap 0.1) cost as much in the end, through 40% more LM
-            # iterations (ball, 11k and 26k tets: 14 -> 10 iterations).
-            # Not in the Newton phase: there the steps shrink
-            # quadratically and set the accuracy (see the step test
-            # below), and a step solved to 1e-3 is within a few percent of
-            # the exact one (ball, 98k tets: 0.3-4%).  Tightening the last
-            # Newton system (to 3.5e-5 there) cost a third of all CG steps
-            # and moved the result by 5e-8 of omega (bench/RESULTS.md)
-            rtol = cg_rtol
-            if it > 1 and not newton:
-                rtol = max(cg_rtol_floor, min(cg_rtol, 0.9 * (gn / g_prev) ** 2))
-            # the preconditioner (block Jacobi + AMG on the covariant
-            # gradients) changes slowly with omega and lambda: rebuild it only
-            # once omega has moved or the damping changed by a large factor,
-            # however small lambda is (ignoring changes below 1e-8 saved
-            # builds but cost 18% more CG steps on a 36k-tet ball;
-            # bench/RESULTS.md)
-            diagH = self.damping_diagonal(blocks)
-            if not direct and (pc is None or moved > reuse_step or not 0.01 <= lam / pc_lam <= 100.0):
-                pc, pc_lam, moved = self.make_preconditioner(blocks, lam, Hgn, self.omega(x), Mbuf), lam, 0.0
-                rep.preconditioner_builds += 1
-            # one assembled matrix per system (hessian.py), its products run
-            # by row blocks on all cores (parallel.py)
-            if newton:
-                Hsum = Hdata = np.add(Hgn, K, out=Hsum)
-            else:
-                Hdata = Hgn
-            M = self.lm_matrix(Hdata, lam, diagH, out=Mbuf)
-            A = parallel(M)
-            curved = None  # a direction of negative curvature of the full Hessian
-            if direct:
-                res = self._direct_step(g, M)
-                cg_steps = 0
-            else:
-                pcd = self._deflated(pc, U, A.__matmul__)
-                rec = RitzRecorder(len(g), nev=deflate // 2) if recording and deflate >= 2 else None
-                # near the minimum a Newton step may be known to be below
-                # the tolerance long before it is solved for (pcg.pcg)
-                # (stalled CG iterates have been seen at 0.66 and 0.96-0.99
-                # of the solution's size, ball 78k and 98k tets, so the bound
-                # keeps a 2x margin; the partial step is still taken below)
-                small = None
-                if newton:
-                    om_norm = max(float(np.linalg.norm(self.omega(x))), om_floor)
-                    small = (lambda v: np.linalg.norm(self.P @ v) / om_norm, 0.5 * step_tol, 50)
-                res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000, recorder=rec, small=small)
-                cg_steps = res.iterations
-                if res.negative_curvature and newton:
-                    # the full Hessian is not positive definite here: take
-                    # the Gauss-Newton step instead (the steps spent on the
-                    # Newton attempt still count in the report), and keep
-                    # the direction of negative curvature that CG found
-                    newton, Hdata, rec, curved = False, Hgn, None, res.direction
-                    A = parallel(self.lm_matrix(Hdata, lam, diagH, out=Mbuf))
-                    pcd = self._deflated(pc, U, A.__matmul__)
-                    res = pcg(A.__matmul__, -g, pcd, rtol=rtol, maxiter=5000)
-                    cg_steps += res.iterations
-                if rec is not None and not rec.failed and res.converged and res.iterations > rec.m:
-                    U = _merge_vectors(rec.vectors()[1], U, deflate)
-            used_newton = newton
-            dx = res.x
-            xn = x + dx
-            esn, epn = self.energy_terms(xn, linear)
-            Fn = esn + epn
-            # predicted reduction of the quadratic model
-            Hdx = self.assembly.matrix(Hdata) @ dx
-            pred = -(g @ dx) - 0.5 * (dx @ Hdx)
-            rho = (F - Fn) / pred if pred > 0 else -1.0
-            t_line = 1.0
-            if line_search and not linear and (not used_newton or Fn >= F):
-                # E along the Gauss-Newton step is a quartic (energy_along),
-                # so its exact minimum there costs a few residual evaluations.
-                # (Along a Newton step too: one that would raise the energy
-                # is replaced by that minimum rather than rejected.  Torus,
-                # 10 fresh meshes at h = 0.3: 9 had 2-9 rejected Newton
-                # steps, each a full solve, and 6 stopped at the 30-iteration
-                # cap; with this and _curvature_move none did.)
-                # Far from the minimiser the full step can overshoot (the
-                # wedge term bends the energy) or fall far short (the
-                # damping holds it back).  Taken then: when the full step
-                # would raise the energy (instead of rejecting it and
-                # solving again) and when the minimum lies at >= 1.5 times
-                # the step.  Otherwise the full step, as plain LM: taking
-                # every line minimum (t = 0.8-1.15 on the ball) cost 13-18%
-                # more CG steps on 4 of 4 balls of ~99k tets.  Torus
-                # example, 52.6k tets: 24 -> 18 LM iterations.  rho stays
-                # that of the full step, so the damping follows plain LM
-                # (raising it after a replaced overshoot, as after a
-                # rejection, cost 2-3 more iterations on the torus).
-                t_line = self.line_minimum(self.energy_along(x, dx), line_search)
-                if Fn < F and t_line < extrapolate:
-                    t_line = 1.0
-                if t_line != 1.0:
-                    es_t, ep_t = self.energy_terms(x + t_line * dx)
-                    if es_t + ep_t < Fn:
-                        dx = t_line * dx
-                        xn, esn, epn, Fn = x + dx, es_t, ep_t, es_t + ep_t
-                    else:
-                        t_line = 1.0
-            moved_along = False
-            if curved is not None and line_search and not linear:
-                # Newton found the Hessian indefinite: the Gauss-Newton step,
-                # then the minimum along the direction of negative curvature
-                Fgn = Fn
-                dx, xn, esn, epn, Fn = self._curvature_move(x, dx, (esn, epn), curved, line_search)
-                moved_along = Fn < Fgn
-            accepted = Fn < F
-            # the step measured on omega, not on x: x also holds the
-            # boundary angles alpha, whose common shift per boundary
-            # component is a null mode of Eq. 23 that omega does not see
-            step = float(np.linalg.norm(self.P @ dx) / max(np.linalg.norm(self.omega(xn)), om_floor))
-            if accepted:
-                g_prev = gn
-                prev_step, last_step = last_step, step
-                x = xn
-                moved += step
-                dF = F - Fn
-                F, es, ep = Fn, esn, epn
-                # Nielsen's update, but down by up to 10x (not 3x) after a
-                # good step: lambda diag(H) soon exceeds H's smallest
-                # eigenvalues (modes near the node regions, near 5e-7 of
-                # the diagonal), and the steps then crawl along them (114k-tet
-                # ball: steps of 5, 5, 3, 3, 3, 2, 1% of omega and 12 LM
-                # iterations with 3x; 9 iterations with 10x)
-                lam *= max(shrink, 1.0 - (2.0 * rho - 1.0) ** 3) if rho > 0 else 1.0
-                nu = 2.0
-                g, Hgn, blocks = self.linearise(x, linear, out=Hgn)
-                newton = newton or (not linear and not direct and step < newton_step)
-                if used_newton and rho > 0.75:
-                    # Newton converges quadratically only without damping:
-                    # lambda = 1e-8 still left a linear rate (ball, 98k
-                    # tets: steps of 5e-4, 4e-5, 2e-6 of omega; with
-                    # lambda 100x smaller per good Newton step, 5e-4 and
-                    # 6e-6 to 9e-6, after which omega was within 3e-9 of
-                    # the minimiser)
-                    lam *= newton_shrink
-                recording = recording or (not direct and step < deflate_step)
-                K = Kbuf = self.second_order(x, out=Kbuf) if newton else None
-            else:
-                lam *= nu
-                nu *= 2.0
-                dF = 0.0
-                newton, K = False, None
+            step = self._lm_step(st, it, s, linear)
+            accepted = step.F < st.F
+            dF = self._lm_update(st, step, accepted, s, linear)
             rep.iterations.append(
-                LMIteration(it, F, es, ep, float(np.linalg.norm(g)), lam, cg_steps, accepted,
-                            time.perf_counter() - ti, step, newton=used_newton, line_step=t_line,
-                            curvature_move=moved_along)
+                LMIteration(it, st.F, st.es, st.ep, float(np.linalg.norm(st.g)), st.lam, step.cg_steps, accepted,
+                            time.perf_counter() - ti, step.size, newton=step.newton, line_step=step.line_step,
+                            curvature_move=step.curvature_move)
             )
             if progress is not None:
-                progress(it, F)
-            # converged once the distance left to the minimiser is below
-            # step_tol.  An accepted step this small leaves a distance far
-            # smaller still.  In the Newton phase the steps contract
-            # (quadratically once the damping is gone: ball, 98k tets,
-            # 5.4e-3, 5.2e-4, 1.0e-5 of omega), and the distance left
-            # after a step of s that followed one of s_prev is at most
-            # about s * (s / s_prev), the last contraction once more.  On
-            # ball meshes of 15k-98k tets LM stopped 1.4e-8 to 5.4e-8 of
-            # omega from the minimiser this way (estimates 8e-9 to 2e-7;
-            # the rest is the last step's CG error)
-            contracted = (used_newton and prev_step is not None and step <= 0.1 * prev_step
-                          and step * step / prev_step <= step_tol)
-            if accepted and (step <= step_tol or contracted or (dF <= tol * F and step <= 100 * step_tol)):
-                rep.converged = True
-                rep.reason = "converged: step below tolerance"
-                break
-            if res.small_solution or (not accepted and rejected == 0 and res.converged and step <= step_tol):
-                # the next step is below the tolerance (taken if it lowered
-                # the energy: a step this small changes it at round-off)
-                rep.converged = True
-                rep.reason = "converged: next step below tolerance"
-                break
-            if np.linalg.norm(g) <= 1e-13 * max(g0, 1.0):
-                rep.converged = True
-                rep.reason = "converged: gradient vanished"
-                break
-            rejected = 0 if accepted else rejected + 1
-            if rejected >= 6 or lam > 1e12:
-                # no step of any size decreases the energy: a minimum to
-                # working precision
-                rep.converged = bool(np.linalg.norm(g) <= 1e-6 * max(g0, 1e-300))
-                rep.reason = "stopped: no further decrease possible" + (" (converged)" if rep.converged else "")
-                break
-            if linear and accepted and res.converged and res.relative_residual <= 1e-9:
-                rep.converged = True
-                rep.reason = "converged: linear problem solved"
+                progress(it, st.F)
+            stop = self._lm_stop(st, step, accepted, dF, s, tol, linear)
+            if stop is not None:
+                rep.converged, rep.reason = stop
                 break
         else:
             rep.capped = True
             rep.reason = f"stopped after {max_iterations} iterations"
+        rep.preconditioner_builds = st.pc_builds
         rep.seconds = time.perf_counter() - t0
-        return x, rep
+        return st.x, rep
+
+    def _lm_start(self, x0: np.ndarray, linear: bool) -> _LMState:
+        """The state at x0: energy, gradient and Gauss-Newton values."""
+        x = x0.copy()
+        es, ep = self.energy_terms(x, linear)
+        g, Hgn, blocks = self.linearise(x, linear)
+        g0 = np.linalg.norm(g)
+        # the matrices' values (~100 per tet) go into arrays kept for
+        # the whole solve (fresh arrays this size are new pages each time,
+        # see hessian.FaceAssembly.data); steps are measured relative to
+        # |omega| but not below an rms of 1e-6 rad per edge: a field without
+        # turning (a cube's, omega = 0) would otherwise never meet the step
+        # test (its steps stay at round-off, a fixed fraction of an omega
+        # that is round-off too)
+        return _LMState(x=x, es=es, ep=ep, g=g, Hgn=Hgn, blocks=blocks, g0=g0, g_prev=g0,
+                        om_floor=1e-6 * np.sqrt(self.mesh.n_edges), Mbuf=np.empty_like(Hgn))
+
+    def _lm_step(self, st: _LMState, it: int, s: LMSettings, linear: bool) -> _Step:
+        """Iteration ``it``'s trial step from st: the CG tolerance, the
+        preconditioner (rebuilt when stale), the damped system's solution
+        (_lm_direction) and where it leads (_lm_trial)."""
+        gn = np.linalg.norm(st.g)
+        # Eisenstat-Walker forcing, capped at cg_rtol: tighten as the
+        # gradient falls (superlinear overall; looser early solves cost as
+        # much in the end, through more LM iterations).  Not in the Newton
+        # phase: there the steps shrink quadratically and set the accuracy
+        # (see the stopping rule), and a Newton step solved to cg_rtol is
+        # within a few percent of the exact one (docs/performance.md)
+        rtol = s.cg_rtol
+        if it > 1 and not st.newton:
+            rtol = max(s.cg_rtol_floor, min(s.cg_rtol, 0.9 * (gn / st.g_prev) ** 2))
+        # the preconditioner (block Jacobi + AMG on the covariant gradients)
+        # changes slowly with omega and lambda: rebuilt only once omega has
+        # moved or the damping changed by a large factor, however small
+        # lambda is (a floor on lambda in this test saved builds but cost
+        # more CG steps: docs/performance.md)
+        diagH = self.damping_diagonal(st.blocks)
+        if not s.direct and (st.pc is None or st.moved > s.reuse_step or not 0.01 <= st.lam / st.pc_lam <= 100.0):
+            st.pc = self.make_preconditioner(st.blocks, st.lam, st.Hgn, self.omega(st.x), st.Mbuf)
+            st.pc_lam, st.moved = st.lam, 0.0
+            st.pc_builds += 1
+        res, cg_steps, Hdata, curved = self._lm_direction(st, s, rtol, diagH)
+        return self._lm_trial(st, s, linear, res, cg_steps, Hdata, curved)
+
+    def _lm_direction(self, st: _LMState, s: LMSettings, rtol: float, diagH: np.ndarray):
+        """The damped system's solution: (PCGResult, CG steps, the Hessian
+        values used, a direction of negative curvature or None).  In the
+        Newton phase the full Hessian; where it is not positive definite,
+        Gauss-Newton instead (the Newton phase ends: st.newton is cleared)."""
+        # one assembled matrix per system (hessian.py), its products run by
+        # row blocks on all cores (parallel.py)
+        if st.newton:
+            st.Hsum = Hdata = np.add(st.Hgn, st.K, out=st.Hsum)
+        else:
+            Hdata = st.Hgn
+        M = self.lm_matrix(Hdata, st.lam, diagH, out=st.Mbuf)
+        A = parallel(M)
+        if s.direct:
+            return self._direct_step(st.g, M), 0, Hdata, None
+        pcd = self._deflated(st.pc, st.U, A.__matmul__)
+        rec = RitzRecorder(len(st.g), nev=s.deflate // 2) if st.recording and s.deflate >= 2 else None
+        # near the minimum a Newton step may be known to be below the
+        # tolerance long before it is solved for (pcg.pcg's ``small``); the
+        # bound keeps a 2x margin for stalled CG iterates (the partial step
+        # is still taken)
+        small = None
+        if st.newton:
+            om_norm = max(float(np.linalg.norm(self.omega(st.x))), st.om_floor)
+            small = (lambda v: np.linalg.norm(self.P @ v) / om_norm, 0.5 * s.step_tol, 50)
+        res = pcg(A.__matmul__, -st.g, pcd, rtol=rtol, maxiter=5000, recorder=rec, small=small)
+        cg_steps = res.iterations
+        curved = None
+        if res.negative_curvature and st.newton:
+            # the full Hessian is not positive definite here: take the
+            # Gauss-Newton step instead (the steps spent on the Newton
+            # attempt still count in the report), and keep the direction of
+            # negative curvature that CG found
+            st.newton, Hdata, rec, curved = False, st.Hgn, None, res.direction
+            A = parallel(self.lm_matrix(Hdata, st.lam, diagH, out=st.Mbuf))
+            pcd = self._deflated(st.pc, st.U, A.__matmul__)
+            res = pcg(A.__matmul__, -st.g, pcd, rtol=rtol, maxiter=5000)
+            cg_steps += res.iterations
+        if rec is not None and not rec.failed and res.converged and res.iterations > rec.m:
+            st.U = _merge_vectors(rec.vectors()[1], st.U, s.deflate)
+        return res, cg_steps, Hdata, curved
+
+    def _lm_trial(self, st: _LMState, s: LMSettings, linear: bool, res: PCGResult, cg_steps: int,
+                  Hdata: np.ndarray, curved: np.ndarray | None) -> _Step:
+        """Where the solved step leads: its energy and the ratio rho of the
+        actual to the predicted decrease, moved to the energy's minimum
+        along the step or along a direction of negative curvature where
+        that is lower."""
+        used_newton = st.newton
+        x, F = st.x, st.F
+        dx = res.x
+        xn = x + dx
+        esn, epn = self.energy_terms(xn, linear)
+        Fn = esn + epn
+        # predicted reduction of the quadratic model
+        Hdx = self.assembly.matrix(Hdata) @ dx
+        pred = -(st.g @ dx) - 0.5 * (dx @ Hdx)
+        rho = (F - Fn) / pred if pred > 0 else -1.0
+        t_line = 1.0
+        if s.line_search and not linear and (not used_newton or Fn >= F):
+            # E along the step is a quartic (energy_along), so its exact
+            # minimum there costs a few residual evaluations.  Far from the
+            # minimiser the full step can overshoot (the wedge term bends
+            # the energy) or fall far short (the damping holds it back).
+            # Taken then: when the full step would raise the energy (instead
+            # of rejecting it and solving again, for a Newton step too) and
+            # when the minimum lies at >= extrapolate times the step;
+            # otherwise the full step, as plain LM, since taking every line
+            # minimum cost more CG steps (docs/performance.md).  rho stays
+            # that of the full step, so the damping follows plain LM
+            # (raising it after a replaced overshoot, as after a rejection,
+            # cost iterations)
+            t_line = self.line_minimum(self.energy_along(x, dx), s.line_search)
+            if Fn < F and t_line < s.extrapolate:
+                t_line = 1.0
+            if t_line != 1.0:
+                es_t, ep_t = self.energy_terms(x + t_line * dx)
+                if es_t + ep_t < Fn:
+                    dx = t_line * dx
+                    xn, esn, epn, Fn = x + dx, es_t, ep_t, es_t + ep_t
+                else:
+                    t_line = 1.0
+        moved_along = False
+        if curved is not None and s.line_search and not linear:
+            # Newton found the Hessian indefinite: the Gauss-Newton step,
+            # then the minimum along the direction of negative curvature
+            Fgn = Fn
+            dx, xn, esn, epn, Fn = self._curvature_move(x, dx, (esn, epn), curved, s.line_search)
+            moved_along = Fn < Fgn
+        # the step measured on omega, not on x: x also holds the boundary
+        # angles alpha, whose common shift per boundary component is a null
+        # mode of Eq. 23 that omega does not see
+        size = float(np.linalg.norm(self.P @ dx) / max(np.linalg.norm(self.omega(xn)), st.om_floor))
+        return _Step(res, cg_steps, used_newton, dx, xn, esn, epn, rho, t_line, moved_along, size)
+
+    def _lm_update(self, st: _LMState, step: _Step, accepted: bool, s: LMSettings, linear: bool) -> float:
+        """Take an accepted step (relinearise, lower the damping, enter the
+        Newton and deflation phases once the steps are small) or reject it
+        (raise the damping, leave the Newton phase).  Returns the energy
+        decrease (0 for a rejected step)."""
+        if accepted:
+            st.g_prev = np.linalg.norm(st.g)
+            st.prev_step, st.last_step = st.last_step, step.size
+            st.x = step.x
+            st.moved += step.size
+            dF = st.F - step.F
+            st.es, st.ep = step.es, step.ep
+            # Nielsen's update, but down by up to 1 / shrink (10x, not 3x)
+            # after a good step: lambda diag(H) soon exceeds H's smallest
+            # eigenvalues (modes near the node regions), and the steps then
+            # crawl along them
+            st.lam *= max(s.shrink, 1.0 - (2.0 * step.rho - 1.0) ** 3) if step.rho > 0 else 1.0
+            st.nu = 2.0
+            st.g, st.Hgn, st.blocks = self.linearise(st.x, linear, out=st.Hgn)
+            # Newton near the minimum: Gauss-Newton converges only linearly
+            # there (the residual of Eq. 19 does not vanish at the
+            # minimiser), so once the steps are small the Hessian gets its
+            # second-order term
+            st.newton = st.newton or (not linear and not s.direct and step.size < s.newton_step)
+            if step.newton and step.rho > 0.75:
+                # Newton converges quadratically only without damping: any
+                # lambda left still slows it to a linear rate
+                st.lam *= s.newton_shrink
+            # deflation (pcg.RitzRecorder): once the steps are small the
+            # systems change little from one iteration to the next and keep
+            # the same few very small eigenvalues (modes around node regions
+            # and curves that the preconditioner misses); eigenvectors found
+            # while solving one system are a coarse space for the next
+            st.recording = st.recording or (not s.direct and step.size < s.deflate_step)
+            st.K = st.Kbuf = self.second_order(st.x, out=st.Kbuf) if st.newton else None
+        else:
+            st.lam *= st.nu
+            st.nu *= 2.0
+            dF = 0.0
+            st.newton, st.K = False, None
+        st.rejected = 0 if accepted else st.rejected + 1
+        return dF
+
+    def _lm_stop(self, st: _LMState, step: _Step, accepted: bool, dF: float, s: LMSettings, tol: float,
+                 linear: bool) -> tuple[bool, str] | None:
+        """The stopping rule: (converged, reason) once LM may stop, else None."""
+        # converged once the distance left to the minimiser is below
+        # step_tol.  An accepted step this small leaves a distance far
+        # smaller still.  In the Newton phase the steps contract
+        # (quadratically once the damping is gone), and the distance left
+        # after a step of s that followed one of s_prev is at most about
+        # s * (s / s_prev), the last contraction once more
+        size = step.size
+        contracted = (step.newton and st.prev_step is not None and size <= 0.1 * st.prev_step
+                      and size * size / st.prev_step <= s.step_tol)
+        if accepted and (size <= s.step_tol or contracted or (dF <= tol * st.F and size <= 100 * s.step_tol)):
+            return True, "converged: step below tolerance"
+        res = step.res
+        if res.small_solution or (not accepted and st.rejected == 1 and res.converged and size <= s.step_tol):
+            # the next step is below the tolerance (taken if it lowered the
+            # energy: a step this small changes it at round-off)
+            return True, "converged: next step below tolerance"
+        gnorm = np.linalg.norm(st.g)
+        if gnorm <= 1e-13 * max(st.g0, 1.0):
+            return True, "converged: gradient vanished"
+        if st.rejected >= 6 or st.lam > 1e12:
+            # no step of any size decreases the energy: a minimum to working
+            # precision
+            converged = bool(gnorm <= 1e-6 * max(st.g0, 1e-300))
+            return converged, "stopped: no further decrease possible" + (" (converged)" if converged else "")
+        if linear and accepted and res.converged and res.relative_residual <= 1e-9:
+            return True, "converged: linear problem solved"
+        return None
 
 
 def _merge_vectors(new: np.ndarray, old: np.ndarray | None, cap: int) -> np.ndarray:
