@@ -322,71 +322,149 @@ def solve_boundary_field(
 ) -> BoundaryField:
     """Solve Eq. 15 with feature alignment, develop it, and lift it to 3D.
 
-    face_sigma : (#F,) index of curve ends per boundary triangle.
-    generator_turns : optional {(component, k): quarter turns} added to the
-        holonomy target of generator k of a component (Eq. 14).
-    normal_override : optional {vertex: unit vector} replacing the vertex
-        normal the 3D frame is adapted to (the curve tangent at curve ends).
+    Parameters
+    ----------
+    S : TriSurface
+        The boundary surface, #bV vertices, #bE edges, #bF triangles.
+    features : FeatureGraph
+        Its sharp edges and corners.
+    face_sigma : (#bF,) float array
+        Index of the curve ends per boundary triangle.
+    generator_turns : dict or None
+        {(component, k): quarter turns} added to the holonomy target of
+        generator k of a component (Eq. 14).
+    normal_override : dict or None
+        {vertex: unit vector} replacing the vertex normal the 3D frame is
+        adapted to (the curve tangent at curve ends).
+
+    Returns
+    -------
+    BoundaryField
+
+    Raises
+    ------
+    TopologyError
+        When no field satisfies the singularities and the sharp features
+        together.
     """
-    F = S.F
     E = S.edges
-    nV, nE, nF = len(S.V), len(E), len(F)
     vc = vertex_coordinates(S)
     phi_ij, phi_ji = edge_angles(S, vc)
     rho = wrap(phi_ji + np.pi - phi_ij)  # Eq. 5
     K = vc.theta_tilde.sum(axis=1) - np.pi  # Eq. 4
     # singular triangles: curve ends and sharp corners (Fig. 11)
     Omega = 2 * np.pi * np.asarray(face_sigma, dtype=float).copy()
-    cf = features.corner_faces()
-    np.add.at(Omega, cf, 2 * np.pi * features.vertex_index[features.corners])
-
-    # cotan weights (Eq. 12), floored: the 2D energy must stay positive
-    cot = 1.0 / np.tan(S.corner_angles)
-    w = np.zeros(nE)
-    for k in range(3):
-        # corner k is opposite the edge (k+1, k+2) = face_edges[:, (k+1) % 3]
-        np.add.at(w, S.face_edges[:, (k + 1) % 3], 0.5 * cot[:, k])
-    w = np.maximum(w, 0.05 * np.abs(w).mean())
-
+    np.add.at(Omega, features.corner_faces(), 2 * np.pi * features.vertex_index[features.corners])
     # feature alignment: fixed omega on sharp edges between regular feature vertices
     reg = features.is_regular_feature_vertex
-    beta = np.zeros(nV)
+    beta = np.zeros(len(S.V))
     if np.any(features.sharp):
         se = np.nonzero(features.sharp)[0]
-        z = np.zeros(nV, complex)
+        z = np.zeros(len(S.V), complex)
         np.add.at(z, E[se, 0], np.exp(4j * phi_ij[se]))
         np.add.at(z, E[se, 1], np.exp(4j * phi_ji[se]))
         beta = np.angle(z) / 4.0
     fixed = features.sharp & reg[E[:, 0]] & reg[E[:, 1]]
-    omega_fixed = wrap(beta[E[:, 1]] - beta[E[:, 0]] - rho, np.pi / 2)
+    ls = _LeastNorm(_cotan_weights(S), fixed, wrap(beta[E[:, 1]] - beta[E[:, 0]] - rho, np.pi / 2))
+    # constraint rows: one per triangle (Eq. 13), minus one per component,
+    # then the alignment carried across the sectors of sharp corners
+    C, b, keep = _triangle_rows(S, K, Omega)
+    trip, srhs, links = _sector_rows(S, features, vc, beta, rho, reg)
+    Csec = sp.csr_matrix((trip[:, 2], (trip[:, 0].astype(np.int64), trip[:, 1].astype(np.int64))),
+                         shape=(len(srhs), len(E)))
+    Call = sp.vstack([C[keep], Csec]).tocsr()
+    ball = np.r_[b[keep], srhs]
+    generators = _generators(S)
+    null_values = np.zeros((0, 0))
+    if generators:
+        Call, ball, null_values = _add_generator_rows(ls, Call, ball, rho, generators, generator_turns)
+    Call, ball = _add_chain_rows(S, ls, Call, ball, rho, beta, links, reg)
+    omega = ls.solve(Call, ball)
+    res = np.abs(Call @ omega - ball)
+    worst = float(res.max()) if len(res) else 0.0
+    if worst > 1e-6:
+        f = int(np.argmax(np.abs(C @ omega - b)))
+        c = S.V[S.F[f]].mean(axis=0)
+        raise TopologyError(
+            "the boundary cross field cannot satisfy the singularities and sharp features together "
+            f"(worst mismatch {np.degrees(worst):.3g} degrees near ({c[0]:.3g}, {c[1]:.3g}, {c[2]:.3g})); "
+            "check that every patch bounded by sharp edges holds the singular curves it needs"
+        )
+    # develop the 2D field (§3.4): phi_j = phi_i + rho_ij + omega_ij
+    phi = _develop_angles(S, rho + omega, beta, reg, S.face_components[1])
+    E0, omega0, N, edge_normals = _lift(S, features, vc, phi, omega, normal_override)
+    return BoundaryField(
+        omega2d=omega,
+        phi=phi,
+        rho=rho,
+        K=K,
+        Omega=Omega,
+        E0=E0,
+        omega0=omega0,
+        normals=N,
+        edge_normals=edge_normals,
+        is_feature_vertex=features.degree > 0,
+        features=features,
+        generators=[(key, ids, signs) for key, (ids, signs) in generators],
+        constraint_residual=worst,
+        generator_null_values=null_values,
+    )
 
-    # constraint rows: one per triangle (Eq. 13), minus one per component
+
+def _cotan_weights(S: TriSurface) -> np.ndarray:
+    """(#bE,) cotan weights of Eq. 12, floored: the 2D energy must stay
+    positive."""
+    cot = 1.0 / np.tan(S.corner_angles)
+    w = np.zeros(len(S.edges))
+    for k in range(3):
+        # corner k is opposite the edge (k+1, k+2) = face_edges[:, (k+1) % 3]
+        np.add.at(w, S.face_edges[:, (k + 1) % 3], 0.5 * cot[:, k])
+    return np.maximum(w, 0.05 * np.abs(w).mean())
+
+
+def _triangle_rows(S: TriSurface, K: np.ndarray, Omega: np.ndarray):
+    """The holonomy rows of Eq. 13, one per triangle: (C, right-hand side,
+    mask of the rows kept: one per component is left out, as the rows of a
+    closed component sum to zero)."""
     ncomp, flab = S.face_components
-    sgn = S.face_edge_signs
+    nF = len(S.F)
     rows = np.repeat(np.arange(nF), 3)
-    C = sp.csr_matrix((sgn.reshape(-1), (rows, S.face_edges.reshape(-1))), shape=(nF, nE))
-    b = -K + Omega
+    C = sp.csr_matrix((S.face_edge_signs.reshape(-1), (rows, S.face_edges.reshape(-1))), shape=(nF, len(S.edges)))
     keep = np.ones(nF, bool)
     for c in range(ncomp):
         keep[np.nonzero(flab == c)[0][0]] = False
-    # generators (Eq. 14) for components of positive genus
+    return C, -K + Omega, keep
+
+
+def _generators(S: TriSurface) -> list:
+    """((component, k), (edge ids, signs)) of the homology generators of the
+    components of positive genus (Eq. 14)."""
+    ncomp, flab = S.face_components
     chi = S.euler_characteristics()
     generators = []
     for c in range(ncomp):
         if chi[c] >= 2:
             continue
         comp_faces = np.nonzero(flab == c)[0]
-        root = F[comp_faces[0], 0]
+        root = S.F[comp_faces[0], 0]
         for k, loop in enumerate(tree_cotree_generators(S, comp_faces, root)):
             generators.append(((c, k), loop))
-    free = ~fixed
+    return generators
 
-    def least_norm(rows):
+
+class _LeastNorm:
+    """Smallest weighted-norm 2D omega under linear rows, with the omega of
+    the fixed (aligned sharp) edges given."""
+
+    def __init__(self, w: np.ndarray, fixed: np.ndarray, omega_fixed: np.ndarray):
+        self.w, self.fixed, self.free, self.omega_fixed = w, fixed, ~fixed, omega_fixed
+
+    def _least_norm(self, rows):
         """(Cf, apply): apply(r) is the smallest weighted-norm x on the free
         edges with Cf x = r (r a vector or columns), by the normal equations
         of the constraints."""
-        Cf = rows[:, free].tocsr()
-        Winv = sp.diags(1.0 / w[free])
+        Cf = rows[:, self.free].tocsr()
+        Winv = sp.diags(1.0 / self.w[self.free])
         Sys = (Cf @ Winv @ Cf.T).tocsc()
         lu = spla.splu(Sys + 1e-12 * Sys.diagonal().mean() * sp.eye(Sys.shape[0]), permc_spec="MMD_AT_PLUS_A")
 
@@ -397,99 +475,90 @@ def solve_boundary_field(
             # left out of each component (its row is minus the sum of the
             # others): the torus example at 50k tets, with a full turn added
             # around a generator, missed it by 1.4e-6 rad on 4 of 4 meshes,
-            # above the tolerance below.  Iterative refinement against the
-            # unshifted system removes it (along a null vector of Sys, y may
-            # grow, but Cf^T maps that direction to zero)
+            # above the tolerance of solve_boundary_field.  Iterative
+            # refinement against the unshifted system removes it (along a
+            # null vector of Sys, y may grow, but Cf^T maps that direction
+            # to zero)
             for _ in range(3):
                 y += lu.solve(r - Sys @ y)
             return Winv @ (Cf.T @ y)
 
         return Cf, apply
 
-    def solve(rows, rhs):
+    def solve(self, rows, rhs) -> np.ndarray:
         """Smallest-norm omega with rows @ omega = rhs (fixed edges moved to
         the right-hand side)."""
-        _, apply = least_norm(rows)
-        out = np.zeros(nE)
-        out[free] = apply(rhs - rows[:, fixed] @ omega_fixed[fixed])
-        out[fixed] = omega_fixed[fixed]
+        _, apply = self._least_norm(rows)
+        out = np.zeros(len(self.w))
+        out[self.free] = apply(rhs - rows[:, self.fixed] @ self.omega_fixed[self.fixed])
+        out[self.fixed] = self.omega_fixed[self.fixed]
         return out
 
-    def null_vectors(rows, m):
+    def null_vectors(self, rows, m: int) -> np.ndarray:
         """m random vectors on the free edges that the rows map to zero."""
-        Cf, apply = least_norm(rows)
-        R = np.random.default_rng(0).normal(size=(int(free.sum()), m))
-        out = np.zeros((nE, m))
-        out[free] = R - apply(Cf @ R)
+        Cf, apply = self._least_norm(rows)
+        R = np.random.default_rng(0).normal(size=(int(self.free.sum()), m))
+        out = np.zeros((len(self.w), m))
+        out[self.free] = R - apply(Cf @ R)
         return out
 
-    # alignment carried across the sectors of sharp corners
-    trip, srhs, links = _sector_rows(S, features, vc, beta, rho, reg)
-    Csec = sp.csr_matrix((trip[:, 2], (trip[:, 0].astype(np.int64), trip[:, 1].astype(np.int64))),
-                         shape=(len(srhs), nE))
-    Call = sp.vstack([C[keep], Csec]).tocsr()
-    ball = np.r_[b[keep], srhs]
-    null_values = np.zeros((0, 0))
-    if generators:
-        # Eq. 14 fixes the holonomy of the cross field along each generator to
-        # a multiple of a quarter turn; take the multiple nearest to the
-        # smoothest field without generator constraints (plus any requested
-        # extra turns, e.g. the parity correction of the pipeline)
-        omega1 = solve(Call, ball)
-        # how the generators' holonomies move along the null space of the
-        # rows so far: a combination homologous to sharp outlines (a hole's
-        # rim) does not move, the alignment rows fix it, and turns added to
-        # it would contradict them (the pipeline keeps its corrections off
-        # these combinations)
-        N = null_vectors(Call, len(generators) + 2)
-        null_values = np.array([signs @ N[ids] for _key, (ids, signs) in generators])
-        null_values /= np.linalg.norm(N, axis=0)[None, :]  # one scale per vector: integer combinations stay so
-        gen_rows, gen_rhs = [], []
-        for key, (ids, signs) in generators:
-            Phi0 = np.sum(signs * rho[ids])
-            H1 = Phi0 + np.sum(signs * omega1[ids])
-            turns = int(np.round(H1 / (np.pi / 2)))
-            if generator_turns is not None:
-                turns += generator_turns.get(key, 0)
-            row = np.zeros(nE)
-            np.add.at(row, ids, signs)
-            gen_rows.append(row)
-            gen_rhs.append(-Phi0 + turns * np.pi / 2)
-        Call = sp.vstack([Call, sp.csr_matrix(np.array(gen_rows))]).tocsr()
-        ball = np.r_[ball, gen_rhs]
-    # sharp chains the corners do not link to the development root (the rims
-    # of a hole, apart from the outline): align each group with the root by
-    # the quarter turn nearest to the smoothest field (a free choice, like a
-    # generator's turns; it sets how the field turns across the annulus
-    # between them)
-    # one at a time: the next group's quarter turn is read from the field
-    # that already has the previous ones (two rims of a round hole, rounded
-    # independently, could contradict the meridian's turns between them)
-    for root, rep, ids, signs in _unlinked_chain_paths(S, fixed, links, reg):
-        omega2 = solve(Call, ball)
+
+def _add_generator_rows(ls: _LeastNorm, Call, ball, rho, generators: list, generator_turns: dict | None):
+    """The rows with the generators' holonomy rows added (Eq. 14), and how
+    the generators' holonomies move along the null space of the rows before
+    them: (rows, right-hand side, null values)."""
+    nE = len(rho)
+    # Eq. 14 fixes the holonomy of the cross field along each generator to
+    # a multiple of a quarter turn; take the multiple nearest to the
+    # smoothest field without generator constraints (plus any requested
+    # extra turns, e.g. the parity correction of the pipeline)
+    omega1 = ls.solve(Call, ball)
+    # a combination homologous to sharp outlines (a hole's rim) does not
+    # move, the alignment rows fix it, and turns added to it would
+    # contradict them (the pipeline keeps its corrections off these
+    # combinations)
+    N = ls.null_vectors(Call, len(generators) + 2)
+    null_values = np.array([signs @ N[ids] for _key, (ids, signs) in generators])
+    null_values /= np.linalg.norm(N, axis=0)[None, :]  # one scale per vector: integer combinations stay so
+    gen_rows, gen_rhs = [], []
+    for key, (ids, signs) in generators:
+        Phi0 = np.sum(signs * rho[ids])
+        H1 = Phi0 + np.sum(signs * omega1[ids])
+        turns = int(np.round(H1 / (np.pi / 2)))
+        if generator_turns is not None:
+            turns += generator_turns.get(key, 0)
+        row = np.zeros(nE)
+        np.add.at(row, ids, signs)
+        gen_rows.append(row)
+        gen_rhs.append(-Phi0 + turns * np.pi / 2)
+    return sp.vstack([Call, sp.csr_matrix(np.array(gen_rows))]).tocsr(), np.r_[ball, gen_rhs], null_values
+
+
+def _add_chain_rows(S: TriSurface, ls: _LeastNorm, Call, ball, rho, beta, links, reg):
+    """The rows with the sharp chains that the corners do not link to the
+    development root (the rims of a hole, apart from the outline) aligned
+    with the root: each group by the quarter turn nearest to the smoothest
+    field (a free choice, like a generator's turns; it sets how the field
+    turns across the annulus between them), one at a time: the next group's
+    quarter turn is read from the field that already has the previous ones
+    (two rims of a round hole, rounded independently, could contradict the
+    meridian's turns between them)."""
+    nE = len(rho)
+    for root, rep, ids, signs in _unlinked_chain_paths(S, ls.fixed, links, reg):
+        omega2 = ls.solve(Call, ball)
         Phi0 = np.sum(signs * rho[ids])
         d = beta[rep] - beta[root]
         val = Phi0 + np.sum(signs * omega2[ids])
         row = sp.csr_matrix((signs, (np.zeros(len(ids), np.int64), ids)), shape=(1, nE))
         Call = sp.vstack([Call, row]).tocsr()
         ball = np.r_[ball, d + np.round((val - d) / (np.pi / 2)) * np.pi / 2 - Phi0]
-    omega = solve(Call, ball)
-    generators = [(key, ids, signs) for key, (ids, signs) in generators]
-    res = np.abs(Call @ omega - ball)
-    worst = float(res.max()) if len(res) else 0.0
-    if worst > 1e-6:
-        f = int(np.argmax(np.abs(C @ omega - b)))
-        c = S.V[F[f]].mean(axis=0)
-        raise TopologyError(
-            "the boundary cross field cannot satisfy the singularities and sharp features together "
-            f"(worst mismatch {np.degrees(worst):.3g} degrees near ({c[0]:.3g}, {c[1]:.3g}, {c[2]:.3g})); "
-            "check that every patch bounded by sharp edges holds the singular curves it needs"
-        )
+    return Call, ball
 
-    # develop the 2D field (§3.4): phi_j = phi_i + rho_ij + omega_ij
-    phi = _develop_angles(S, rho + omega, beta, reg, flab)
 
-    # ---- extrinsic lift (§3.4) -------------------------------------------
+def _lift(S: TriSurface, features: FeatureGraph, vc: VertexCoordinates, phi, omega, normal_override: dict | None):
+    """The extrinsic lift (§3.4) of the developed 2D field: (E0, omega0, the
+    vertex normals used, the normals at each edge end)."""
+    F, E = S.F, S.edges
     N = S.vertex_normals.copy()
     if normal_override:
         idx = np.fromiter(normal_override.keys(), dtype=np.int64)
@@ -516,22 +585,7 @@ def solve_boundary_field(
     _adapt_feature_frames(S, features, E0)
     omega0 = _extrinsic_omega(S, features, E0, omega, edge_normals)
     _walk_corner_fans(S, features, E0, omega0)
-    return BoundaryField(
-        omega2d=omega,
-        phi=phi,
-        rho=rho,
-        K=K,
-        Omega=Omega,
-        E0=E0,
-        omega0=omega0,
-        normals=N,
-        edge_normals=edge_normals,
-        is_feature_vertex=is_feat,
-        features=features,
-        generators=generators,
-        constraint_residual=worst,
-        generator_null_values=null_values,
-    )
+    return E0, omega0, N, edge_normals
 
 
 def lift_mismatch(S: TriSurface, bf: BoundaryField) -> np.ndarray:

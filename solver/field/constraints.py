@@ -96,12 +96,27 @@ def build_constraints(
     emb: Embedding,
     bfield: BoundaryField,
 ) -> AffineOmega:
+    """omega = c + P x: the boundary edges (Eq. 20), the curve tubes' edges
+    (Eq. 21, 22) and the free edges parametrised by the unknowns x.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    net : PreparedNetwork
+        The curves' indices and torsion modes.
+    emb : Embedding
+        The network traced through the mesh (tubes, curve ends).
+    bfield : BoundaryField
+        The boundary data: E0, omega0 and the normals of Eq. 20.
+
+    Returns
+    -------
+    AffineOmega
+    """
     nE = mesh.n_edges
-    E = mesh.edges
     kind = np.full(nE, FREE, dtype=np.int8)
     c = np.zeros((nE, 3))
-    rows, cols, vals = [], [], []
-
+    entries = []  # (rows, columns, values) blocks of P, in column order
     # ---------------------------------------------------------- boundary (Eq. 20)
     bv = mesh.boundary_vertices
     B = mesh.boundary
@@ -120,8 +135,6 @@ def build_constraints(
     free_local = ~fixed_v_local
     group = _alpha_groups(B, free_local, [np.searchsorted(mesh.boundary_faces, f) for f, _ in emb.boundary_end_faces])
     alpha_local = _alpha_after_gauge(B, free_local, group)
-    alpha_col_local = np.full(len(bv), -1)
-    # columns assigned after the free-edge block below
     # ------------------------------------------------------------------ tubes
     tube_curve, tube_T, tube_omega0, tube_theta, turns = _tube_edges(mesh, net, emb, kind, bfield.normals)
     is_tube = tube_curve >= 0
@@ -136,66 +149,14 @@ def build_constraints(
     # -------------------------------------------------------------- free edges
     free_edges = np.nonzero(kind == FREE)[0]
     nfree = len(free_edges)
-    col = 3 * nfree
     for k in range(3):
-        rows.append(3 * free_edges + k)
-        cols.append(3 * np.arange(nfree) + k)
-        vals.append(np.ones(nfree))
-    # ---------------------------------------------------------- alpha columns
-    # one column per alpha group that keeps its unknown
-    reps = np.unique(group[alpha_local])
-    rep_col = np.full(len(bv), -1)
-    rep_col[reps] = col + np.arange(len(reps))
-    alpha_col_local = np.where(alpha_local, rep_col[group], -1)
-    alpha_idx = reps
-    n_alpha = len(reps)
-    col += n_alpha
-    bnd = np.nonzero(~both_fixed)[0]
-    nrm = 0.5 * (bfield.edge_normals[bnd, 0] + bfield.edge_normals[bnd, 1])
-    for end, sign in ((0, -1.0), (1, 1.0)):
-        v = B.edges[bnd, end]
-        cc = alpha_col_local[v]
-        ok = cc >= 0
-        for k in range(3):
-            rows.append(3 * ge[bnd[ok]] + k)
-            cols.append(cc[ok])
-            vals.append(sign * nrm[ok, k])
-    # ------------------------------------------------------------ tube columns
-    n_beta = n_gamma = 0
-    beta_edges = np.zeros(0, dtype=np.int64)
-    tube_edges = np.nonzero(is_tube)[0]
-    if len(tube_edges):
-        fixed_t = np.array([net.curves[tube_curve[e]].torsion == Torsion.FIXED for e in tube_edges], bool)
-        # free torsion: one beta per edge (Eq. 21)
-        fe = tube_edges[~fixed_t]
-        beta_edges = fe
-        n_beta = len(fe)
-        for k in range(3):
-            rows.append(3 * fe + k)
-            cols.append(col + np.arange(n_beta))
-            vals.append(tube_T[fe, k])
-        col += n_beta
-        # fixed torsion: gamma per (curve, vertex) (Eq. 22), winding in c
-        xe = tube_edges[fixed_t]
-        if len(xe):
-            sig = np.array([net.curves[tube_curve[e]].sigma for e in xe])
-            c[xe] += (sig * tube_theta[xe])[:, None] * tube_T[xe]
-            key = np.stack([np.repeat(tube_curve[xe], 2), E[xe].reshape(-1)], axis=1)
-            uk, inv = np.unique(key, axis=0, return_inverse=True)
-            inv = inv.reshape(-1, 2)
-            # one gauge per curve: drop the first gamma of each curve
-            first = np.r_[True, uk[1:, 0] != uk[:-1, 0]]
-            gcol = np.cumsum(~first) - 1
-            gcol[first] = -1
-            n_gamma = int((~first).sum())
-            for end, sign in ((0, -1.0), (1, 1.0)):
-                cc = gcol[inv[:, end]]
-                ok = cc >= 0
-                for k in range(3):
-                    rows.append(3 * xe[ok] + k)
-                    cols.append(col + cc[ok])
-                    vals.append(sign * tube_T[xe[ok], k])
-            col += n_gamma
+        entries.append((3 * free_edges + k, 3 * np.arange(nfree) + k, np.ones(nfree)))
+    col = 3 * nfree
+    alpha_col_local, reps = _alpha_columns(B, ge, both_fixed, bfield.edge_normals, group, alpha_local, col, entries)
+    col += len(reps)
+    beta_edges, n_gamma, col = _tube_columns(net, mesh.edges, np.nonzero(is_tube)[0], tube_curve, tube_T,
+                                             tube_theta, c, col, entries)
+    rows, cols, vals = zip(*entries)
     P = sp.csr_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * nE, col)
     )
@@ -204,19 +165,77 @@ def build_constraints(
         P=P,
         kind=kind,
         free_edges=free_edges,
-        alpha_vertices=bv[alpha_idx],  # representative of each alpha group
+        alpha_vertices=bv[reps],  # representative of each alpha group
         tube_curve=tube_curve,
         tube_tangent=tube_T,
         tube_reference=tube_ref,
-        n_alpha=n_alpha,
+        n_alpha=len(reps),
         beta_edges=beta_edges,
-        n_beta=n_beta,
+        n_beta=len(beta_edges),
         n_gamma=n_gamma,
         fixed_frame_vertices=bv[fixed_v_local],
         gauge_vertices=bv[free_local & (alpha_col_local < 0)],
         alpha_group=group,
         alpha_column=alpha_col_local,
     )
+
+
+def _alpha_columns(B, ge, both_fixed, edge_normals, group, alpha_local, col: int, entries: list):
+    """The alpha columns of P from column ``col`` on (Eq. 20), one per alpha
+    group that keeps its unknown, appended to entries.  Returns (the column
+    of each boundary vertex's alpha, -1 if none; the groups' representative
+    vertices)."""
+    reps = np.unique(group[alpha_local])
+    rep_col = np.full(len(B.V), -1)
+    rep_col[reps] = col + np.arange(len(reps))
+    alpha_col_local = np.where(alpha_local, rep_col[group], -1)
+    bnd = np.nonzero(~both_fixed)[0]
+    nrm = 0.5 * (edge_normals[bnd, 0] + edge_normals[bnd, 1])
+    for end, sign in ((0, -1.0), (1, 1.0)):
+        v = B.edges[bnd, end]
+        cc = alpha_col_local[v]
+        ok = cc >= 0
+        for k in range(3):
+            entries.append((3 * ge[bnd[ok]] + k, cc[ok], sign * nrm[ok, k]))
+    return alpha_col_local, reps
+
+
+def _tube_columns(net: PreparedNetwork, E, tube_edges, tube_curve, tube_T, tube_theta, c, col: int, entries: list):
+    """The tube columns of P from column ``col`` on, appended to entries:
+    one beta per edge of a curve with free torsion (Eq. 21), one gamma per
+    (curve, vertex) of a curve with fixed torsion (Eq. 22), whose winding
+    goes into c.  Returns (the edges with a beta, in column order; the
+    number of gammas; the next free column)."""
+    beta_edges = np.zeros(0, dtype=np.int64)
+    n_gamma = 0
+    if not len(tube_edges):
+        return beta_edges, n_gamma, col
+    fixed_t = np.array([net.curves[tube_curve[e]].torsion == Torsion.FIXED for e in tube_edges], bool)
+    # free torsion: one beta per edge (Eq. 21)
+    beta_edges = tube_edges[~fixed_t]
+    for k in range(3):
+        entries.append((3 * beta_edges + k, col + np.arange(len(beta_edges)), tube_T[beta_edges, k]))
+    col += len(beta_edges)
+    # fixed torsion: gamma per (curve, vertex) (Eq. 22), winding in c
+    xe = tube_edges[fixed_t]
+    if len(xe):
+        sig = np.array([net.curves[tube_curve[e]].sigma for e in xe])
+        c[xe] += (sig * tube_theta[xe])[:, None] * tube_T[xe]
+        key = np.stack([np.repeat(tube_curve[xe], 2), E[xe].reshape(-1)], axis=1)
+        uk, inv = np.unique(key, axis=0, return_inverse=True)
+        inv = inv.reshape(-1, 2)
+        # one gauge per curve: drop the first gamma of each curve
+        first = np.r_[True, uk[1:, 0] != uk[:-1, 0]]
+        gcol = np.cumsum(~first) - 1
+        gcol[first] = -1
+        n_gamma = int((~first).sum())
+        for end, sign in ((0, -1.0), (1, 1.0)):
+            cc = gcol[inv[:, end]]
+            ok = cc >= 0
+            for k in range(3):
+                entries.append((3 * xe[ok] + k, col + cc[ok], sign * tube_T[xe[ok], k]))
+        col += n_gamma
+    return beta_edges, n_gamma, col
 
 
 def _alpha_groups(B, free_local, cap_faces) -> np.ndarray:

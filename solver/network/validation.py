@@ -106,66 +106,93 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
         pn, repairs = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol, joined)
 
     face_sigma = np.zeros(len(S.F))
-    end_points = []
+    end_points = []  # (curve, point) of each end on the boundary
     # ------------------------------------------------------- ends and insides
     for ci, c in enumerate(pn.curves):
-        P = c.points
         for end, kind in ((0, pn.start_kind[ci]), (1, pn.end_kind[ci])):
-            if kind != "boundary":
-                continue
-            x = P[0] if end == 0 else P[-1]
-            d, f, q = S.closest_points(x[None])
-            if d[0] > btol:
-                where = "starts" if end == 0 else "ends"
-                far = d[0] > END_GAP * h
-                gap = f"distance to the surface {d[0]:.3g} = {d[0] / h:.2f} h; "
-                if S.winding_number(x[None])[0] < 0.5:
-                    gap += (f"ends up to {END_GAP:g} h outside are cut back onto it" if far else
-                            f"the curve does not cross the surface within {END_GAP:g} h of that end, to be cut "
-                            "back there")
-                    raise NetworkError(
-                        f"{label(ci)} {where} at {_fmt(x)}, outside the solid ({gap}); move that end onto the "
-                        "surface, or inside the solid at a node"
-                    )
-                gap += (f"ends up to {END_GAP:g} h short of it are extended onto it" if far else
-                        f"its last chord, extended by {END_GAP:g} h, does not reach it")
-                raise NetworkError(
-                    f"{label(ci)} {where} at {_fmt(x)}, inside the solid but not at a node or on the boundary "
-                    f"({gap}); extend it to the surface, or connect 3-4 curve ends at a node"
-                )
-            t = (P[1] - P[0]) if end == 0 else (P[-1] - P[-2])
-            t = t / np.linalg.norm(t)
-            n = S.face_normals[f[0]]
-            ang = np.degrees(np.arccos(min(1.0, abs(float(t @ n)))))
-            if ang > MAX_END_ANGLE:
-                raise NetworkError(
-                    f"{label(ci)} meets the boundary at {_fmt(q[0])} at {ang:.0f} degrees from the surface normal; "
-                    "a curve must reach the surface at right angles (its tangent along the normal), since the "
-                    "frame there is adapted to both"
-                )
-            face_sigma[f[0]] += c.sigma
-            end_points.append((ci, q[0]))
-        # interior points must be inside
-        inner = P[1:-1] if not c.closed else P[:-1]
-        ends_inside = [P[0]] if pn.start_kind[ci] == "node" else []
-        ends_inside += [P[-1]] if pn.end_kind[ci] == "node" else []
-        X = np.vstack([inner] + ([np.array(ends_inside)] if ends_inside else [])) if len(inner) or ends_inside \
-            else np.zeros((0, 3))
-        if len(X):
-            w = S.winding_number(X)
-            bad = np.nonzero(w < 0.5)[0]
-            if len(bad):
-                raise NetworkError(
-                    f"{label(ci)} passes outside the solid at {_fmt(X[bad[0]])}; keep interior curves inside the "
-                    "domain mesh"
-                )
-        _check_segments_inside(S, P, label(ci), pn, ci)
-        if c.sigma != 0:
-            _check_kinks(P, c.closed, label(ci), h)
+            if kind == "boundary":
+                f, q = _boundary_end(S, c.points, end, label(ci), btol, h)
+                face_sigma[f] += c.sigma
+                end_points.append((ci, q))
+        _check_inside(S, pn, ci, label(ci), h)
     # ------------------------------------------------------------- crossings
     _check_crossings(pn, label, CROSSING_TOLERANCE * h)
-    # ends on the boundary must be distinct and away from sharp features
     G = sharp_feature_graph(S, net)
+    _check_end_points(S, G, end_points, label)
+    # -------------------------------------------------------- Poincare-Hopf
+    G, corners = resolve_corners(S, G, face_sigma, net.corner_turns)
+    try:
+        check_poincare_hopf(S, G, face_sigma, "the boundary")
+        G.check_patches(face_sigma)
+    except TopologyError as e:
+        explain_failure(S, G, corners, e, face_sigma)
+    size = network_feature_size(S, pn)
+    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners)
+
+
+def _boundary_end(S: TriSurface, P: np.ndarray, end: int, label: str, btol: float, h: float):
+    """The boundary triangle and point where the curve through P ends (end
+    0: its start, 1: its end), refused when it is off the surface or meets
+    it at more than MAX_END_ANGLE from the normal."""
+    x = P[0] if end == 0 else P[-1]
+    d, f, q = S.closest_points(x[None])
+    if d[0] > btol:
+        where = "starts" if end == 0 else "ends"
+        far = d[0] > END_GAP * h
+        gap = f"distance to the surface {d[0]:.3g} = {d[0] / h:.2f} h; "
+        if S.winding_number(x[None])[0] < 0.5:
+            gap += (f"ends up to {END_GAP:g} h outside are cut back onto it" if far else
+                    f"the curve does not cross the surface within {END_GAP:g} h of that end, to be cut "
+                    "back there")
+            raise NetworkError(
+                f"{label} {where} at {_fmt(x)}, outside the solid ({gap}); move that end onto the "
+                "surface, or inside the solid at a node"
+            )
+        gap += (f"ends up to {END_GAP:g} h short of it are extended onto it" if far else
+                f"its last chord, extended by {END_GAP:g} h, does not reach it")
+        raise NetworkError(
+            f"{label} {where} at {_fmt(x)}, inside the solid but not at a node or on the boundary "
+            f"({gap}); extend it to the surface, or connect 3-4 curve ends at a node"
+        )
+    t = (P[1] - P[0]) if end == 0 else (P[-1] - P[-2])
+    t = t / np.linalg.norm(t)
+    n = S.face_normals[f[0]]
+    ang = np.degrees(np.arccos(min(1.0, abs(float(t @ n)))))
+    if ang > MAX_END_ANGLE:
+        raise NetworkError(
+            f"{label} meets the boundary at {_fmt(q[0])} at {ang:.0f} degrees from the surface normal; "
+            "a curve must reach the surface at right angles (its tangent along the normal), since the "
+            "frame there is adapted to both"
+        )
+    return f[0], q[0]
+
+
+def _check_inside(S: TriSurface, pn: PreparedNetwork, ci: int, label: str, h: float) -> None:
+    """Refuse a curve whose points or segments leave the solid, or a
+    singular curve with a kink."""
+    c = pn.curves[ci]
+    P = c.points
+    inner = P[1:-1] if not c.closed else P[:-1]
+    ends_inside = [P[0]] if pn.start_kind[ci] == "node" else []
+    ends_inside += [P[-1]] if pn.end_kind[ci] == "node" else []
+    X = np.vstack([inner] + ([np.array(ends_inside)] if ends_inside else [])) if len(inner) or ends_inside \
+        else np.zeros((0, 3))
+    if len(X):
+        w = S.winding_number(X)
+        bad = np.nonzero(w < 0.5)[0]
+        if len(bad):
+            raise NetworkError(
+                f"{label} passes outside the solid at {_fmt(X[bad[0]])}; keep interior curves inside the "
+                "domain mesh"
+            )
+    _check_segments_inside(S, P, label, pn, ci)
+    if c.sigma != 0:
+        _check_kinks(P, c.closed, label, h)
+
+
+def _check_end_points(S: TriSurface, G: FeatureGraph, end_points: list, label) -> None:
+    """Ends on the boundary must be distinct and away from sharp features."""
+    diag = S.bbox_diagonal
     if len(end_points) > 1:
         Q = np.array([q for _, q in end_points])
         pairs = cKDTree(Q).query_pairs(1e-3 * diag)
@@ -187,15 +214,6 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
                 raise NetworkError(
                     f"{label(ci)} ends on a sharp edge at {_fmt(q)}; end it inside a face, away from sharp edges"
                 )
-    # -------------------------------------------------------- Poincare-Hopf
-    G, corners = resolve_corners(S, G, face_sigma, net.corner_turns)
-    try:
-        check_poincare_hopf(S, G, face_sigma, "the boundary")
-        G.check_patches(face_sigma)
-    except TopologyError as e:
-        explain_failure(S, G, corners, e, face_sigma)
-    size = network_feature_size(S, pn)
-    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners)
 
 
 def check_nodes(pn: PreparedNetwork, label) -> None:

@@ -295,7 +295,41 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     triangles, every edge shared by exactly two triangles, consistent
     orientation, manifold vertices, self-intersections and outward
     orientation (cavities inward).
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+    check_intersections : bool
+        Look for triangles that cross or touch (the slowest check).
+
+    Returns
+    -------
+    TriSurface
+
+    Raises
+    ------
+    SurfaceError
+        Naming the first problem found, where it is and how to fix it.
     """
+    V, F = _surface_arrays(V, F)
+    S = TriSurface(V, F)
+    if S.bbox_diagonal <= 0:
+        raise SurfaceError("surface has zero size")
+    _check_degenerate(S)
+    _check_closed(S)
+    _check_orientation(S)
+    _check_manifold_vertices(S)
+    # intersections first: nesting below is only meaningful without them
+    if check_intersections:
+        _check_intersections(S)
+    _check_nesting(S)
+    return S
+
+
+def _surface_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
+    """(V, F) as float and int64 arrays of the right shapes, finite, with
+    indices in range."""
     try:
         V = np.asarray(V, dtype=float)
         F = np.asarray(F)
@@ -317,11 +351,12 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     F = F.astype(np.int64)
     if F.min() < 0 or F.max() >= len(V):
         raise SurfaceError(f"surface face indices must lie in [0, {len(V) - 1}], found {F.min()}..{F.max()}")
-    S = TriSurface(V, F)
-    diag = S.bbox_diagonal
-    if diag <= 0:
-        raise SurfaceError("surface has zero size")
-    # degenerate triangles: repeated vertices or (near) zero area
+    return V, F
+
+
+def _check_degenerate(S: TriSurface) -> None:
+    """Refuse triangles with repeated vertices or (near) zero area."""
+    V, F, diag = S.V, S.F, S.bbox_diagonal
     rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
     P = V[F]
     longest = np.max(np.linalg.norm(P - np.roll(P, 1, axis=1), axis=2), axis=1)
@@ -334,7 +369,12 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
             "merge duplicate vertices and dissolve degenerate faces (Blender: Mesh > Clean Up > Merge by "
             "Distance, Degenerate Dissolve)"
         )
-    # each undirected edge in exactly two faces
+
+
+def _check_closed(S: TriSurface) -> None:
+    """Refuse edges not shared by exactly two triangles (and say so when the
+    triangles are an unmerged soup)."""
+    V = S.V
     _, _, cnt = S._edge_data
     if np.any(cnt == 1):
         soup = _unmerged_vertices(S, np.unique(S.edges[cnt == 1]))
@@ -355,7 +395,12 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
             f"{int(np.sum(cnt == 1))} open and {int(np.sum(cnt > 2))} non-manifold edges in total. "
             "Fill holes and separate touching parts (Blender: Select > All by Trait > Non Manifold)"
         )
-    # consistent orientation: each directed edge used once
+
+
+def _check_orientation(S: TriSurface) -> None:
+    """Refuse neighbouring triangles that list their shared edge in the same
+    direction: each directed edge is used once."""
+    V, F = S.V, S.F
     a = F.reshape(-1)
     b = np.roll(F, -1, axis=1).reshape(-1)
     dkeys = a.astype(np.int64) * len(V) + b
@@ -368,7 +413,12 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
             "neighbouring triangles list it in the same direction. Recalculate normals "
             "(Blender: Mesh > Normals > Recalculate Outside)"
         )
-    # manifold vertices: corners around each vertex form a single fan
+
+
+def _check_manifold_vertices(S: TriSurface) -> None:
+    """Refuse vertices where two parts of the surface touch: the corners
+    around each vertex form a single fan."""
+    V, F = S.V, S.F
     nF = len(F)
     corner = np.arange(3 * nF).reshape(nF, 3)
     # corner (f,k) at vertex F[f,k]; its outgoing edge (F[f,k] -> F[f,k+1]) is
@@ -394,27 +444,34 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
             f"surface vertex {v} at {_fmt(V[v])} is non-manifold (two parts of the surface touch only there); "
             "split it or move the parts apart"
         )
-    # intersections first: nesting below is only meaningful without them
-    if check_intersections:
-        hit = find_crossing_or_contact(S)
-        if hit is not None and hit[0] == "cross":
-            f, g = hit[1:3]
-            raise SurfaceError(
-                f"surface intersects itself: triangles {f} and {g} cross near {_fmt(P[f].mean(0))}; "
-                "remove the intersection (Blender: 3D-Print Toolbox > Intersections, or a Boolean union)"
-            )
-        if hit is not None:
-            f, g, x = hit[1:]
-            cf, cg = S.component_of_faces()[[f, g]]
-            what = (f"surface components {cf} and {cg} touch or overlap" if cf != cg else
-                    f"surface component {cf} touches itself")
-            raise SurfaceError(
-                f"{what}: triangles {f} and {g} meet at {_fmt(x)} without sharing vertices -- solids touching face "
-                "to face or along an edge, overlapping with coincident faces, or a surface folded onto itself. "
-                "Move the parts apart and solve each solid separately, or join them into one solid (a Boolean "
-                "union)"
-            )
-    # orientation and nesting of components
+
+
+def _check_intersections(S: TriSurface) -> None:
+    """Refuse triangles that cross, or that touch without sharing vertices."""
+    P = S.V[S.F]
+    hit = find_crossing_or_contact(S)
+    if hit is not None and hit[0] == "cross":
+        f, g = hit[1:3]
+        raise SurfaceError(
+            f"surface intersects itself: triangles {f} and {g} cross near {_fmt(P[f].mean(0))}; "
+            "remove the intersection (Blender: 3D-Print Toolbox > Intersections, or a Boolean union)"
+        )
+    if hit is not None:
+        f, g, x = hit[1:]
+        cf, cg = S.component_of_faces()[[f, g]]
+        what = (f"surface components {cf} and {cg} touch or overlap" if cf != cg else
+                f"surface component {cf} touches itself")
+        raise SurfaceError(
+            f"{what}: triangles {f} and {g} meet at {_fmt(x)} without sharing vertices -- solids touching face "
+            "to face or along an edge, overlapping with coincident faces, or a surface folded onto itself. "
+            "Move the parts apart and solve each solid separately, or join them into one solid (a Boolean "
+            "union)"
+        )
+
+
+def _check_nesting(S: TriSurface) -> None:
+    """One solid, its outer surface outward and its cavities inward."""
+    V, F = S.V, S.F
     vols = S.signed_volumes()
     ncomp, lab = S.face_components
     if ncomp > 1:
@@ -438,7 +495,6 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
                 f"surface component {c} ({int(np.sum(lab == c))} triangles, {what}) is oriented the wrong "
                 f"way; its normals must point {fix} (Blender: Mesh > Normals > Recalculate Outside)"
             )
-    return S
 
 
 def _check_one_solid(S: TriSurface, depth: np.ndarray) -> None:
