@@ -1,7 +1,7 @@
 """Tests of solver/analysis/measures.py on fields with a known answer: a constant
 field, fields built from a known rotation per vertex, and fields with one
 known singular line or loop, on structured tet meshes built here.  The
-measurements are checked before they judge the solver (solver/validation_report.py)."""
+measurements are checked before they judge the solver (bench/validation_report.py)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Issue 27: networks as users bring them are repaired, not refused.
 
 Synthetic polylines test the curve intake (solver/intake.py) one defect at
-a time; tet-edge networks (solver/tetedge.py: an example's curves routed
+a time; tet-edge networks (testkit/tetedge.py: an example's curves routed
 along the edges of an independent, coarser fTetWild mesh, as field tools
 export them) are solved end to end with default options.
 """
@@ -18,7 +18,7 @@ from solver.network.intake import repairs_text
 from solver.network.polyline import turning
 from solver.network.validation import check_input
 from solver.surface.trisurface import TriSurface
-from solver.tetedge import end_angles, tet_edge_network
+from testkit.tetedge import end_angles, tet_edge_network
 
 
 @pytest.fixture(scope="module")

@@ -18,19 +18,24 @@ ROOT = Path(__file__).resolve().parents[1]
 RANKS = {
     "solver.errors": 0,
     "solver.checks": 0,
+    "solver.stages": 0,  # running named stages: any pipeline's, so it knows none
     "solver.linalg": 1,
     "solver.surface": 2,
     "solver.network": 3,
     "solver.mesh": 4,
     "solver.field": 5,
     "solver.analysis": 6,
-    "solver.examples": 7,
-    "solver.pipeline": 7,
-    "solver.io": 8,
-    "solver.validation_report": 8,
-    "solver": 8,
-    "solver.__main__": 9,
-    "symframes_addon": 10,
+    # a stage after the field (CONTRIBUTING: "Where a new piece goes"): it
+    # takes the field's arrays (field/matchings.py), not a Result, so the
+    # pipeline above can run it
+    "solver.hexmesh": 7,
+    "solver.examples": 8,
+    "solver.pipeline": 8,
+    "solver.io": 9,
+    "solver": 9,
+    "solver.__main__": 10,
+    "symframes_addon": 11,
+    "testkit": 12,  # test and bench tools: nothing that ships imports them
 }
 
 
@@ -42,7 +47,7 @@ def module_name(path: Path) -> str:
 
 
 def sources() -> dict[str, Path]:
-    files = [*ROOT.glob("solver/**/*.py"), *ROOT.glob("symframes_addon/**/*.py")]
+    files = [*ROOT.glob("solver/**/*.py"), *ROOT.glob("symframes_addon/**/*.py"), *ROOT.glob("testkit/**/*.py")]
     return {module_name(p): p for p in files}
 
 
@@ -91,6 +96,10 @@ def graph() -> dict[str, set[str]]:
 def test_the_reader_sees_the_imports():
     g = graph()
     assert "solver.field.volume3d" in g["solver.pipeline"]
+    assert {"solver.stages", "solver.mesh.meshing", "solver.field.meshed_boundary", "solver.field.root"} <= \
+        g["solver.pipeline"]
+    assert "solver.field.matchings" in g["solver.io.interchange"]
+    assert "solver.mesh.tetwild" in g["testkit.tetedge"]
     assert "solver.linalg.pcg" in g["solver.field.volume3d"]
     assert "solver.pipeline" in g["solver"]
     assert "solver.network.validation" in g["symframes_addon.operators"]
@@ -119,7 +128,8 @@ def test_the_solver_never_imports_bpy():
         for node in ast.walk(ast.parse(path.read_text())):
             mods = ([a.name for a in node.names] if isinstance(node, ast.Import) else
                     [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
-            assert not any(m.split(".")[0] in ("bpy", "mathutils", "symframes_addon") for m in mods), name
+            assert not any(m.split(".")[0] in ("bpy", "mathutils", "symframes_addon", "testkit", "bench", "tests")
+                           for m in mods), name
     out = subprocess.run([sys.executable, "-c", "import sys, solver, solver.io, solver.__main__; "
                           "print('bpy' in sys.modules)"], cwd=ROOT, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -4,7 +4,7 @@ adaptation, root and initialisation independence, smoothness.
 Arrays in, arrays out: every function takes a TetMesh and plain arrays (or a
 solved Result where it needs the network), so each can be checked on fields
 with a known answer (``tests/test_analysis.py``) before it judges the solver.
-``quick_metrics`` summarises a Result; ``solver/validation_report.py`` runs them all.
+``quick_metrics`` summarises a Result; ``bench/validation_report.py`` runs them all.
 
 Conventions
 -----------

@@ -9,7 +9,8 @@ shortest path through the mesh's edges between them
 (``scipy.sparse.csgraph.dijkstra``).  The result zig-zags, reaches the
 surface along whatever edge the mesh had, and -- with ``tiny`` -- holds
 segments ~1e-6 of the model size next to normal ones, like the exports.
-Used by the tests (tests/test_intake.py) and available to bench scripts.
+Used by the tests (tests/test_intake.py) and the validation report
+(bench/validation_report.py); hex-meshing tests and benchmarks can take it too.
 """
 
 from __future__ import annotations
@@ -17,10 +18,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .mesh.tetmesh import TetMesh, edge_graph, shortest_path
-from .mesh.tetwild import tetrahedralize
-from .network.network import Curve, Network, prepare_network
-from .surface.trisurface import TriSurface
+from solver.mesh.tetmesh import TetMesh, edge_graph, shortest_path
+from solver.mesh.tetwild import tetrahedralize
+from solver.network.network import Curve, Network, prepare_network
+from solver.surface.trisurface import TriSurface
 
 
 def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: TetMesh | None = None,
