@@ -31,6 +31,9 @@ is Blender's own and never bundled.  Each zip's manifest gets its
    (bl_pkg/cli/blender_ext.py), which needs no Blender binary, from a
    staging copy holding only the variant's wheels; the zip is named
    ``symframes-<version>-blender<variant>[-<platform>].zip``.
+4. List what the zip left out of the staging copy (the manifest's
+   ``[build] paths_exclude_pattern``: tests, test and bench tools,
+   benchmarks, scripts, documents): only what runs in Blender ships.
 
 Usage::
 
@@ -54,6 +57,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import zipfile
 from dataclasses import dataclass
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -260,6 +264,26 @@ def stage(dest: str, found: dict[str, list[str]], variant: Variant) -> None:
         fh.write(text)
 
 
+def left_out(src: str, names: list[str]) -> list[str]:
+    """What of the staged sources ``src`` a zip holding ``names`` does not
+    ship: top-level files and folders left out whole ('tests/'), and Python
+    modules left out of a folder that ships ('solver/x.py')."""
+    shipped = {n.rstrip("/") for n in names}
+    tops = {n.split("/")[0] for n in shipped}
+    out = []
+    for entry in sorted(os.listdir(src)):
+        path = os.path.join(src, entry)
+        if entry not in tops:
+            out.append(entry + "/" if os.path.isdir(path) else entry)
+        elif os.path.isdir(path):
+            for dirpath, _dirs, files in os.walk(path):
+                for f in files:
+                    rel = os.path.relpath(os.path.join(dirpath, f), src).replace(os.sep, "/")
+                    if f.endswith(".py") and rel not in shipped:
+                        out.append(rel)
+    return sorted(out)
+
+
 def build(found: dict[str, list[str]], variant: Variant, output_dir: str, split: bool = False) -> list[str]:
     """Validate and build a variant from a staging copy; returns the zip
     paths, named symframes-<version>-blender<variant>[-<platform>].zip."""
@@ -277,6 +301,8 @@ def build(found: dict[str, list[str]], variant: Variant, output_dir: str, split:
             if subprocess.run(step).returncode != 0:
                 sys.exit(f"blender_ext.py {step[2]} failed (see above)")
         for z in sorted(glob.glob(os.path.join(out, "*.zip"))):
+            with zipfile.ZipFile(z) as zf:
+                print(f"left out of {os.path.basename(z)}: {', '.join(left_out(src, zf.namelist()))}")
             name = os.path.basename(z)  # symframes-0.1.0[-linux_x64].zip
             m = re.fullmatch(r"(symframes-[^-]+)(-.*)?\.zip", name)
             dest = os.path.join(output_dir, f"{m.group(1)}-blender{variant.name}{m.group(2) or ''}.zip")

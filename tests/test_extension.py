@@ -77,7 +77,8 @@ def test_variants_cover_the_supported_releases_without_gaps():
 
 
 @pytest.fixture(scope="module")
-def linux_zip(tmp_path_factory):
+def linux_build(tmp_path_factory):
+    """(the built zip, what the build printed)."""
     out = tmp_path_factory.mktemp("dist")
     # downloads the two linux wheels into ./wheels if they are not there yet
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "build_extension.py"),
@@ -86,7 +87,12 @@ def linux_zip(tmp_path_factory):
     assert proc.returncode == 0, proc.stdout + proc.stderr
     zips = sorted(out.glob("*.zip"))
     assert [z.name for z in zips] == ["symframes-0.1.0-blender4.5-linux_x64.zip"]
-    return zips[0]
+    return zips[0], proc.stdout
+
+
+@pytest.fixture(scope="module")
+def linux_zip(linux_build):
+    return linux_build[0]
 
 
 def test_zip_holds_the_addon_the_solver_and_the_linux_wheels(linux_zip):
@@ -102,6 +108,34 @@ def test_zip_holds_the_addon_the_solver_and_the_linux_wheels(linux_zip):
     assert all("x86_64" in w for w in wheels)
     assert manifest["platforms"] == ["linux-x64"]
     assert (manifest["blender_version_min"], manifest["blender_version_max"]) == ("4.5.0", "5.1.0")
+
+
+# test and bench tools: outside solver/ (testkit/, bench/), and left out of the zip
+TEST_TOOLS = ("tests/", "testkit/", "bench/", "scripts/")
+
+
+def test_zip_ships_no_test_or_bench_module_and_the_build_says_what_it_left_out(linux_build):
+    path, printed = linux_build
+    with zipfile.ZipFile(path) as z:
+        names = z.namelist()
+    modules = [n for n in names if n.endswith(".py")]
+    assert not [n for n in modules if n.startswith(TEST_TOOLS)]
+    # every shipped module is the extension's: the add-on, the solver, the entry point
+    assert all(n == "__init__.py" or n.startswith(("symframes_addon/", "solver/")) for n in modules), modules
+    assert not [n for n in modules if n.rsplit("/", 1)[-1] in ("tetedge.py", "validation_report.py")]
+    line = [ln for ln in printed.splitlines() if ln.startswith(f"left out of {path.name}: ")]
+    assert len(line) == 1, printed
+    left = line[0].split(": ", 1)[1].split(", ")
+    assert set(TEST_TOOLS) | {"docs/", "dev.sh"} <= set(left), left
+    assert not [n for n in left if n.startswith(("solver/", "symframes_addon/"))], left
+
+
+def test_left_out_names_whole_folders_and_single_modules(tmp_path):
+    for rel in ("solver/a.py", "solver/b.py", "tests/test_a.py", "README.md", "dev.sh"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text("")
+    shipped = ["solver/", "solver/a.py", "README.md"]
+    assert build_extension.left_out(str(tmp_path), shipped) == ["dev.sh", "solver/b.py", "tests/"]
 
 
 def _check_smoke(out: dict, res_dir=None):
