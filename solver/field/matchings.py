@@ -100,11 +100,8 @@ def omega_tet_frames(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> Te
 
     Parameters
     ----------
-    mesh : TetMesh
-    omega : (#E, 3) float array
-        E_j = exp(omega_ij) E_i on the edges i < j.
-    frames : (#V, 3, 3) float array
-        Columns are the cross axes.
+    mesh, omega, frames
+        As ``omega_matchings``.
 
     Returns
     -------

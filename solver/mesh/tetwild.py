@@ -18,17 +18,10 @@ from .slivers import FlatRepair, repair_flat_tets
 from .tetmesh import TetMesh
 
 
-def tetrahedralize(
-    surface: TriSurface,
-    edge_length: float,
-    internal: tuple[np.ndarray, np.ndarray] | None = None,
-    epsilon: float = 1e-3,
-    cancel=None,
-    sharp: bool = False,
-) -> TetMesh:
+def tetrahedralize(*args, **kw) -> TetMesh:
     """The tet mesh of ``tetrahedralize_repaired`` (same parameters), without
     the account of its flat-tet repair."""
-    return tetrahedralize_repaired(surface, edge_length, internal, epsilon, cancel, sharp)[0]
+    return tetrahedralize_repaired(*args, **kw)[0]
 
 
 def tetrahedralize_repaired(
