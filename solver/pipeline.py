@@ -366,9 +366,20 @@ class Result:
         return self.problem.structure_omega
 
     def develop(self, root: int) -> np.ndarray:
-        """(#V, 3, 3) frames developed from omega starting at vertex root
-        with the frame this field gives it: the same frames wherever omega
-        is integrable (§4.3)."""
+        """The frames developed from omega starting at another vertex, with
+        the frame this field gives it: the same frames wherever omega is
+        integrable (§4.3).
+
+        Parameters
+        ----------
+        root : int
+            A vertex of the tet mesh.
+
+        Returns
+        -------
+        (#V, 3, 3) float array
+            Columns are the cross axes.
+        """
         return develop(self.mesh, self.omega, root, self.frames[root], self.problem.avoid_edges)
 
     def quaternions(self) -> np.ndarray:

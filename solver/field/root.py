@@ -25,9 +25,19 @@ from .develop import develop, symmetric_turn
 
 
 def node_region_edges(mesh: TetMesh, embedding: Embedding) -> np.ndarray:
-    """(#E,) bool: the edges of node-region tets.  Their faces carry no
-    structure equation, so a tree path through them (or around them) would
-    not be integrable; the development reaches those vertices last."""
+    """The edges of node-region tets.  Their faces carry no structure
+    equation, so a tree path through them (or around them) would not be
+    integrable; the development reaches those vertices last.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    embedding : mesh.embed.Embedding
+
+    Returns
+    -------
+    (#E,) bool array
+    """
     out = np.zeros(mesh.n_edges, bool)
     nr = embedding.node_region_tets
     if len(nr):

@@ -136,7 +136,17 @@ class MeshOutcome:
     def sizes(self, plan: Plan) -> dict:
         """The report's mesh entries (Report.sizes): refinement, the
         estimate, grading, budget retries, the resolution floor, flat tets
-        and the snap, each where it applies."""
+        and the snap, each where it applies.
+
+        Parameters
+        ----------
+        plan : resolution.Plan
+            The plan the mesh was made for (the estimate, the floor).
+
+        Returns
+        -------
+        dict of str to int or float
+        """
         st, mesh = self.stats, self.mesh
         out = {"refine_levels": st.refine_levels,
                "mesher_tets": st.mesher_tets if st.mesher_tets is not None else mesh.n_tets,
@@ -305,7 +315,21 @@ def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off
 def refine_levels(checked: CheckedInput, refine: int | None, h: float) -> int:
     """Red-refinement levels for a final edge length h: ``refine`` when
     given, else 0-2, as many as keep fTetWild's mesh at >= ~6k tets and
-    its edge within a third of the network's feature size."""
+    its edge within a third of the network's feature size.
+
+    Parameters
+    ----------
+    checked : network.validation.CheckedInput
+        The solid (its volume) and the network's feature size.
+    refine : int or None
+        MeshSettings.refine.
+    h : float
+        The final edge length.
+
+    Returns
+    -------
+    int
+    """
     if refine is not None:
         return int(refine)
     est = TETS_PER_H3 * solid_volume(checked.surface) / h**3
@@ -355,8 +379,20 @@ def grade(mesh: TetMesh, plan: Plan, budget: int, surface: TriSurface) -> tuple[
 
 
 def topology_change(surface: TriSurface, mesh: TetMesh) -> str | None:
-    """How the boundary of mesh differs topologically from the surface
-    (components, manifoldness, Euler characteristic), or None."""
+    """How the boundary of mesh differs topologically from the surface.
+
+    Parameters
+    ----------
+    surface : TriSurface
+        The input surface.
+    mesh : TetMesh
+
+    Returns
+    -------
+    str or None
+        What differs (components, manifoldness, Euler characteristic), as
+        the end of a sentence about the mesh's boundary; None if nothing.
+    """
     B = mesh.boundary
     if B.n_components != surface.n_components:
         return f"has {B.n_components} components but the surface has {surface.n_components}"
@@ -370,8 +406,21 @@ def topology_change(surface: TriSurface, mesh: TetMesh) -> str | None:
 
 
 def node_radius(network: PreparedNetwork, h: float, factor: float) -> float:
-    """The radius of the node regions at edge length h: ``factor`` h, but
-    less than half the distance between two nodes."""
+    """The radius of the node regions at edge length h.
+
+    Parameters
+    ----------
+    network : PreparedNetwork
+    h : float
+        The edge length around the nodes.
+    factor : float
+        Options.node_radius.
+
+    Returns
+    -------
+    float
+        ``factor`` h, but at most 0.4 times the distance between two nodes.
+    """
     r = factor * h
     nodes = [nd.position for nd in network.nodes]
     if len(nodes) > 1:
@@ -382,8 +431,20 @@ def node_radius(network: PreparedNetwork, h: float, factor: float) -> float:
 
 
 def node_edge_length(plan: Plan, network: PreparedNetwork, h: float) -> float:
-    """The edge length around the nodes: h, or finer where a graded plan
-    asks for it."""
+    """The edge length around the nodes.
+
+    Parameters
+    ----------
+    plan : resolution.Plan
+    network : PreparedNetwork
+    h : float
+        The bulk edge length.
+
+    Returns
+    -------
+    float
+        h, or the graded plan's finer sizing at the nodes.
+    """
     if not plan.graded or not network.nodes:
         return h
     return float(min(h, plan.sizing(np.array([nd.position for nd in network.nodes])).min()))

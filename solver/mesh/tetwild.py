@@ -41,6 +41,8 @@ def tetrahedralize_repaired(
     epsilon     : envelope size relative to the bounding-box diagonal.
     sharp       : the surface has sharp features (see wants_simplify).
 
+    Returns (the TetMesh, the slivers.FlatRepair of its flat tets).
+
     fTetWild's own inside/outside filter uses the winding number of all input
     triangles, so crossing internal surfaces can carve spurious cavities.  We
     ask for the unfiltered mesh instead and keep the connected regions (cut
