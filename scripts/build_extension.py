@@ -301,11 +301,11 @@ def build(found: dict[str, list[str]], variant: Variant, output_dir: str, split:
             if subprocess.run(step).returncode != 0:
                 sys.exit(f"blender_ext.py {step[2]} failed (see above)")
         for z in sorted(glob.glob(os.path.join(out, "*.zip"))):
-            with zipfile.ZipFile(z) as zf:
-                print(f"left out of {os.path.basename(z)}: {', '.join(left_out(src, zf.namelist()))}")
             name = os.path.basename(z)  # symframes-0.1.0[-linux_x64].zip
             m = re.fullmatch(r"(symframes-[^-]+)(-.*)?\.zip", name)
             dest = os.path.join(output_dir, f"{m.group(1)}-blender{variant.name}{m.group(2) or ''}.zip")
+            with zipfile.ZipFile(z) as zf:
+                print(f"left out of {os.path.basename(dest)}: {', '.join(left_out(src, zf.namelist()))}")
             shutil.move(z, dest)
             made.append(dest)
     return made

@@ -117,7 +117,7 @@ class SolveJob:
         problem = FieldProblem(inp.V, inp.F, inp.network, inp.options, progress=self._progress,
                                cancel=self._is_cancelled, mesh=mesh)
         result = problem.solve(progress=self._progress, cancel=self._is_cancelled)
-        _MESH_CACHE.update(key=key, mesh=problem.meshed)  # the mesh and how it was made
+        _MESH_CACHE.update(key=key, mesh=problem.mesh)
         rep = result.report
         report = {
             "summary": rep.summary(),
