@@ -55,7 +55,8 @@ def main():
 
     addon = load_addon()
     addon.register()
-    from symframes.solver.analysis.streamlines import FrameField, sample_glyphs, seed_points, trace_streamlines
+    from symframes.solver import FrameField, sample_glyphs, seed_points, trace_streamlines
+    from symframes.solver.io import quaternion_frames
     from symframes.symframes_addon import glyphs, job, scene_io, storage, streamline_curves
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -69,7 +70,7 @@ def main():
     inputs = scene_io.read_inputs(bpy.context)
     mesh = job.cached_mesh(inputs.mesh_key())
     V, T, q = storage.read_field(s.field)
-    field = FrameField(mesh.vertices, mesh.tets, storage.quaternions_to_frames(q), mesh=mesh)
+    field = FrameField(mesh.vertices, mesh.tets, quaternion_frames(q), mesh=mesh)
 
     t_gs, _, (P, Q) = best_of(1, lambda: sample_glyphs(field, count=args.glyphs, seed=0))
     seeds = seed_points(field, args.streamlines, seed=0)
@@ -103,7 +104,7 @@ def main():
     assert n_inst == len(P), (n_inst, len(P))
 
     rep = storage.stored_report(scene)
-    print(f"\n{args.example}, edge length {args.edge_length}: {rep['sizes']['tets']:,} tets, solved in "
+    print(f"\n{args.example}, edge length {args.edge_length}: {rep.sizes['tets']:,} tets, solved in "
           f"{t_solve:.1f} s; best (worst) of {args.repeat}; Blender {bpy.app.version_string}, "
           f"{os.cpu_count()} CPUs\n")
     print("| what | count | sampling (solver) | write (add-on) | evaluate (Blender) |")

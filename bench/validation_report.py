@@ -197,11 +197,9 @@ def measure(result, others: dict | None = None, smoothing_iterations: int = SMOO
     row["missing"] = len(ss.missing)
     row["spurious"] = len(ss.spurious)
     # omega-aware matching: not fooled by edges turning more than 45 degrees
-    osing = an.omega_singular_faces(mesh, result.omega, result.frames)
-    net = np.zeros(mesh.n_faces, bool)
-    net[emb.network_faces(mesh)] = True
-    row["omega_spurious"] = int((osing & ~net).sum())
-    row["omega_missing"] = int((emb.prescribed_singular() & ~osing).sum())
+    sf = an.singular_faces(mesh, result.omega, result.frames, emb.network_faces(mesh))
+    row["omega_spurious"] = int(sf.spurious.sum())
+    row["omega_missing"] = int((emb.prescribed_singular() & ~sf.singular).sum())
     row["wrong_index"] = len(ss.wrong_index)
     row["axis_error_max"] = float(np.degrees(ss.axis_error.max())) if len(ss.axis_error) else 0.0
     row["singular_curves"] = len(ss.curves)

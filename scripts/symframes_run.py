@@ -153,7 +153,7 @@ def main(argv: list[str]) -> int:
         print(f"symframes_run.py: {e}", file=sys.stderr)
         return 1
     print(f"SymFrames: solved in {time.perf_counter() - t:.1f} s")
-    print(storage.stored_report(scene)["summary"])
+    print(storage.stored_report(scene).summary())
 
     os.makedirs(args.out_dir, exist_ok=True)
     if not args.no_render:

@@ -8,18 +8,43 @@ No bpy anywhere in this package.  Typical use::
     result.quaternions() # (#V, 4) w, x, y, z
     print(result.report.summary())
 
+The public API is what this module exports, plus ``solver.io`` (file
+formats) and ``solver.examples`` (the built-in example solids and networks,
+``load_example`` and ``EXAMPLES``); the Blender add-on imports nothing else.
+
+* Solving: ``solve``, ``FieldProblem`` (mesh once, solve repeatedly),
+  ``Options``, ``Result``, ``Report``; ``check`` runs a solve's validation,
+  curve repair and resolution plan without meshing (``CheckResult``).
+* Input: ``Curve``, ``Network``, ``Role``, ``Torsion``.
+* Measuring a field (§5.2): ``monodromy_angles``, ``regular_face_mask``,
+  ``singular_faces`` (``SingularFaces``), ``vertex_normal_adaptation``.
+* Showing a field (§5.5): ``FrameField`` (frames interpolated inside tets),
+  ``sample_glyphs``, ``seed_points``, ``trace_streamlines``.
+* Errors: ``SymFramesError`` and its subclasses; ``Cancelled``.
+
 See README.md for the sign convention of the index sigma and the file formats.
 """
 
+from .analysis.measures import (
+    SingularFaces,
+    monodromy_angles,
+    regular_face_mask,
+    singular_faces,
+    vertex_normal_adaptation,
+)
+from .analysis.streamlines import FrameField, sample_glyphs, seed_points, trace_streamlines
 from .errors import Cancelled, MeshingError, NetworkError, OptionsError, SurfaceError, SymFramesError, TopologyError
 from .network.network import Curve, Network, Role, Torsion
 from .pipeline import FieldProblem, Options, Result, solve
+from .precheck import CheckResult, check
 from .report import Report
 
 __all__ = [
     "Cancelled",
+    "CheckResult",
     "Curve",
     "FieldProblem",
+    "FrameField",
     "MeshingError",
     "Network",
     "NetworkError",
@@ -28,9 +53,18 @@ __all__ = [
     "Report",
     "Result",
     "Role",
+    "SingularFaces",
     "SurfaceError",
     "SymFramesError",
     "TopologyError",
     "Torsion",
+    "check",
+    "monodromy_angles",
+    "regular_face_mask",
+    "sample_glyphs",
+    "seed_points",
+    "singular_faces",
     "solve",
+    "trace_streamlines",
+    "vertex_normal_adaptation",
 ]

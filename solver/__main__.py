@@ -27,6 +27,7 @@ from . import io
 from .errors import Cancelled, OptionsError, SymFramesError
 from .examples import EXAMPLES, load_example
 from .pipeline import INITS, FieldProblem
+from .precheck import check
 
 TAG_CONVENTIONS = {"index": 1, "negated": -1, "valence": "valence"}
 
@@ -200,18 +201,13 @@ def main(argv: list[str] | None = None) -> int:
             _check_output(out)
         _check_exports(args.export)
         if args.check:
-            from .network.intake import repairs_text
-            from .network.validation import check_input
-            from .pipeline import resolution_plan
-            from .surface.corners import corners_text
-
-            checked = check_input(V, F, net, opts.check_intersections, opts.edge_length, True, opts.target_tets)
-            for rep in (repairs_text(checked.repairs, checked.scale), corners_text(checked.corners)):
+            found = check(V, F, net, options=opts)
+            for rep in (found.repairs_text(), found.corners_text()):
                 if rep:
                     print(rep)
-            print(f"input is valid: {len(checked.network.curves)} interior curves, {len(checked.network.nodes)} "
-                  f"nodes, {checked.surface.n_components} boundary component(s)")
-            print(f"resolution: {resolution_plan(checked, opts).describe()}")
+            print(f"input is valid: {found.interior_curves} interior curves, {found.nodes} nodes, "
+                  f"{found.boundary_components} boundary component(s)")
+            print(f"resolution: {found.plan.describe()}")
             return 0
         progress = _progress(args.quiet)
         profiler = None

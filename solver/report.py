@@ -3,11 +3,14 @@ LM history, and whether it converged (solution_status, adaptation_status)."""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 
-from .field.volume3d import LMReport
-from .network.intake import repairs_text
-from .surface.corners import corners_text
+import numpy as np
+
+from .field.volume3d import LMIteration, LMReport
+from .network.curve_ends import EndBend
+from .network.intake import CurveRepair, repairs_text
+from .surface.corners import CornerChoice, corners_text
 
 
 @dataclass
@@ -84,16 +87,81 @@ class Report:
             lines.append(f"  {k}: {v:.4g}" if isinstance(v, float) else f"  {k}: {v}")
         return "\n".join(lines)
 
-    def as_dict(self) -> dict:
+    def singular_face_counts(self) -> dict:
+        """The singular faces a solve headlines: those of the field's own
+        (omega-aware) matchings, which the exports write.
+
+        Returns
+        -------
+        dict
+            ``singular``, ``spurious`` (off the network), ``missing``
+            (prescribed faces that are not singular) and ``closest_differs``
+            (faces closest-rotation matching reads otherwise), all int; 0
+            where the metrics hold no count.
+        """
+        m = self.metrics
+        return {"singular": int(m.get("omega_singular_faces", 0)),
+                "spurious": int(m.get("omega_spurious_singular_faces", 0)),
+                "missing": int(m.get("omega_missing_singular_faces", 0)),
+                "closest_differs": int(m.get("matching_disagreements", 0))}
+
+    def to_dict(self) -> dict:
+        """The report as JSON types, the form a result file and the add-on keep.
+
+        Returns
+        -------
+        dict
+            Every field (``lm`` left out when there was no LM run; the curve
+            repairs, corners and LM iterations as dicts of their fields),
+            plus ``converged`` for readers of the file.
+            ``Report.from_dict`` reads it back.
+        """
         d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
              "edge_length": self.edge_length, "repairs": [asdict(r) for r in self.repairs],
              "repair_scale": self.repair_scale, "mesher": self.mesher,
              "corners": [asdict(c) for c in self.corners], "status": self.status, "converged": self.converged,
              "status_reason": self.status_reason}
         if self.lm is not None:
-            d["lm"] = {"init": self.lm.init, "converged": self.lm.converged, "reason": self.lm.reason,
-                       "iterations": [asdict(it) for it in self.lm.iterations]}
-        return d
+            d["lm"] = asdict(self.lm)
+        return _plain(d)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Report:
+        """The Report that ``to_dict`` (possibly through JSON) wrote.
+
+        Parameters
+        ----------
+        d : dict
+            ``Report.to_dict()``'s output; keys it does not write (a result
+            file's ``options``) and the derived ``converged`` are ignored.
+
+        Returns
+        -------
+        Report
+        """
+        lm = d.get("lm")
+        if lm is not None:
+            lm = LMReport(**{**lm, "iterations": [LMIteration(**it) for it in lm.get("iterations", [])]})
+        repairs = [CurveRepair(**{**r, "ends": [EndBend(**{**b, "position": tuple(b.get("position", ()))})
+                                                for b in r.get("ends", [])],
+                                  "joined": [tuple(j) for j in r.get("joined", [])]})
+                   for r in d.get("repairs", [])]
+        corners = [CornerChoice(**{**c, **{k: tuple(c[k]) for k in ("position", "sector_deg", "quarters")}})
+                   for c in d.get("corners", [])]
+        known = {f.name for f in fields(cls)} - {"lm", "repairs", "corners"}
+        return cls(lm=lm, repairs=repairs, corners=corners, **{k: v for k, v in d.items() if k in known})
+
+
+def _plain(x):
+    """x with numpy scalars and arrays as Python numbers and lists, tuples
+    as lists: what JSON writes and reads back."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
 
 
 # A solve is "converged" when LM met its stopping rule and the structure

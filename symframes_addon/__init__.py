@@ -1,12 +1,18 @@
 """The Blender side of SymFrames: everything that imports bpy.
 
+It only converts between Blender data and arrays: every rule that decides
+what a field is (regular and spurious faces, where adaptation is measured,
+the report's form) is the solver's, and the add-on imports nothing from it
+but the names of solver/__init__.py, solver.io and solver.examples
+(tests/test_addon_imports.py).
+
 Modules, in the order data flows through them:
 
 * properties        -- scene settings and per-curve settings (saved in the .blend)
 * scene_io          -- domain mesh + network curves -> solver arrays
 * job               -- the solve, off the main thread, cancellable
 * display           -- glyph samples, streamlines and the diagnostics' slice
-                       faces and edges from a field (solver.analysis.streamlines, .analysis)
+                       faces and edges from a field (solver.FrameField and its sampling)
 * storage           -- the solved field (frames, omega) in the .blend; the output objects
 * glyphs            -- instanced cross glyphs via Geometry Nodes
 * streamline_curves -- streamlines as a bevelled curve object

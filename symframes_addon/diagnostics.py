@@ -1,19 +1,15 @@
 """Diagnostics of a stored field: its singular faces as a mesh object.
 
 A tet-mesh face is singular where the matchings of its three vertex frames
-fail to close (§5.2).  Each edge is matched against the frame the solver's
-omega carries across it (solver.analysis.measures.omega_singular_faces):
-the field's own matchings, the ones the exports write.  Singular faces the
-network passes through are expected; the others are spurious
-singularities, which a good field does not have.  The mesh object has one
-triangle per singular face, material 0 (orange) for network faces and 1
-(red) for spurious ones, and a boolean face attribute ``spurious``.
-
-Closest-rotation matching (matched_singular_faces), which a tool reading
-only the frames would use, is ambiguous where an edge turns by ~45 degrees:
-next to a curve that passes close to an edge it can flag a neighbouring
-face instead of the pierced one.  The counts say on how many faces the two
-readings differ.
+fail to close (§5.2); singular faces off the network are spurious, which a
+good field does not have.  Which faces are singular and which spurious is
+the solver's rule (solver.singular_faces: each edge matched as the solver's
+omega carries the frame across it, the matchings the exports write).  The
+mesh object has one triangle per singular face, material 0 (orange) for
+network faces and 1 (red) for spurious ones, and a boolean face attribute
+``spurious``.  The counts also say on how many faces closest-rotation
+matching, which a tool reading only the frames would use, reads the field
+otherwise.
 """
 
 from __future__ import annotations
@@ -21,46 +17,13 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..solver.analysis.measures import matched_singular_faces, omega_singular_faces
+from ..solver import singular_faces
 from . import storage
 
 MATERIALS = (("SymFrames Network Singularity", (0.95, 0.55, 0.05)),
              ("SymFrames Spurious Singularity", (0.90, 0.05, 0.05)))
 SPURIOUS_ATTRIBUTE = "spurious"
 COUNTS_KEY = "symframes_counts"
-
-
-def singular_faces(field, omega: np.ndarray, network_faces: np.ndarray | None
-                   ) -> tuple[np.ndarray, np.ndarray, int]:
-    """(vertex triples (k, 3) of the singular faces, spurious (k,) bool,
-    faces where closest-rotation matching reads the field differently).
-
-    field : solver.analysis.streamlines.FrameField of the stored result
-    omega : (#E, 3) its Darboux derivative on field.mesh.edges
-    network_faces : (j, 3) vertex triples of the faces the network passes through
-    """
-    if network_faces is None:
-        raise ValueError("this result does not store its network faces; compute the field again")
-    mesh = field.mesh
-    sing = omega_singular_faces(mesh, omega, field.frames)
-    closest, _ = matched_singular_faces(mesh, field.frames)
-    on_network = np.zeros(mesh.n_faces, bool)
-    ids = mesh.face_index(network_faces) if len(network_faces) else np.zeros(0, np.int64)
-    on_network[ids[ids >= 0]] = True
-    f = np.nonzero(sing)[0]
-    return mesh.faces[f], ~on_network[f], int((sing != closest).sum())
-
-
-def singular_counts(metrics: dict) -> dict:
-    """{'singular', 'spurious', 'missing', 'closest_differs'} of a solve's
-    report metrics, from the omega-aware matchings (reports written before
-    they were counted: the closest-rotation ones, and no difference)."""
-    if "omega_singular_faces" not in metrics:
-        return {"singular": metrics.get("singular_faces", 0), "spurious": metrics.get("spurious_singular_faces", 0),
-                "missing": metrics.get("missing_singular_faces", 0), "closest_differs": 0}
-    return {"singular": metrics["omega_singular_faces"], "spurious": metrics["omega_spurious_singular_faces"],
-            "missing": metrics["omega_missing_singular_faces"],
-            "closest_differs": metrics.get("matching_disagreements", 0)}
 
 
 def _material(name, colour):
@@ -120,10 +83,13 @@ def write_singular_faces(scene) -> dict:
     field = storage.frame_field(scene)
     if field is None:
         raise ValueError("no field computed yet: press Compute Field first")
-    omega, _ = storage.field_omega(scene)
-    tris, spurious, differs = singular_faces(field, omega, storage.read_network_faces(scene.symframes.field))
-    counts = {"singular": int(len(tris)), "spurious": int(spurious.sum()), "closest_differs": differs}
-    me = new_singular_mesh(field.mesh.vertices, tris, spurious)
+    mesh = field.mesh
+    sf = singular_faces(mesh, storage.field_omega(scene), field.frames,
+                        storage.network_face_ids(scene.symframes.field, mesh))
+    f = np.nonzero(sf.singular)[0]
+    spurious = sf.spurious[f]
+    counts = {"singular": int(len(f)), "spurious": int(spurious.sum()), "closest_differs": sf.disagreements}
+    me = new_singular_mesh(mesh.vertices, mesh.faces[f], spurious)
     obj = storage.replace_output(scene, "singular_faces", "SymFrames Singular Faces", me)
     obj[COUNTS_KEY] = counts
     return counts

@@ -4,7 +4,8 @@ diagnostics' selections -- omega arrows, slice faces (no bpy).
 A snapshot of the scene's display settings (``DisplaySettings``) is taken on
 the main thread; sampling and tracing then run anywhere -- in the solve
 thread right after a solve, or directly when refreshing from the stored
-field.  The numerics are solver.analysis.streamlines' and solver.analysis.measures'.
+field.  The numerics are the solver's (solver.FrameField, sample_glyphs,
+seed_points, trace_streamlines, monodromy_angles, regular_face_mask).
 
 The slice plane cuts the tet mesh along tet faces: the tets whose centroid
 lies on the kept side (the cutaway's) against the others.  The faces
@@ -19,8 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..solver.analysis.measures import monodromy_angles
-from ..solver.analysis.streamlines import sample_glyphs, seed_points, trace_streamlines
+from ..solver import monodromy_angles, regular_face_mask, sample_glyphs, seed_points, trace_streamlines
 
 ERROR_ATTRIBUTES = {"ADAPTATION": "adaptation", "MONODROMY": "monodromy"}
 """Glyph colouring -> name of the glyph points' error attribute (radians)."""
@@ -78,7 +78,7 @@ def glyph_samples(field, ds: DisplaySettings, adaptation: np.ndarray | None = No
                   monodromy: np.ndarray | None = None):
     """Glyph points, their frames and (in the error colourings) errors.
 
-    field : solver.analysis.streamlines.FrameField
+    field : solver.FrameField
     adaptation : (#V,) float array, the normal adaptation error (radians) of
         each field vertex, negative where not measured (interior and sharp
         feature vertices); needed for ds.colour == 'ADAPTATION'.
@@ -189,20 +189,11 @@ def kept_boundary_faces(field, ds: DisplaySettings) -> tuple[np.ndarray, np.ndar
     return f, _oriented(mesh, f, mesh.face_tets[f, 0])
 
 
-def regular_faces(mesh, network_faces: np.ndarray | None) -> np.ndarray:
-    """(#F,) bool: interior faces the network does not pass through -- the
-    faces whose monodromy should vanish (as in solver.analysis.measures.quick_metrics)."""
-    ok = ~mesh.is_boundary_face
-    if network_faces is not None and len(network_faces):
-        ids = mesh.face_index(network_faces)
-        ok[ids[ids >= 0]] = False
-    return ok
-
-
-def vertex_monodromy(mesh, omega: np.ndarray, network_faces: np.ndarray | None) -> np.ndarray:
+def vertex_monodromy(mesh, omega: np.ndarray, network_faces: np.ndarray) -> np.ndarray:
     """(#V,) mean monodromy angle (radians, Eq. 9) of the regular faces
-    around each vertex (regular_faces); 0 where there is none."""
-    f = np.nonzero(regular_faces(mesh, network_faces))[0]
+    (solver.regular_face_mask) around each vertex; 0 where there is none.
+    network_faces : (k,) ids of the faces the network passes through."""
+    f = np.nonzero(regular_face_mask(mesh, network_faces))[0]
     ang = monodromy_angles(mesh, omega, f)
     F = mesh.faces[f].ravel()
     total = np.bincount(F, np.repeat(ang, 3), mesh.n_vertices)

@@ -4,10 +4,11 @@ Two quantities (the scene's Slice Quantity):
 
 * ``MONODROMY`` -- the slice faces (display.slice_faces: the tet faces
   separating the two sides of the slice plane), with the monodromy angle of
-  each face (Eq. 9, solver.analysis.measures.monodromy_angles on the stored omega):
-  how far omega fails to be integrable around it.  The network's faces turn
-  by their prescribed quarter turns, so they are flagged (``network``) and
-  drawn grey; elsewhere a good field has a small fraction of a degree.
+  each face (Eq. 9, solver.monodromy_angles on the stored omega):
+  how far omega fails to be integrable around it.  The faces that are not
+  regular (solver.regular_face_mask: the network's, which turn by their
+  prescribed quarter turns) are flagged (``network``) and drawn grey;
+  elsewhere a good field has a small fraction of a degree.
 * ``ADAPTATION`` -- the domain boundary faces the cutaway keeps
   (display.kept_boundary_faces), with the mean normal adaptation error of
   their measured vertices (-1, grey, where none is measured: on sharp
@@ -28,7 +29,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from ..solver.analysis.measures import monodromy_angles
+from ..solver import monodromy_angles, regular_face_mask
 from . import diagnostics, display, glyphs, storage
 
 ROLE = "error_slice"
@@ -55,13 +56,14 @@ def ramp_colours(values: np.ndarray, scale: float, grey: np.ndarray | None = Non
     return np.c_[rgb, np.ones(len(rgb))]
 
 
-def slice_values(field, omega: np.ndarray, adaptation: np.ndarray | None, network_faces: np.ndarray | None,
+def slice_values(field, omega: np.ndarray | None, adaptation: np.ndarray | None, network_faces: np.ndarray,
                  ds: display.DisplaySettings, quantity: str):
-    """(face ids (k,), triangles (k, 3), values (k,) radians, grey (k,) bool)."""
+    """(face ids (k,), triangles (k, 3), values (k,) radians, grey (k,) bool).
+    network_faces : (j,) ids of the faces the network passes through."""
     mesh = field.mesh
     if quantity == "MONODROMY":
         f, tris = display.slice_faces(field, ds)
-        return f, tris, monodromy_angles(mesh, omega, f), ~display.regular_faces(mesh, network_faces)[f]
+        return f, tris, monodromy_angles(mesh, omega, f), ~regular_face_mask(mesh, network_faces)[f]
     if quantity == "ADAPTATION":
         if adaptation is None or len(adaptation) != mesh.n_vertices:
             raise ValueError("this result stores no adaptation errors; compute the field again")
@@ -138,23 +140,23 @@ def quantity_scale(scene, quantity: str) -> float:
 
 def write_slice(scene, quantity: str) -> dict:
     """Replace the scene's error slice from the stored field; returns its
-    statistics {'quantity', 'faces', 'grey', 'mean_deg', 'max_deg', 'omega_stored'}
-    (mean and max over the faces not grey)."""
+    statistics {'quantity', 'faces', 'grey', 'mean_deg', 'max_deg'} (mean
+    and max over the faces not grey)."""
     field = storage.frame_field(scene)
     if field is None:
         raise ValueError("no field computed yet: press Compute Field first")
     me_field = scene.symframes.field
-    omega, stored = storage.field_omega(scene) if quantity == "MONODROMY" else (None, True)
+    omega = storage.field_omega(scene) if quantity == "MONODROMY" else None
     ds = display.DisplaySettings.from_scene(scene)
     f, tris, val, grey = slice_values(field, omega, storage.read_adaptation(me_field),
-                                      storage.read_network_faces(me_field), ds, quantity)
+                                      storage.network_face_ids(me_field, field.mesh), ds, quantity)
     if len(f) == 0:
         where = "on the slice plane" if quantity == "MONODROMY" else "on the kept side of the slice plane"
         raise ValueError(f"no tet face {where}: move the slice plane into the solid (Slice Position)")
     shown = val[~grey]
     stats = {"quantity": quantity, "faces": int(len(f)), "grey": int(grey.sum()),
              "mean_deg": float(np.degrees(shown.mean())) if len(shown) else 0.0,
-             "max_deg": float(np.degrees(shown.max())) if len(shown) else 0.0, "omega_stored": bool(stored)}
+             "max_deg": float(np.degrees(shown.max())) if len(shown) else 0.0}
     me = new_slice_mesh(field.mesh.vertices, tris, f, val, grey, quantity, quantity_scale(scene, quantity))
     obj = storage.replace_output(scene, ROLE, OBJECT_NAME, me)
     obj[STATS_KEY] = stats

@@ -2,9 +2,9 @@
 Import) and the tet mesh as a Blender object (so Blender's own exporters
 reach it).
 
-The formats are the solver's (solver/io/interchange.py, solver/io/tetnetwork.py,
-solver/io/formats.py; docs/usage.md); this module only moves arrays between
-them and the scene.  A failed import leaves the scene as it was.
+The formats are the solver's (solver.io; docs/usage.md); this module only
+moves arrays between them and the scene.  A failed import or export leaves
+the scene as it was.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ class SYMFRAMES_OT_export_field(bpy.types.Operator, ExportHelper):
             self.report({"ERROR"}, f"SymFrames: the folder {folder} does not exist")
             return {"CANCELLED"}
         try:
-            written = export_field(storage.read_field_data(me), path, self.file_format.lower())
+            written = export_field(storage.read_field_data(context.scene), path, self.file_format.lower())
         except (SymFramesError, ValueError, OSError) as e:
             self.report({"ERROR"}, f"SymFrames: export failed: {e}")
             return {"CANCELLED"}
@@ -112,7 +112,11 @@ class SYMFRAMES_OT_tet_mesh_object(bpy.types.Operator):
         me_field = _field_or_report(self, context)
         if me_field is None:
             return {"CANCELLED"}
-        fd = storage.read_field_data(me_field)
+        try:
+            fd = storage.read_field_data(context.scene)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, f"SymFrames: {e}")
+            return {"CANCELLED"}
         mesh = fd.mesh
         me = bpy.data.meshes.new("SymFrames Tet Mesh")
         try:

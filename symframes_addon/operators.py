@@ -11,9 +11,8 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty
 
-from ..solver import SymFramesError, TopologyError
+from ..solver import SymFramesError, TopologyError, check
 from ..solver.examples import EXAMPLES
-from ..solver.network.validation import check_input
 from . import (
     diagnostics,
     display,
@@ -29,8 +28,6 @@ from . import (
 )
 
 _RUNNING: dict = {}  # the one solve running in the background, if any
-OMEGA_FROM_FRAMES = ("; this result predates stored omega, so omega is recomputed from the frames "
-                     "(monodromy 0 off the singular faces): compute the field again for the solver's omega")
 
 
 def running_job():
@@ -53,9 +50,8 @@ def write_outcome(scene, out: job.Outcome) -> None:
     objects that were not recomputed are removed: they showed the old field."""
     created = []
     try:
-        field_me = storage.new_field_mesh(out.vertices, out.tets, out.quaternions, out.report, out.adaptation,
-                                          out.network_faces, out.edges, out.omega, out.tet_curve, out.tet_node,
-                                          out.network_omega)
+        field_me = storage.new_field_mesh(out.field, out.quaternions, out.adaptation, out.network_faces, out.report,
+                                          out.remeshed)
         created.append((bpy.data.meshes, field_me))
         glyph_me = curve = None
         if out.glyphs is not None:
@@ -101,16 +97,15 @@ def finish_job(scene, j: job.SolveJob) -> tuple[str, str]:
         traceback.print_exc()
         return "ERROR", error_text(e)
     r = j.outcome.report
-    m = r["metrics"]
-    c = diagnostics.singular_counts(m)
-    msg = (f"SymFrames: {r['sizes'].get('tets', 0):,} tets, {r['iterations']} iterations, {r['seconds']:.1f} s; "
-           f"monodromy {m.get('monodromy_mean_deg', 0):.3g} deg mean, "
+    c = r.singular_face_counts()
+    msg = (f"SymFrames: {r.sizes.get('tets', 0):,} tets, {r.lm.n_iterations if r.lm else 0} iterations, "
+           f"{r.total_seconds:.1f} s; monodromy {r.metrics.get('monodromy_mean_deg', 0):.3g} deg mean, "
            f"{c['spurious']} spurious and {c['missing']} missing singular faces")
     warnings = []
-    if not r.get("converged", True):
+    if not r.converged:
         # written all the same (it may help to see where it fails), but said
         # plainly: an unconverged field can be far from the minimiser
-        warnings.append(f"not converged ({r.get('status_reason') or r.get('lm_reason', '')}), so the field may be "
+        warnings.append(f"not converged ({r.status_reason}), so the field may be "
                         "wrong: check the network's validity (Check Network), then try a finer resolution near "
                         "its short curves (a smaller Edge Length or more Tets) or more iterations")
     if j.outcome.streamlines is not None and not j.outcome.streamlines[0]:
@@ -138,24 +133,21 @@ class SYMFRAMES_OT_check_network(bpy.types.Operator):
         inp = None
         try:
             inp = scene_io.read_inputs(context)
-            checked = check_input(inp.V, inp.F, inp.network, inp.options.check_intersections,
-                                  inp.options.edge_length, True, inp.options.target_tets)
+            found = check(inp.V, inp.F, inp.network, options=inp.options)
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e, inp))
             return {"CANCELLED"}
-        pn = checked.network
-        msg = (f"Network OK: {len(inp.network.curves)} curve(s) ({len(pn.curves)} interior, "
-               f"{len(pn.nodes)} node(s)), {int(checked.features.sharp.sum())} sharp surface edge(s), "
-               f"{len(inp.F):,} triangles")
+        msg = (f"Network OK: {len(inp.network.curves)} curve(s) ({found.interior_curves} interior, "
+               f"{found.nodes} node(s)), {found.sharp_edges} sharp surface edge(s), {len(inp.F):,} triangles; "
+               f"about {found.plan.tets:,.0f} tets")
         if inp.ignored:
             msg += f"; ignored non-curve object(s): {', '.join(inp.ignored)}"
-        from ..solver.network.intake import repairs_text
-
-        repaired = repairs_text(checked.repairs, checked.scale)
+        repaired = found.repairs_text()
         if repaired:
             # the first line counts the repaired curves; the rest goes to the console
             msg += "; " + repaired.splitlines()[0]
             print(repaired)
+        print(f"SymFrames resolution: {found.plan.describe()}")
         self.report({"INFO"}, msg)
         return {"FINISHED"}
 
@@ -292,10 +284,10 @@ class SYMFRAMES_OT_show_glyphs(_FieldOperator, bpy.types.Operator):
             if f is None:
                 return {"CANCELLED"}
             ds = display.DisplaySettings.from_scene(scene)
-            mono, stored = None, True
+            mono = None
             if ds.colour == "MONODROMY":
-                omega, stored = storage.field_omega(scene)
-                mono = display.vertex_monodromy(f.mesh, omega, storage.read_network_faces(scene.symframes.field))
+                mono = display.vertex_monodromy(f.mesh, storage.field_omega(scene),
+                                                storage.network_face_ids(scene.symframes.field, f.mesh))
             P, Q, err = display.glyph_samples(f, ds, storage.read_adaptation(scene.symframes.field), mono)
             if len(P) == 0:
                 self.report({"ERROR"}, "no glyph to show: raise Glyphs, or move the slice plane into the solid")
@@ -304,7 +296,7 @@ class SYMFRAMES_OT_show_glyphs(_FieldOperator, bpy.types.Operator):
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"SymFrames: {len(P):,} glyphs" + ("" if stored else OMEGA_FROM_FRAMES))
+        self.report({"INFO"}, f"SymFrames: {len(P):,} glyphs")
         return {"FINISHED"}
 
 
@@ -372,7 +364,7 @@ class SYMFRAMES_OT_show_omega(_FieldOperator, bpy.types.Operator):
             f = _stored_field(self, context)
             if f is None:
                 return {"CANCELLED"}
-            omega, stored = storage.field_omega(scene)
+            omega = storage.field_omega(scene)
             P, W, e = display.omega_arrows(f, omega, display.DisplaySettings.from_scene(scene))
             if len(P) == 0:
                 self.report({"ERROR"}, "no edge to draw: move the slice plane into the solid (Slice Position), "
@@ -383,8 +375,7 @@ class SYMFRAMES_OT_show_omega(_FieldOperator, bpy.types.Operator):
             self.report({"ERROR"}, error_text(e))
             return {"CANCELLED"}
         self.report({"INFO"}, f"SymFrames: {len(P):,} omega arrows, largest rotation "
-                              f"{np.degrees(np.linalg.norm(W, axis=1).max()):.3g} deg"
-                    + ("" if stored else OMEGA_FROM_FRAMES))
+                              f"{np.degrees(np.linalg.norm(W, axis=1).max()):.3g} deg")
         return {"FINISHED"}
 
 
@@ -406,7 +397,7 @@ class SYMFRAMES_OT_show_slice(_FieldOperator, bpy.types.Operator):
             return {"CANCELLED"}
         what = "monodromy" if st["quantity"] == "MONODROMY" else "adaptation error"
         self.report({"INFO"}, f"SymFrames: {st['faces']:,} faces, {what} mean {st['mean_deg']:.3g} deg, "
-                              f"max {st['max_deg']:.3g} deg" + ("" if st["omega_stored"] else OMEGA_FROM_FRAMES))
+                              f"max {st['max_deg']:.3g} deg")
         return {"FINISHED"}
 
 

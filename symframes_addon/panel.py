@@ -189,20 +189,20 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
         if r is None:
             layout.label(text="No field computed yet")
             return
-        sizes, m = r.get("sizes", {}), r.get("metrics", {})
+        sizes, m = r.sizes, r.metrics
         col = layout.column(align=True)
         col.label(text=f"Tets {sizes.get('tets', 0):,}   vertices {sizes.get('vertices', 0):,}")
-        col.label(text=f"Edge length {r.get('edge_length', 0):.3g}" + ("" if r.get("remeshed", True)
-                                                                       else "  (mesh reused)"))
-        col.label(text=f"Iterations {r.get('iterations', 0)}   time {r.get('seconds', 0):.1f} s")
-        if not r.get("converged", True):
+        col.label(text=f"Edge length {r.edge_length:.3g}" + ("" if storage.stored_remeshed(context.scene)
+                                                             else "  (mesh reused)"))
+        col.label(text=f"Iterations {r.lm.n_iterations if r.lm else 0}   time {r.total_seconds:.1f} s")
+        if not r.converged:
             col.label(text="Not converged: see the status bar's advice", icon="ERROR")
         # 'changed': joined pieces and ends brought onto the surface or a node count too
-        moved = [c for c in r.get("repairs", []) if c.get("changed", c.get("max_displacement_h", 0) > 0)]
+        moved = [c for c in r.repairs if c.changed]
         if moved:
-            worst = max(moved, key=lambda c: c["max_displacement_h"])
-            col.label(text=f"{len(moved)} curve(s) repaired, up to {worst['max_displacement_h']:.2f} h "
-                           f"('{worst['name']}')", icon="INFO")
+            worst = max(moved, key=lambda c: c.max_displacement_h)
+            col.label(text=f"{len(moved)} curve(s) repaired, up to {worst.max_displacement_h:.2f} h "
+                           f"('{worst.name}')", icon="INFO")
         col = layout.column(align=True)
         col.label(text="Integrability (monodromy)")
         col.label(text=f"   mean {m.get('monodromy_mean_deg', 0):.3g}°   max {m.get('monodromy_max_deg', 0):.3g}°")
@@ -213,7 +213,7 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
             col.label(text=f"   tangents {m['tangent_adaptation_mean_deg']:.3g}°, "
                            f"{m.get('tangent_adaptation_max_deg', 0):.3g}°")
         col = layout.column(align=True)
-        c = diagnostics.singular_counts(m)
+        c = r.singular_face_counts()
         col.label(text=f"Singular faces {c['singular']}",
                   icon="CHECKMARK" if c["spurious"] == 0 and c["missing"] == 0 else "ERROR")
         col.label(text=f"   spurious {c['spurious']}   missing {c['missing']}")
@@ -241,8 +241,6 @@ class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
                          icon="CHECKMARK" if c["spurious"] == 0 else "ERROR")
             if c.get("closest_differs"):
                 layout.label(text=f"closest-rotation reads {c['closest_differs']} otherwise", icon="INFO")
-        if storage.field_omega_stored(scene) is False:
-            layout.label(text="Older result: omega recomputed from the frames", icon="INFO")
         # omega arrows
         col = layout.column()
         col.prop(s, "omega_region")

@@ -7,28 +7,27 @@ setting ``symframes.field`` (a pointer counts as a user, so it is saved):
 * faces          = one 4-corner face per tetrahedron (corner vertices = the tet)
 * edges          = the tet-mesh edges (all six of every tet)
 * ``frame``      = QUATERNION point attribute, the frame of each vertex (w, x, y, z)
-* ``adaptation`` = FLOAT point attribute, the normal adaptation error
-                   (radians) of boundary vertices, -1 elsewhere and at sharp
+* ``adaptation`` = FLOAT point attribute, solver.vertex_normal_adaptation:
+                   radians at boundary vertices, -1 inside and at sharp
                    feature vertices (whose frames are fixed)
 * ``omega``      = FLOAT_VECTOR edge attribute, the solver's Darboux
                    derivative: the rotation vector from the frame at the
                    edge's first vertex to the one at its second (Eq. 8,
-                   E_j = exp(omega_ij) E_i, world coordinates).  Results
-                   saved before it was stored lack it (and their edges are
-                   only those of the 4-corner faces); ``field_omega`` then
-                   computes omega from the frames.
+                   E_j = exp(omega_ij) E_i, world coordinates)
 * ``["symframes_network_faces"]`` = int array, the vertex triples of the
                    tet-mesh faces the network passes through (flattened)
 * ``["symframes_network_omega"]`` = float array, the prescribed Omega of
                    those faces (Eq. 19, flattened (k, 3))
 * ``curve``      = INT face attribute, the network curve crossing each tet,
                    -1 elsewhere; ``node_region`` = BOOLEAN face attribute,
-                   the tets of node regions (both for exports; older results
-                   lack them)
-* ``["symframes_report"]`` = JSON with the report's sizes, metrics and summary
+                   the tets of node regions (both for exports)
+* ``["symframes_report"]`` = JSON, solver.Report.to_dict() of the solve;
+  ``["symframes_remeshed"]`` = whether the solve made its tet mesh (else it
+  reused the previous one)
 
 Positions, quaternions and omega are float32 in Blender; the frames are
-rebuilt by normalising the quaternions, so they are exact rotations.
+rebuilt from the normalised quaternions (solver.io.quaternion_frames), so
+they are exact rotations.
 
 Output objects (glyphs, streamlines, the diagnostics: see OUTPUT_ROLES) are
 found by the custom property ``symframes_role`` on objects of the scene, so
@@ -42,6 +41,9 @@ import json
 import bpy
 import numpy as np
 
+from ..solver import FrameField, Report
+from ..solver.io import FieldData, quaternion_frames
+
 FIELD_NAME = "SymFrames Field"
 FRAME_ATTRIBUTE = "frame"
 ADAPTATION_ATTRIBUTE = "adaptation"
@@ -51,59 +53,51 @@ NETWORK_OMEGA_KEY = "symframes_network_omega"
 CURVE_ATTRIBUTE = "curve"
 NODE_ATTRIBUTE = "node_region"
 REPORT_KEY = "symframes_report"
+REMESHED_KEY = "symframes_remeshed"
 ROLE_KEY = "symframes_role"
 RESULTS_COLLECTION = "SymFrames Results"
 OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "error_slice")
 
 
 # ------------------------------------------------------------------- field
-def new_field_mesh(vertices: np.ndarray, tets: np.ndarray, quaternions: np.ndarray, report: dict,
-                   adaptation: np.ndarray | None = None, network_faces: np.ndarray | None = None,
-                   edges: np.ndarray | None = None, omega: np.ndarray | None = None,
-                   tet_curve: np.ndarray | None = None, tet_node: np.ndarray | None = None,
-                   network_omega: np.ndarray | None = None):
+def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.ndarray, network_faces: np.ndarray,
+                   report: Report, remeshed: bool):
     """A new (unlinked) mesh datablock holding a solved field.
 
-    vertices (n, 3), tets (m, 4), quaternions (n, 4) w x y z; adaptation
-    (n,) radians or -1; network_faces (k, 3) vertex triples; edges (e, 2)
-    the tet-mesh edges i -> j and omega (e, 3) their rotation vectors
-    (both or neither); tet_curve (m,) int and tet_node (m,) bool per tet;
-    network_omega (k, 3) the prescribed Omega of the network faces.
+    field : the solve's FieldData (tet mesh, omega on its edges, per-tet
+        curve and node-region markers, the prescribed Omega per face)
+    quaternions : (#V, 4) the frames as w, x, y, z
+    adaptation : (#V,) solver.vertex_normal_adaptation of the solve
+    network_faces : (k,) ids of the faces the network passes through
+    report : the solve's Report;  remeshed : whether the solve made its tet mesh
     """
-    n, m = len(vertices), len(tets)
-    if (edges is None) != (omega is None) or (omega is not None and len(omega) != len(edges)):
-        raise ValueError("omega needs the edges it lives on: pass both, with one rotation vector per edge")
+    mesh = field.mesh
+    n, m = mesh.n_vertices, mesh.n_tets
     me = bpy.data.meshes.new(FIELD_NAME)
     try:
         me.vertices.add(n)
-        me.attributes["position"].data.foreach_set("vector", np.asarray(vertices, np.float32).ravel())
+        me.attributes["position"].data.foreach_set("vector", np.asarray(mesh.vertices, np.float32).ravel())
         me.loops.add(4 * m)
         me.polygons.add(m)
         me.polygons.foreach_set("loop_start", np.arange(0, 4 * m, 4, dtype=np.int32))
-        me.loops.foreach_set("vertex_index", np.asarray(tets, np.int32).ravel())
-        if edges is None:
-            me.update(calc_edges=True)
-        else:
-            _set_edges(me, n, np.asarray(tets, np.int64), np.asarray(edges, np.int64))
-            me.attributes.new(OMEGA_ATTRIBUTE, "FLOAT_VECTOR", "EDGE")
-            me.attributes[OMEGA_ATTRIBUTE].data.foreach_set("vector", np.asarray(omega, np.float32).ravel())
+        me.loops.foreach_set("vertex_index", np.asarray(mesh.tets, np.int32).ravel())
+        _set_edges(me, n, np.asarray(mesh.tets, np.int64), np.asarray(mesh.edges, np.int64))
+        me.attributes.new(OMEGA_ATTRIBUTE, "FLOAT_VECTOR", "EDGE")
+        me.attributes[OMEGA_ATTRIBUTE].data.foreach_set("vector", np.asarray(field.omega, np.float32).ravel())
         me.attributes.new(FRAME_ATTRIBUTE, "QUATERNION", "POINT")
         # fetch by name: a reference taken before another attributes.new() goes stale
         me.attributes[FRAME_ATTRIBUTE].data.foreach_set("value", np.asarray(quaternions, np.float32).ravel())
-        if adaptation is not None:
-            me.attributes.new(ADAPTATION_ATTRIBUTE, "FLOAT", "POINT")
-            me.attributes[ADAPTATION_ATTRIBUTE].data.foreach_set("value", np.asarray(adaptation, np.float32))
-        if network_faces is not None:
-            me[NETWORK_FACES_KEY] = np.asarray(network_faces, np.int32).ravel().tolist()
-        if network_omega is not None:
-            me[NETWORK_OMEGA_KEY] = np.asarray(network_omega, float).ravel().tolist()
-        if tet_curve is not None:
-            me.attributes.new(CURVE_ATTRIBUTE, "INT", "FACE")
-            me.attributes[CURVE_ATTRIBUTE].data.foreach_set("value", np.asarray(tet_curve, np.int32))
-        if tet_node is not None:
-            me.attributes.new(NODE_ATTRIBUTE, "BOOLEAN", "FACE")
-            me.attributes[NODE_ATTRIBUTE].data.foreach_set("value", np.asarray(tet_node, bool))
-        me[REPORT_KEY] = json.dumps(report)
+        me.attributes.new(ADAPTATION_ATTRIBUTE, "FLOAT", "POINT")
+        me.attributes[ADAPTATION_ATTRIBUTE].data.foreach_set("value", np.asarray(adaptation, np.float32))
+        me[NETWORK_FACES_KEY] = np.asarray(mesh.faces[network_faces], np.int32).ravel().tolist()
+        face_omega = np.zeros((mesh.n_faces, 3)) if field.face_omega is None else field.face_omega
+        me[NETWORK_OMEGA_KEY] = np.asarray(face_omega[network_faces], float).ravel().tolist()
+        me.attributes.new(CURVE_ATTRIBUTE, "INT", "FACE")
+        me.attributes[CURVE_ATTRIBUTE].data.foreach_set("value", np.asarray(field.curve, np.int32))
+        me.attributes.new(NODE_ATTRIBUTE, "BOOLEAN", "FACE")
+        me.attributes[NODE_ATTRIBUTE].data.foreach_set("value", np.asarray(field.node_region, bool))
+        me[REPORT_KEY] = json.dumps(report.to_dict())
+        me[REMESHED_KEY] = bool(remeshed)
     except Exception:
         bpy.data.meshes.remove(me)
         raise
@@ -158,13 +152,13 @@ def read_adaptation(me) -> np.ndarray | None:
     return a.astype(float)
 
 
-def read_omega(me, edges: np.ndarray) -> np.ndarray | None:
+def read_omega(me, edges: np.ndarray) -> np.ndarray:
     """(e, 3) stored omega on the given edges (e, 2), oriented edges[:, 0] ->
-    edges[:, 1], or None if the field stores no omega (or not on all of them)."""
+    edges[:, 1]; ValueError if the field does not hold omega on all of them."""
     attr = me.attributes.get(OMEGA_ATTRIBUTE)
     k, n = len(me.edges), len(me.vertices)
     if attr is None or attr.domain != "EDGE" or attr.data_type != "FLOAT_VECTOR" or k == 0:
-        return None
+        raise ValueError("this result stores no omega; compute the field again")
     ev = np.empty(2 * k, np.int32)
     me.edges.foreach_get("vertices", ev)
     ev = ev.reshape(-1, 2).astype(np.int64)
@@ -176,75 +170,50 @@ def read_omega(me, edges: np.ndarray) -> np.ndarray | None:
     want = _edge_keys(edges, n)
     pos = order[np.clip(np.searchsorted(keys, want, sorter=order), 0, k - 1)]
     if not np.array_equal(keys[pos], want):
-        return None
+        raise ValueError("this result's edges are not its tet mesh's; compute the field again")
     # a stored edge j -> i holds -omega_ij
     same = ev[pos, 0] == np.asarray(edges)[:, 0]
     return np.where(same[:, None], w[pos], -w[pos])
 
 
-def read_network_faces(me) -> np.ndarray | None:
-    """(k, 3) vertex triples of the stored network faces, or None."""
+def read_network_faces(me) -> np.ndarray:
+    """(k, 3) vertex triples of the stored network faces."""
     if NETWORK_FACES_KEY not in me:
-        return None
+        raise ValueError("this result does not store its network faces; compute the field again")
     return np.asarray(me[NETWORK_FACES_KEY], dtype=np.int64).reshape(-1, 3)
 
 
-def _face_attribute(me, name: str, dtype) -> np.ndarray | None:
+def network_face_ids(me, mesh) -> np.ndarray:
+    """(k,) ids in mesh (the stored field's tet mesh) of the stored network faces."""
+    tris = read_network_faces(me)
+    ids = mesh.face_index(tris) if len(tris) else np.zeros(0, np.int64)
+    if np.any(ids < 0):
+        raise ValueError("this result's network faces are not faces of its tet mesh; compute the field again")
+    return ids
+
+
+def _face_attribute(me, name: str, dtype) -> np.ndarray:
     attr = me.attributes.get(name)
     if attr is None or attr.domain != "FACE":
-        return None
+        raise ValueError(f"this result stores no '{name}' per tet; compute the field again")
     a = np.empty(len(me.polygons), dtype)
     attr.data.foreach_get("value", a)
     return a
 
 
-def read_field_data(me):
-    """The stored field as solver.io.interchange.FieldData, for exports.
-
-    Results stored before the per-tet markers were kept mark the tets next
-    to the network faces as crossed by curve 0 and measure monodromy
-    against the identity there."""
-    from ..solver.io.interchange import FieldData
-    from ..solver.mesh.tetmesh import TetMesh
-
-    V, T, q = read_field(me)
-    mesh = TetMesh(V, T)
-    omega = read_omega(me, mesh.edges)
-    if omega is None:
-        from ..solver.analysis.measures import darboux_derivative
-
-        omega = darboux_derivative(mesh, quaternions_to_frames(q))
-    net = read_network_faces(me)
-    face_ids = mesh.face_index(net) if net is not None and len(net) else np.zeros(0, np.int64)
-    curve = _face_attribute(me, CURVE_ATTRIBUTE, np.int32)
-    if curve is None:
-        curve = np.full(mesh.n_tets, -1)
-        ft = mesh.face_tets[face_ids[face_ids >= 0]]
-        curve[ft[ft >= 0]] = 0
-    node = _face_attribute(me, NODE_ATTRIBUTE, bool)
-    face_omega = None
-    if NETWORK_OMEGA_KEY in me and len(face_ids):
-        face_omega = np.zeros((mesh.n_faces, 3))
-        ok = face_ids >= 0
-        face_omega[face_ids[ok]] = np.asarray(me[NETWORK_OMEGA_KEY], float).reshape(-1, 3)[ok]
-    return FieldData(mesh, quaternions_to_frames(q), omega, np.asarray(curve, np.int64),
-                     np.zeros(mesh.n_tets, bool) if node is None else node, face_omega)
-
-
-def quaternions_to_frames(q: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotation matrices (columns = cross axes) of unit quaternions (n, 4) w x y z."""
-    w, x, y, z = q.T
-    R = np.empty((len(q), 3, 3))
-    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    R[:, 0, 1] = 2 * (x * y - w * z)
-    R[:, 0, 2] = 2 * (x * z + w * y)
-    R[:, 1, 0] = 2 * (x * y + w * z)
-    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    R[:, 1, 2] = 2 * (y * z - w * x)
-    R[:, 2, 0] = 2 * (x * z - w * y)
-    R[:, 2, 1] = 2 * (y * z + w * x)
-    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
+def read_field_data(scene) -> FieldData:
+    """The scene's stored field as the solver's FieldData (for exports)."""
+    f = frame_field(scene)
+    if f is None:
+        raise ValueError("no field computed yet: press Compute Field first")
+    me, mesh = scene.symframes.field, f.mesh
+    face_ids = network_face_ids(me, mesh)
+    if NETWORK_OMEGA_KEY not in me:
+        raise ValueError("this result does not store its network's Omega; compute the field again")
+    face_omega = np.zeros((mesh.n_faces, 3))
+    face_omega[face_ids] = np.asarray(me[NETWORK_OMEGA_KEY], float).reshape(-1, 3)
+    curve = _face_attribute(me, CURVE_ATTRIBUTE, np.int32).astype(np.int64)
+    return FieldData(mesh, f.frames, field_omega(scene), curve, _face_attribute(me, NODE_ATTRIBUTE, bool), face_omega)
 
 
 def stored_field(scene):
@@ -255,24 +224,30 @@ def stored_field(scene):
     return me
 
 
-def stored_report(scene) -> dict | None:
+def stored_report(scene) -> Report | None:
+    """The solver's Report of the stored field, or None."""
     me = stored_field(scene)
     if me is None or REPORT_KEY not in me:
         return None
     try:
-        return json.loads(me[REPORT_KEY])
-    except (TypeError, ValueError):
+        return Report.from_dict(json.loads(me[REPORT_KEY]))
+    except (TypeError, ValueError, KeyError):
         return None
+
+
+def stored_remeshed(scene) -> bool | None:
+    """Whether the stored field's solve made its tet mesh (False: it reused
+    the previous solve's); None if there is no result."""
+    me = stored_field(scene)
+    return None if me is None else bool(me.get(REMESHED_KEY, True))
 
 
 _FIELD_CACHE: dict = {}
 
 
-def frame_field(scene):
-    """solver.analysis.streamlines.FrameField of the stored field (cached per field
-    datablock and content), or None if there is no result."""
-    from ..solver.analysis.streamlines import FrameField
-
+def frame_field(scene) -> FrameField | None:
+    """solver.FrameField of the stored field (cached per field datablock and
+    content), or None if there is no result."""
     me = stored_field(scene)
     if me is None:
         return None
@@ -280,39 +255,21 @@ def frame_field(scene):
     f = _FIELD_CACHE.get("field")
     if f is None or _FIELD_CACHE.get("key") != key:
         V, T, q = read_field(me)
-        f = FrameField(V, T, quaternions_to_frames(q))
+        f = FrameField(V, T, quaternion_frames(q))
         _FIELD_CACHE.clear()
         _FIELD_CACHE.update(field=f, key=key)
     return f
 
 
-def field_omega(scene) -> tuple[np.ndarray, bool] | None:
-    """(omega (#E, 3) on frame_field(scene).mesh.edges, stored) of the
-    stored field, or None if there is no result.
-
-    stored is False for results saved before omega was kept: omega is then
-    the Darboux derivative of the stored frames (solver.analysis.measures
-    .darboux_derivative), which is integrable by construction -- its
-    monodromy is zero except on singular faces.
-    """
-    from ..solver.analysis.measures import darboux_derivative
-
+def field_omega(scene) -> np.ndarray | None:
+    """(#E, 3) the solver's omega on frame_field(scene).mesh.edges, or None
+    if there is no result."""
     f = frame_field(scene)
     if f is None:
         return None
-    got = _FIELD_CACHE.get("omega")
-    if got is None:
-        w = read_omega(scene.symframes.field, f.mesh.edges)
-        got = (darboux_derivative(f.mesh, f.frames), False) if w is None else (w, True)
-        _FIELD_CACHE["omega"] = got
-    return got
-
-
-def field_omega_stored(scene) -> bool | None:
-    """Whether the stored field keeps the solver's omega (None: no field).
-    Cheap: for the panel."""
-    me = stored_field(scene)
-    return None if me is None else OMEGA_ATTRIBUTE in me.attributes
+    if "omega" not in _FIELD_CACHE:
+        _FIELD_CACHE["omega"] = read_omega(scene.symframes.field, f.mesh.edges)
+    return _FIELD_CACHE["omega"]
 
 
 def set_field(scene, me) -> None:

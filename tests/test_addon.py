@@ -34,15 +34,15 @@ PLATE_EDGE = 0.2
 
 
 addon = load_addon()
-from symframes.solver import FieldProblem  # noqa: E402
+from symframes.solver import FieldProblem, check, regular_face_mask  # noqa: E402
 from symframes.solver.analysis.measures import (  # noqa: E402
-    darboux_derivative,
     matched_singular_faces,
     monodromy_angles,
     normal_adaptation,
     omega_singular_faces,
 )
 from symframes.solver.analysis.streamlines import FrameField  # noqa: E402
+from symframes.solver.io import quaternion_frames  # noqa: E402
 from symframes.symframes_addon import (  # noqa: E402
     diagnostics,
     display,
@@ -220,9 +220,7 @@ def test_read_network_curves_settings_and_nodes():
     assert len(inp.network.curves) == 20
     assert all(c.sigma == 0.25 and c.role.value == "singular" for c in inp.network.curves)
     assert "20 curve(s)" in inp.network_note
-    from symframes.solver.network.validation import check_input
-
-    assert len(check_input(inp.V, inp.F, inp.network).network.nodes) == 8
+    assert check(inp.V, inp.F, inp.network).nodes == 8
     # per-curve settings: role feature -> sigma 0 whatever the index; torsion passed on
     obj = bpy.data.objects["radial 0"]
     obj.symframes.role = "feature"
@@ -413,10 +411,11 @@ def test_threaded_solve_then_finish():
     level, msg = operators.finish_job(scene(), j)
     assert level == "INFO" and "tets" in msg
     assert len(output("glyphs").data.vertices) == GLYPHS
-    assert storage.stored_report(scene())["remeshed"] is True
+    assert storage.stored_remeshed(scene()) is True
     # a solve that stopped without converging is written, but reported as a warning
-    assert j.outcome.report["converged"] is True
-    j.outcome.report.update(converged=False, status_reason="Levenberg-Marquardt stopped after 30 iterations")
+    assert j.outcome.report.converged is True
+    j.outcome.report.status = "not converged"
+    j.outcome.report.status_reason = "Levenberg-Marquardt stopped after 30 iterations"
     level, msg = operators.finish_job(scene(), j)
     assert level == "WARNING" and "not converged (Levenberg-Marquardt stopped after 30 iterations)" in msg
     assert "Check Network" in msg and "Edge Length" in msg  # what to try
@@ -439,9 +438,9 @@ def test_compute_writes_field_glyphs_and_streamlines(cube):
     assert g.users_collection[0] == st.users_collection[0]
     assert g.users_collection[0].get(storage.ROLE_KEY) == "results"
     r = cube.report
-    assert r["sizes"]["tets"] > 100 and r["iterations"] >= 1 and r["seconds"] > 0
-    assert r["metrics"]["spurious_singular_faces"] == 0
-    assert r["metrics"]["monodromy_mean_deg"] < 1e-3
+    assert r.sizes["tets"] > 100 and r.lm.n_iterations >= 1 and r.total_seconds > 0
+    assert r.metrics["spurious_singular_faces"] == 0
+    assert r.metrics["monodromy_mean_deg"] < 1e-3
 
 
 def test_field_attribute_equals_solver_frames(cube):
@@ -453,7 +452,7 @@ def test_field_attribute_equals_solver_frames(cube):
     V, T, q = storage.read_field(scene().symframes.field)
     np.testing.assert_allclose(V, cube.mesh.vertices, atol=1e-6)
     assert np.array_equal(T, cube.mesh.tets)
-    np.testing.assert_allclose(storage.quaternions_to_frames(q), result.frames, atol=2e-6)
+    np.testing.assert_allclose(quaternion_frames(q), result.frames, atol=2e-6)
     P, Q = glyphs.glyph_points(output("glyphs"))
     expect = FrameField.from_result(result).quaternions_at(P.astype(float))
     assert np.all(np.isfinite(expect[:, 0]))
@@ -471,7 +470,7 @@ def test_glyph_instances_follow_the_quaternion_attribute(cube):
     assert len(inst.points) == GLYPHS
     M = np.array([np.array(d.value) for d in inst.attributes["instance_transform"].data])
     np.testing.assert_allclose(M[:, :3, 3], P, atol=1e-6)
-    np.testing.assert_allclose(M[:, :3, :3], 0.05 * storage.quaternions_to_frames(Q.astype(float)), atol=1e-6)
+    np.testing.assert_allclose(M[:, :3, :3], 0.05 * quaternion_frames(Q.astype(float)), atol=1e-6)
     # one cross: three bars, each long along its own axis
     refs = geo.instance_references()  # keep the geometry sets alive while reading their mesh
     assert len(refs) == 1
@@ -509,7 +508,7 @@ def test_recompute_replaces_the_result_cleanly(cube):
     assert after == before  # same datablocks by name: nothing left over, nothing duplicated
     assert s.field.session_uid != old_field
     assert len(bpy.data.meshes) == len(before["meshes"])
-    assert storage.stored_report(scene())["remeshed"] is False
+    assert storage.stored_remeshed(scene()) is False
     for role in ("glyphs", "streamlines"):
         assert sum(o.get(storage.ROLE_KEY) == role for o in bpy.data.objects) == 1
     # the streamlines were there, so they were traced again for the new field
@@ -600,7 +599,7 @@ def test_plate_with_curves_solves_without_spurious_singularities(plate):
     assert plate.inputs_after == plate.inputs_before
     assert bpy.data.objects["hole 0"].data.splines[0].type == "BEZIER"
     assert len(plate.inputs.network.curves) == 4
-    m = plate.report["metrics"]
+    m = plate.report.metrics
     # the field's own (omega-aware) matchings: exactly the network's singular faces
     assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0
     assert m["omega_singular_faces"] > 0 and m["tangent_adaptation_mean_deg"] < 1.0
@@ -608,8 +607,7 @@ def test_plate_with_curves_solves_without_spurious_singularities(plate):
     # pierced one (an edge the curve passes close to turns by ~45 degrees), on
     # some meshes fTetWild makes: never a face away from the network
     f = storage.frame_field(scene())
-    omega, stored = storage.field_omega(scene())
-    assert stored
+    omega = storage.field_omega(scene())
     mesh = f.mesh
     differ = singular_mask(mesh, f.frames) != omega_singular_faces(mesh, omega, f.frames)
     assert differ.sum() == m["matching_disagreements"]
@@ -624,7 +622,7 @@ def test_singular_faces_match_the_solver(plate):
     obj = output("singular_faces")
     me = obj.data
     counts = obj[diagnostics.COUNTS_KEY].to_dict()
-    m = plate.report["metrics"]
+    m = plate.report.metrics
     assert counts == {"singular": len(me.polygons), "spurious": 0, "closest_differs": m["matching_disagreements"]}
     assert counts["singular"] == m["omega_singular_faces"]
     sp = np.empty(len(me.polygons), bool)
@@ -651,7 +649,7 @@ def test_spurious_singular_faces_are_highlighted(cube):
     obj = output("singular_faces")
     counts = obj[diagnostics.COUNTS_KEY].to_dict()
     f = storage.frame_field(scene())
-    omega, _ = storage.field_omega(scene())  # the cube's: it does not turn the frames around z
+    omega = storage.field_omega(scene())  # the cube's: it does not turn the frames around z
     sing = omega_singular_faces(f.mesh, omega, f.frames)
     differs = int((sing != singular_mask(f.mesh, f.frames)).sum())
     assert counts == {"singular": int(sing.sum()), "spurious": int(sing.sum()), "closest_differs": differs}
@@ -691,7 +689,7 @@ def test_glyphs_coloured_by_adaptation_error(plate):
     # sharp feature ones, whose frames are fixed
     assert 0 < len(P) < len(bv)
     mean = float(np.degrees(err.astype(float)).mean())
-    assert mean == pytest.approx(plate.report["metrics"]["normal_adaptation_mean_deg"], rel=1e-3)
+    assert mean == pytest.approx(plate.report.metrics["normal_adaptation_mean_deg"], rel=1e-3)
     mod = g.modifiers[glyphs.MODIFIER]
     by_error = next(i for i in mod.node_group.interface.items_tree if getattr(i, "name", "") == "Color by Error")
     assert bool(storage.modifier_input(mod, by_error.identifier)) is True
@@ -730,16 +728,15 @@ def test_field_stores_the_solvers_omega(plate):
     me = scene().symframes.field
     assert len(me.edges) == plate.mesh.n_edges
     assert me.validate() is False  # a valid mesh: nothing to fix
-    omega, stored = storage.field_omega(scene())
-    assert stored
+    omega = storage.field_omega(scene())
     f = storage.frame_field(scene())
     assert np.array_equal(f.mesh.edges, result.mesh.edges)
     assert np.linalg.norm(result.omega, axis=1).max() > 0.3  # a field that turns: the test can fail
     np.testing.assert_allclose(omega, result.omega, atol=1e-6)
     # its monodromy off the network is the report's (float32 storage costs < 1e-4 degrees)
-    regular = np.nonzero(display.regular_faces(f.mesh, storage.read_network_faces(me)))[0]
+    regular = np.nonzero(regular_face_mask(f.mesh, storage.network_face_ids(me, f.mesh)))[0]
     mono = np.degrees(monodromy_angles(f.mesh, omega, regular))
-    assert mono.mean() == pytest.approx(plate.report["metrics"]["monodromy_mean_deg"], abs=1e-4)
+    assert mono.mean() == pytest.approx(plate.report.metrics["monodromy_mean_deg"], abs=1e-4)
 
 
 def test_an_arrow_along_minus_z_points_down():
@@ -759,7 +756,7 @@ def test_omega_arrows_match_the_stored_omega(plate):
     open_blend(plate.path)
     s = scene().symframes
     f = storage.frame_field(scene())
-    omega, _ = storage.field_omega(scene())
+    omega = storage.field_omega(scene())
     h = f.mesh.mean_edge_length
     s.omega_region, s.omega_count = "VOLUME", 10**6
     assert bpy.ops.symframes.show_omega() == {"FINISHED"}
@@ -803,7 +800,7 @@ def test_monodromy_slice_matches_the_solver(plate):
     obj = output("error_slice")
     me = obj.data
     f = storage.frame_field(scene())
-    omega, _ = storage.field_omega(scene())
+    omega = storage.field_omega(scene())
     faces = _face_attribute(me, "face", np.int32)
     expect_faces, tris = display.slice_faces(f, display.DisplaySettings.from_scene(scene()))
     assert np.array_equal(faces, expect_faces)
@@ -824,9 +821,9 @@ def test_monodromy_slice_matches_the_solver(plate):
     np.testing.assert_allclose(np.degrees(value[net]).max(), 90.0, atol=0.5)
     # elsewhere a fraction of a degree, within the report's largest monodromy
     st = obj[error_slice.STATS_KEY].to_dict()
-    assert st["faces"] == len(faces) and st["grey"] == net.sum() and st["omega_stored"]
+    assert st["faces"] == len(faces) and st["grey"] == net.sum()
     assert st["max_deg"] == pytest.approx(np.degrees(value[~net]).max(), rel=1e-5)
-    assert st["max_deg"] <= plate.report["metrics"]["monodromy_max_deg"] + 1e-4
+    assert st["max_deg"] <= plate.report.metrics["monodromy_max_deg"] + 1e-4
     # colours: the ramp at the Monodromy Scale, live
     for scale in (s.monodromy_scale, 1e-5):
         s.monodromy_scale = scale
@@ -883,7 +880,7 @@ def test_glyphs_coloured_by_monodromy(plate):
     err = np.empty(len(P), np.float32)
     g.data.attributes[glyphs.MONODROMY_ATTRIBUTE].data.foreach_get("value", err)
     # mean over the interior faces around the vertex that the network does not pass through
-    omega, _ = storage.field_omega(scene())
+    omega = storage.field_omega(scene())
     net = np.zeros(mesh.n_faces, bool)
     net[mesh.face_index(storage.read_network_faces(s.field))] = True
     regular = np.nonzero(~net & ~mesh.is_boundary_face)[0]
@@ -925,7 +922,7 @@ def test_diagnostics_survive_save_and_reload(plate, tmp_path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     open_blend(path)
     s = scene().symframes
-    assert storage.field_omega(scene())[1] is True
+    assert storage.field_omega(scene()) is not None
     np.testing.assert_allclose(_instance_transforms(output("omega_arrows")), M, atol=1e-7)
     np.testing.assert_array_equal(_face_attribute(output("error_slice").data, "monodromy"), value)
     s.omega_scale *= 2  # still live
@@ -938,32 +935,20 @@ def test_diagnostics_survive_save_and_reload(plate, tmp_path):
     np.testing.assert_array_equal(_face_attribute(output("error_slice").data, "monodromy"), value)
 
 
-def test_older_results_without_omega_fall_back_to_the_frames(plate):
-    """A field saved before omega was stored (edges of the 4-corner faces
-    only, no omega attribute): omega is the Darboux derivative of the frames."""
+def test_a_field_without_its_omega_is_refused(plate):
+    """A stored field missing what the solve stores (here its omega) is
+    refused with what to do, and the scene is unchanged."""
     open_blend(plate.path)
     s = scene().symframes
-    old = s.field
-    V, T, q = storage.read_field(old)
-    older = storage.new_field_mesh(V, T, q, storage.stored_report(scene()), storage.read_adaptation(old),
-                                   storage.read_network_faces(old))
-    storage.set_field(scene(), older)
-    assert len(older.edges) < plate.mesh.n_edges and storage.OMEGA_ATTRIBUTE not in older.attributes
-    f = storage.frame_field(scene())
-    omega, stored = storage.field_omega(scene())
-    assert not stored
-    np.testing.assert_allclose(omega, darboux_derivative(f.mesh, f.frames))
-    s.omega_region, s.omega_count = "VOLUME", 10**6
-    assert bpy.ops.symframes.show_omega() == {"FINISHED"}
-    _, W, e = omega_arrows.arrow_points(output("omega_arrows"))
-    np.testing.assert_allclose(W, omega[e], atol=1e-7)
-    # integrable by construction: monodromy only on the singular faces (the network's)
-    s.slice_axis, s.slice_offset = "Z", 0.5
-    assert bpy.ops.symframes.show_slice() == {"FINISHED"}
-    obj = output("error_slice")
-    st = obj[error_slice.STATS_KEY].to_dict()
-    assert not st["omega_stored"] and st["max_deg"] < 1e-3 and st["grey"] >= 4
-    assert storage.field_omega_stored(scene()) is False
+    s.glyph_colour, s.slice_quantity = "MONODROMY", "MONODROMY"
+    s.field.attributes.remove(s.field.attributes[storage.OMEGA_ATTRIBUTE])
+    storage._FIELD_CACHE.clear()  # the field was edited behind the add-on's back
+    for op in (bpy.ops.symframes.show_omega, bpy.ops.symframes.show_slice, bpy.ops.symframes.show_glyphs,
+               bpy.ops.symframes.show_singular_faces):
+        _fails("stores no omega; compute the field again", op)
+    with pytest.raises(RuntimeError, match="stores no omega"):
+        bpy.ops.symframes.export_field(filepath=str(plate.path.with_suffix(".vtu")), file_format="VTU")
+    assert not plate.path.with_suffix(".vtu").exists()
 
 
 def test_diagnostics_bad_plane_undo_and_recompute(cube):
@@ -1033,7 +1018,7 @@ def test_panels_draw_the_diagnostics(plate):
     assert any("tangents" in t for t in labels["SYMFRAMES_PT_result"])
     # singular faces as the field's own matchings read them; where closest-rotation
     # matching reads some otherwise, the panel says so
-    m = plate.report["metrics"]
+    m = plate.report.metrics
     assert f"Singular faces {m['omega_singular_faces']}" in labels["SYMFRAMES_PT_result"]
     me = scene().symframes.field
     r = json.loads(me[storage.REPORT_KEY])
@@ -1042,15 +1027,6 @@ def test_panels_draw_the_diagnostics(plate):
     drawn = []
     panel.SYMFRAMES_PT_result.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
     assert "   closest-rotation reads 3 otherwise" in drawn
-
-
-def test_singular_counts_of_reports_without_omega_matchings():
-    """Results stored before the omega-aware counts: the closest-rotation ones."""
-    old = {"singular_faces": 40, "spurious_singular_faces": 2, "missing_singular_faces": 1}
-    assert diagnostics.singular_counts(old) == {"singular": 40, "spurious": 2, "missing": 1, "closest_differs": 0}
-    new = dict(old, omega_singular_faces=39, omega_spurious_singular_faces=0, omega_missing_singular_faces=0,
-               matching_disagreements=3)
-    assert diagnostics.singular_counts(new) == {"singular": 39, "spurious": 0, "missing": 0, "closest_differs": 3}
 
 
 # ------------------------------------------------------------------ headless

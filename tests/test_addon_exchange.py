@@ -22,7 +22,7 @@ from tests.meshes import box_mesh
 from tests.test_addon import add_example, open_blend
 
 from symframes.solver import Curve, Network  # noqa: E402
-from symframes.solver.io import write_network, write_obj  # noqa: E402
+from symframes.solver.io import quaternion_frames, write_network, write_obj  # noqa: E402
 from symframes.solver.io.interchange import read_ovm, read_perm, read_qtn, write_ovm  # noqa: E402
 from symframes.solver.mesh.tetmesh import TetMesh  # noqa: E402
 from symframes.symframes_addon import menus, storage  # noqa: E402
@@ -65,7 +65,7 @@ def test_export_every_format_from_a_saved_field(cylinder, tmp_path):
     open_blend(cylinder)
     me = storage.stored_field(bpy.context.scene)
     V, T, q = storage.read_field(me)
-    fd = storage.read_field_data(me)
+    fd = storage.read_field_data(bpy.context.scene)
     assert (fd.curve >= 0).any() and fd.face_omega is not None and np.abs(fd.face_omega).max() > 1.0
     for fmt, ext in (("VTU", "vtu"), ("MEDIT", "mesh"), ("OVM", "ovm"), ("QTN", "qtn")):
         path = str(tmp_path / f"field.{ext}")
@@ -73,7 +73,7 @@ def test_export_every_format_from_a_saved_field(cylinder, tmp_path):
         assert os.path.exists(path)
     m = meshio.read(str(tmp_path / "field.vtu"))
     assert np.allclose(m.points, V, atol=1e-6) and np.array_equal(m.cells_dict["tetra"], T)
-    frames = storage.quaternions_to_frames(q)
+    frames = quaternion_frames(q)
     for k in range(3):
         assert np.allclose(m.point_data[f"axis{k}"], frames[:, :, k], atol=1e-6)
     # tets the four curves cross are marked, in the tet order of every format

@@ -226,7 +226,7 @@ def test_not_converged_status_and_exit_code(cube, tmp_path, capsys):
     res = solve(V, F, net, edge_length=0.4, max_iterations=1, init="random")
     assert res.report.status == "not converged" and not res.report.converged
     assert "Levenberg-Marquardt" in res.report.status_reason
-    assert res.report.as_dict()["converged"] is False
+    assert res.report.to_dict()["converged"] is False
     out = tmp_path / "cube.npz"
     rc = cli_main(["--example", "cube", "--edge-length", "0.4", "--iterations", "1", "--init", "random", "-q",
                    "-o", str(out)])

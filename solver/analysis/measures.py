@@ -49,8 +49,24 @@ def face_monodromy(mesh: TetMesh, omega: np.ndarray, faces: np.ndarray | None = 
 
 def monodromy_angles(mesh: TetMesh, omega: np.ndarray, faces: np.ndarray | None = None,
                      Omega: np.ndarray | None = None) -> np.ndarray:
-    """Angle (radians) by which each face fails to close (Eq. 9); with Omega
-    given, measured against the prescribed rotation exp(Omega)."""
+    """Angle by which omega fails to close around each face (Eq. 9).
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    omega : (#E, 3) float array
+        Rotation vectors on ``mesh.edges``, E_j = exp(omega_ij) E_i.
+    faces : (k,) int array, optional
+        Face ids; default every face of the mesh.
+    Omega : (#F, 3) or (k, 3) float array, optional
+        The prescribed rotation of each face (Eq. 19); the angle is then
+        measured against exp(Omega) instead of the identity.
+
+    Returns
+    -------
+    (k,) float array
+        Angles in radians, 0 where omega is integrable around the face.
+    """
     M = face_monodromy(mesh, omega, faces)
     if Omega is not None:
         faces_ = np.arange(mesh.n_faces) if faces is None else np.asarray(faces)
@@ -140,6 +156,69 @@ def _loop_matching(mesh: TetMesh, faces: np.ndarray, match):
     a, b, c = F[:, 0], F[:, 1], F[:, 2]
     G = CUBE_GROUP
     return a, G[match(np.c_[c, a])] @ G[match(np.c_[b, c])] @ G[match(np.c_[a, b])]
+
+
+@dataclass
+class SingularFaces:
+    """The singular faces of a field (§5.2) and how they sit on the network.
+
+    Attributes
+    ----------
+    singular : (#F,) bool array
+        Faces where the matchings omega carries across each edge fail to
+        close (``omega_singular_faces``): the field's own singular faces,
+        the ones the exports write.
+    closest : (#F,) bool array
+        The same read with closest-rotation matchings
+        (``matched_singular_faces``), as a tool that sees only the frames
+        would; it misreads faces around an edge that turns by ~45 degrees.
+    network : (#F,) bool array
+        Faces the network passes through (pierced faces, node regions,
+        faces where curves end).
+    """
+
+    singular: np.ndarray
+    closest: np.ndarray
+    network: np.ndarray
+
+    @property
+    def spurious(self) -> np.ndarray:
+        """(#F,) bool array: singular faces off the network, which a good field does not have."""
+        return self.singular & ~self.network
+
+    @property
+    def closest_spurious(self) -> np.ndarray:
+        """(#F,) bool array: the same for the closest-rotation reading."""
+        return self.closest & ~self.network
+
+    @property
+    def disagreements(self) -> int:
+        """Faces the two readings disagree on."""
+        return int((self.singular != self.closest).sum())
+
+
+def singular_faces(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, network_faces: np.ndarray) -> SingularFaces:
+    """The singular faces of a field, read both ways, against the network.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    omega : (#E, 3) float array
+        The field's Darboux derivative on ``mesh.edges`` (Eq. 8).
+    frames : (#V, 3, 3) float array
+        Vertex frames, columns the cross axes.
+    network_faces : (k,) int array
+        Ids of the faces the network passes through
+        (``Result.embedding.network_faces(mesh)``, or the stored ones).
+
+    Returns
+    -------
+    SingularFaces
+    """
+    network = np.zeros(mesh.n_faces, bool)
+    network[np.asarray(network_faces, dtype=np.int64)] = True
+    return SingularFaces(singular=omega_singular_faces(mesh, omega, frames),
+                         closest=matched_singular_faces(mesh, frames)[0], network=network)
 
 
 @dataclass
@@ -395,6 +474,31 @@ def normal_adaptation(mesh: TetMesh, frames: np.ndarray, normals: np.ndarray | N
     return axis_alignment(frames[bv], N)
 
 
+def vertex_normal_adaptation(result) -> np.ndarray:
+    """Normal adaptation of a solved field at every vertex where it is measured.
+
+    The frames of sharp-feature vertices are fixed to the feature (§3.3), so
+    only the other boundary vertices measure how well the field follows the
+    surface.
+
+    Parameters
+    ----------
+    result : solver.Result
+
+    Returns
+    -------
+    (#V,) float array
+        Angle (radians) between the surface normal and the nearest frame
+        axis at each boundary vertex off the sharp features; -1 at interior
+        and sharp-feature vertices.
+    """
+    mesh = result.mesh
+    out = np.full(mesh.n_vertices, -1.0)
+    free = ~np.asarray(result.problem.boundary.is_feature_vertex, bool)
+    out[mesh.boundary_vertices[free]] = normal_adaptation(mesh, result.frames)[free]
+    return out
+
+
 def axis_alignment(frames: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Angle (radians) between each direction and the nearest axis of its frame."""
     d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
@@ -585,13 +689,31 @@ def vertices_near_polylines(X: np.ndarray, polylines, distance: float) -> np.nda
     return near
 
 
+def regular_face_mask(mesh: TetMesh, network_faces: np.ndarray) -> np.ndarray:
+    """The faces whose monodromy should vanish: interior faces the network
+    does not pass through.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    network_faces : (k,) int array
+        Ids of the faces the network passes through (pierced faces, node
+        regions, faces where curves end).
+
+    Returns
+    -------
+    (#F,) bool array
+    """
+    mask = ~mesh.is_boundary_face
+    mask[np.asarray(network_faces, dtype=np.int64)] = False
+    return mask
+
+
 def regular_faces(result) -> np.ndarray:
-    """Interior faces off the network: no curve, node region or curve end,
-    not on the boundary (where the structure equation is not imposed)."""
+    """Ids of the regular faces (regular_face_mask) of a Result where the
+    structure equation is imposed (not Embedding.face_excluded)."""
     mesh, emb = result.mesh, result.embedding
-    net = np.zeros(mesh.n_faces, bool)
-    net[emb.network_faces(mesh)] = True
-    return np.nonzero(~net & ~mesh.is_boundary_face & ~emb.face_excluded)[0]
+    return np.nonzero(regular_face_mask(mesh, emb.network_faces(mesh)) & ~emb.face_excluded)[0]
 
 
 def subdomain_faces(result, away: float) -> np.ndarray:
@@ -613,36 +735,34 @@ def quick_metrics(result) -> dict:
     """The headline figures of a solve, in degrees where angles."""
     mesh = result.mesh
     emb = result.embedding
-    net_faces = np.zeros(mesh.n_faces, bool)
-    net_faces[emb.network_faces(mesh)] = True
-    regular = np.nonzero(~net_faces & ~mesh.is_boundary_face)[0]
+    net_faces = emb.network_faces(mesh)
+    regular = np.nonzero(regular_face_mask(mesh, net_faces))[0]
     out = {}
     if len(regular):
         ang = np.degrees(monodromy_angles(mesh, result.omega, regular))
         out["monodromy_mean_deg"] = float(ang.mean())
         out["monodromy_max_deg"] = float(ang.max())
-    sing, _ = matched_singular_faces(mesh, result.frames)
-    out["singular_faces"] = int(sing.sum())
-    out["spurious_singular_faces"] = int((sing & ~net_faces).sum())
+    sf = singular_faces(mesh, result.omega, result.frames, net_faces)
+    out["singular_faces"] = int(sf.closest.sum())
+    out["spurious_singular_faces"] = int(sf.closest_spurious.sum())
     # faces the singular curves pierce (a feature curve's faces are regular)
     must = emb.prescribed_singular()
-    out["missing_singular_faces"] = int((must & ~sing).sum())
+    out["missing_singular_faces"] = int((must & ~sf.closest).sum())
     # the same with omega-aware matchings (the field's own, which the exports
     # write), and the largest turn of an edge.  Closest-rotation matching is
     # ambiguous where an edge turns by ~45 degrees: an edge the curve passes
     # close to (the plate at h = 0.2: 2-4 faces around such an edge flagged on
     # 5 of 202 meshes -- one edge 4e-4 from the curve turned 46.4 degrees --
     # while the omega-aware structure was exactly the network's)
-    osing = omega_singular_faces(mesh, result.omega, result.frames)
-    out["omega_singular_faces"] = int(osing.sum())
-    out["omega_spurious_singular_faces"] = int((osing & ~net_faces).sum())
-    out["omega_missing_singular_faces"] = int((must & ~osing).sum())
-    out["matching_disagreements"] = int((osing != sing).sum())
+    out["omega_singular_faces"] = int(sf.singular.sum())
+    out["omega_spurious_singular_faces"] = int(sf.spurious.sum())
+    out["omega_missing_singular_faces"] = int((must & ~sf.singular).sum())
+    out["matching_disagreements"] = sf.disagreements
     out["max_edge_turn_deg"] = float(np.degrees(np.linalg.norm(result.omega, axis=1).max()))
-    fixed = result.problem.boundary.is_feature_vertex
-    na = np.degrees(normal_adaptation(mesh, result.frames))
-    out["normal_adaptation_mean_deg"] = float(na[~fixed].mean()) if np.any(~fixed) else 0.0
-    out["normal_adaptation_max_deg"] = float(na[~fixed].max()) if np.any(~fixed) else 0.0
+    na = vertex_normal_adaptation(result)
+    na = np.degrees(na[na >= 0])
+    out["normal_adaptation_mean_deg"] = float(na.mean()) if len(na) else 0.0
+    out["normal_adaptation_max_deg"] = float(na.max()) if len(na) else 0.0
     _, ta = tangent_adaptation(result)
     if len(ta):
         out["tangent_adaptation_mean_deg"] = float(np.degrees(ta).mean())

@@ -1,7 +1,8 @@
 """File formats: a surface as OBJ, a network as JSON, a result as NPZ
 (formats.py); a solved field for hex meshers -- VTU, MEDIT + .fra + .perm,
-OpenVolumeMesh, AlgoHex .qtn (interchange.py); a network read from a tet mesh
-with tagged edges (tetnetwork.py)."""
+OpenVolumeMesh, AlgoHex .qtn (interchange.py), with FieldData, what they
+need of a solved field kept elsewhere (a .blend); a network read from a tet
+mesh with tagged edges (tetnetwork.py)."""
 
 from .formats import (
     load_result,
@@ -14,15 +15,18 @@ from .formats import (
     write_network,
     write_obj,
 )
-from .interchange import export_field
+from .interchange import FieldData, export_field, field_data, quaternion_frames
 from .tetnetwork import read_tet_network
 
 __all__ = [
+    "FieldData",
     "export_field",
+    "field_data",
     "load_result",
     "network_from_dict",
     "network_to_dict",
     "options_from_dict",
+    "quaternion_frames",
     "read_network",
     "read_obj",
     "read_tet_network",

@@ -26,7 +26,8 @@ Result NPZ: ``vertices`` (#V,3), ``tets`` (#T,4), ``edges`` (#E,2),
 ``quaternions`` (#V,4; w,x,y,z), ``root``, per prepared curve the pierced faces
 and crossed tets as flat arrays with offsets (``curve_faces`` /
 ``curve_faces_offsets``, ``curve_tets`` / ``curve_tets_offsets``),
-``faces`` (#faces,3) and ``report`` (a JSON string).
+``faces`` (#faces,3) and ``report`` (a JSON string: ``Report.to_dict()`` with the
+solve's ``options`` added; ``Report.from_dict`` reads it back).
 """
 
 from __future__ import annotations
@@ -238,7 +239,7 @@ def save_result(path: str, result) -> None:
     n = len(result.embedding.traces)
     cf, cfo = _flat([result.curve_faces(i) for i in range(n)])
     ct, cto = _flat([result.curve_tets(i) for i in range(n)])
-    report = result.report.as_dict()
+    report = result.report.to_dict()
     report["options"] = asdict(result.problem.options)
     np.savez_compressed(
         path, vertices=mesh.vertices, tets=mesh.tets, edges=mesh.edges, faces=mesh.faces, omega=result.omega,
@@ -249,7 +250,8 @@ def save_result(path: str, result) -> None:
 
 
 def load_result(path: str) -> dict:
-    """The arrays of a saved result; ``report`` parsed back to a dict."""
+    """The arrays of a saved result; ``report`` parsed back to a dict
+    (``solver.Report.from_dict(out["report"])`` makes it a Report again)."""
     with np.load(path) as z:
         out = {k: z[k] for k in z.files}
     out["report"] = json.loads(str(out["report"]))

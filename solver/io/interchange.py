@@ -103,14 +103,21 @@ class FieldData:
     """What an export needs of a solved field: a Result's, or one stored
     elsewhere (the add-on keeps it in the .blend).
 
-    mesh        : TetMesh
-    frames      : (#V, 3, 3) vertex frames, columns the cross axes
-    omega       : (#E, 3) the Darboux derivative on mesh.edges (Eq. 8)
-    curve       : (#T,) int, the curve crossing each tet, -1 elsewhere
-    node_region : (#T,) bool, tets of node regions (no structure equation)
-    face_omega  : (#F, 3) the prescribed Omega of pierced faces (Eq. 19),
-                  zero elsewhere; None if unknown (monodromy is then
-                  measured against the identity everywhere)
+    Attributes
+    ----------
+    mesh : TetMesh
+    frames : (#V, 3, 3) float array
+        Vertex frames, columns the cross axes.
+    omega : (#E, 3) float array
+        The Darboux derivative on ``mesh.edges`` (Eq. 8).
+    curve : (#T,) int array
+        The curve crossing each tet, -1 elsewhere.
+    node_region : (#T,) bool array
+        Tets of node regions (no structure equation).
+    face_omega : (#F, 3) float array or None
+        The prescribed Omega of pierced faces (Eq. 19), zero elsewhere;
+        None if unknown (monodromy is then measured against the identity
+        everywhere).
     """
 
     mesh: TetMesh
@@ -122,7 +129,18 @@ class FieldData:
 
 
 def field_data(result) -> FieldData:
-    """The FieldData of a solver Result."""
+    """The FieldData of a solver Result.
+
+    Parameters
+    ----------
+    result : solver.Result
+
+    Returns
+    -------
+    FieldData
+        The result's mesh, frames and omega, the curve crossing each tet,
+        the node-region tets and the prescribed Omega per face.
+    """
     mesh, emb = result.mesh, result.embedding
     curve = np.full(mesh.n_tets, -1, dtype=np.int64)
     for i in range(len(emb.traces)):
@@ -430,7 +448,18 @@ def read_qtn(path: str) -> np.ndarray:
 
 
 def quaternion_frames(q: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotation matrices of (n, 4) quaternions w, x, y, z."""
+    """Frames of quaternions, as ``.qtn`` files and the add-on store them.
+
+    Parameters
+    ----------
+    q : (n, 4) float array
+        Quaternions w, x, y, z; normalised here, so any nonzero length will do.
+
+    Returns
+    -------
+    (n, 3, 3) float array
+        Rotation matrices, columns the cross axes.
+    """
     return Rotation.from_quat(np.asarray(q, float), scalar_first=True).as_matrix()
 
 
