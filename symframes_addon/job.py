@@ -103,7 +103,7 @@ class SolveJob:
         problem = FieldProblem(inp.V, inp.F, inp.network, inp.options, progress=self._progress,
                                cancel=self._is_cancelled, mesh=mesh)
         result = problem.solve(progress=self._progress, cancel=self._is_cancelled)
-        _MESH_CACHE.update(key=key, mesh=problem.mesh)
+        _MESH_CACHE.update(key=key, mesh=problem.meshed)  # with its edge length and how it was made
         adaptation = vertex_normal_adaptation(result)
         network_faces = result.embedding.network_faces(result.mesh)
         out = Outcome(field_data(result), result.quaternions(), adaptation, network_faces, result.report,

@@ -142,8 +142,9 @@ def solve_example(name, edge_length, tmp_path_factory, prepare=None):
     before = input_fingerprint()
     assert bpy.ops.symframes.compute(streamlines=True) == {"FINISHED"}
     inputs = scene_io.read_inputs(bpy.context)
-    mesh = job.cached_mesh(inputs.mesh_key())
-    assert mesh is not None, "the tet mesh of the last solve is kept for re-solves"
+    meshed = job.cached_mesh(inputs.mesh_key())
+    assert meshed is not None, "the tet mesh of the last solve is kept for re-solves"
+    mesh = meshed.mesh
     P, Q = glyphs.glyph_points(output("glyphs"))
     ns = SimpleNamespace(
         inputs_before=before, inputs_after=input_fingerprint(), inputs=inputs, mesh=mesh,
