@@ -20,7 +20,12 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
   ``singular_faces`` (``SingularFaces``), ``vertex_normal_adaptation``.
 * Showing a field (§5.5): ``FrameField`` (frames interpolated inside tets),
   ``sample_glyphs``, ``seed_points``, ``trace_streamlines``.
-* Errors: ``SymFramesError`` and its subclasses; ``Cancelled``.
+* Hex meshing (docs/hexmesh.md): ``hexmesh`` makes a pure hex mesh of a
+  solved field (``HexMesh``, its ``HexReport``); ``HexInput`` is what it
+  needs of the field (``HexInput.from_result``, or ``input_from_check`` for a
+  field stored without its network); ``default_cell_size``.
+* Errors: ``SymFramesError`` and its subclasses (``HexMeshError`` when no
+  valid hex mesh exists at the settings); ``Cancelled``.
 
 See README.md for the sign convention of the index sigma and the file formats.
 """
@@ -33,7 +38,17 @@ from .analysis.measures import (
     vertex_normal_adaptation,
 )
 from .analysis.streamlines import FrameField, sample_glyphs, seed_points, trace_streamlines
-from .errors import Cancelled, MeshingError, NetworkError, OptionsError, SurfaceError, SymFramesError, TopologyError
+from .errors import (
+    Cancelled,
+    HexMeshError,
+    MeshingError,
+    NetworkError,
+    OptionsError,
+    SurfaceError,
+    SymFramesError,
+    TopologyError,
+)
+from .hexmesh import HexInput, HexMesh, HexReport, default_cell_size, hexmesh, input_from_check
 from .network.network import Curve, Network, Role, Torsion
 from .pipeline import FieldProblem, Options, Result, solve
 from .precheck import CheckResult, check
@@ -45,6 +60,10 @@ __all__ = [
     "Curve",
     "FieldProblem",
     "FrameField",
+    "HexInput",
+    "HexMesh",
+    "HexMeshError",
+    "HexReport",
     "MeshingError",
     "Network",
     "NetworkError",
@@ -59,6 +78,9 @@ __all__ = [
     "TopologyError",
     "Torsion",
     "check",
+    "default_cell_size",
+    "hexmesh",
+    "input_from_check",
     "monodromy_angles",
     "regular_face_mask",
     "sample_glyphs",

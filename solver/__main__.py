@@ -8,12 +8,16 @@ solver/io/formats.py), solves, prints the report and writes the result (.npz).
     python -m solver --export-example ball out/   # write ball.obj + ball.json
     python -m solver part.json --export part.vtu --export part.mesh   # ParaView, CubeCover
     python -m solver --tet-network field.ovm --tag-convention valence  # a tagged tet mesh's network
+    python -m solver part.json --hex part.vtu --cell-size 0.1   # solve, then a hex mesh (docs/hexmesh.md)
+    python -m solver --from-result part.npz --hex part.mesh     # a hex mesh of a stored field, no solve
 
-Exit status: 0 solved and converged; 1 bad input or settings (nothing
-written; this includes a mesh past the tet / memory limit, see --max-tets);
-2 usage; 3 solved but not converged (the result is written and the report
-says why: LM stopped at its cap or the structure penalty is above the
-discretisation level); 130 cancelled.
+Exit status: 0 solved and converged (and with --hex: a valid hex mesh
+written); 1 bad input or settings (nothing written; this includes a mesh
+past the tet / memory limit, see --max-tets); 2 usage; 3 solved but not
+converged (the result is written and the report says why: LM stopped at
+its cap or the structure penalty is above the discretisation level), or a
+hex mesh written that the quality report calls defective; 4 no hex mesh
+(the field's result is written, the reason printed); 130 cancelled.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import os
 import sys
 import time
 
-from . import io
+from . import checks, io
 from .errors import Cancelled, OptionsError, SymFramesError
 from .examples import EXAMPLES, load_example
 from .pipeline import INITS, FieldProblem
@@ -33,6 +37,7 @@ TAG_CONVENTIONS = {"index": 1, "negated": -1, "valence": "valence"}
 
 
 EXIT_NOT_CONVERGED = 3
+EXIT_NO_HEX_MESH = 4
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -56,6 +61,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--export", action="append", default=[], metavar="FILE",
                    help="also write the field as FILE: .vtu (ParaView), .mesh (MEDIT + .fra + .perm, CubeCover), "
                    ".ovm (OpenVolumeMesh) or .qtn (AlgoHex); may be repeated")
+    p.add_argument("--hex", action="append", default=[], metavar="FILE",
+                   help="also make a hex mesh and write it as FILE: .vtu, .vtk, .mesh (MEDIT) or .hexex (the "
+                   "integer-grid map, for HexEx / HexHex); may be repeated")
+    p.add_argument("--cell-size", type=float, metavar="LENGTH", help="with --hex: the hex edge length (default: "
+                   "about --hex-cells cells, finer where the network needs it)")
+    p.add_argument("--hex-cells", type=int, metavar="N", help="with --hex and no --cell-size: the number of "
+                   "cells aimed at (default 3000)")
+    p.add_argument("--no-smooth", action="store_true", help="with --hex: keep the vertices where the integer-grid "
+                   "map puts them (no optimisation of the cells' shape)")
+    p.add_argument("--from-result", metavar="FILE.npz", help="with --hex: mesh the field stored in a result file "
+                   "instead of solving")
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
     p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
     p.add_argument("--grading", type=float, help="with the automatic edge length: growth of the edge length per "
@@ -104,6 +120,56 @@ def _check_exports(paths: list[str]) -> None:
         folder = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(folder):
             raise SymFramesError(f"--export {path}: the folder {folder} does not exist")
+
+
+def _check_hex_outputs(args) -> None:
+    """Refuse hex-mesh settings and outputs the run could not use, before
+    any work."""
+    from .hexmesh.mesher import DEFAULT_HEXES
+    from .io.hexformats import HEX_FORMATS
+
+    for path in args.hex:
+        ext = os.path.splitext(path)[1].lower()
+        if ext not in HEX_FORMATS:
+            raise OptionsError(f"--hex {path}: unknown format {ext or '(no extension)'!r}; use one of "
+                               f"{', '.join(HEX_FORMATS)}")
+        if os.path.isdir(path):
+            raise OptionsError(f"--hex {path}: is a folder; give a file name such as {os.path.join(path, 'hex' + ext)}")
+        folder = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(folder):
+            raise OptionsError(f"--hex {path}: the folder {folder} does not exist; create it first")
+        if not os.access(folder, os.W_OK):
+            raise OptionsError(f"--hex {path}: the folder {folder} is not writable")
+    hexing = args.cell_size is not None or args.hex_cells is not None or args.no_smooth or args.from_result
+    if hexing and not args.hex:
+        raise OptionsError("--cell-size, --hex-cells, --no-smooth and --from-result go with --hex FILE (the hex "
+                           "mesh to write)")
+    args.cell_size = checks.positive_float("--cell-size", args.cell_size, OptionsError, allow_none=True,
+                                           fix="a length in the units of the surface")
+    args.hex_cells = checks.integer("--hex-cells", args.hex_cells, OptionsError, low=1, allow_none=True,
+                                    fix=f"a number of cells, the default is {DEFAULT_HEXES}")
+
+
+def _hex(args, inp, progress) -> int:
+    """Make and write the hex mesh; returns the exit status it implies."""
+    from .errors import HexMeshError
+    from .hexmesh import hexmesh
+    from .hexmesh.mesher import DEFAULT_HEXES
+    from .io.hexformats import export_hexmesh
+
+    try:
+        hm = hexmesh(inp, args.cell_size, smooth=not args.no_smooth, progress=progress,
+                     target_hexes=args.hex_cells or DEFAULT_HEXES)
+    except HexMeshError as e:
+        print(f"error: no hex mesh: {e}", file=sys.stderr)
+        return EXIT_NO_HEX_MESH
+    print(hm.report.summary())
+    for path in args.hex:
+        print("wrote " + ", ".join(export_hexmesh(hm, path)))
+    if not hm.report.valid:
+        print(f"warning: the hex mesh is defective: {hm.report.reason}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return 0
 
 
 def _progress(quiet: bool):
@@ -173,6 +239,13 @@ def main(argv: list[str] | None = None) -> int:
             io.write_network(os.path.join(folder, f"{name}.json"), net, surface=f"{name}.obj")
             print(f"wrote {os.path.join(folder, name)}.obj and .json")
             return 0
+        _check_hex_outputs(args)
+        if args.from_result:
+            if args.example or args.network or args.tet_network:
+                raise OptionsError("--from-result meshes a stored field: give no network, --example or "
+                                   "--tet-network with it")
+            inp = io.load_hex_input(args.from_result)
+            return _hex(args, inp, _progress(args.quiet))
         if args.example:
             V, F, net = load_example(args.example)
             file_opts, stem = {}, args.example
@@ -235,10 +308,16 @@ def main(argv: list[str] | None = None) -> int:
             data = field_export(result)
             for path in args.export:
                 print("wrote " + ", ".join(io.export_field(result, path, data=data)))
+        status = 0
         if not result.report.converged:
             print(f"warning: not converged: {result.report.status_reason}", file=sys.stderr)
-            return EXIT_NOT_CONVERGED
-        return 0
+            status = EXIT_NOT_CONVERGED
+        if args.hex:
+            from .hexmesh import HexInput
+
+            hex_status = _hex(args, HexInput.from_result(result), progress)
+            status = max(status, hex_status)
+        return status
     except (SymFramesError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

@@ -35,3 +35,15 @@ class OptionsError(SymFramesError):
 
 class Cancelled(Exception):
     """Raised inside a solve when the caller's cancel callback returns True."""
+
+
+class HexMeshError(SymFramesError):
+    """No valid hex mesh at these settings: the network admits none, the
+    field's transitions do not close, or no integer-grid map without
+    inverted tets was found.  The message says why and what to change;
+    ``report`` (a hexmesh.HexReport, or None) holds the figures gathered
+    before the stop."""
+
+    def __init__(self, message: str, report=None):
+        super().__init__(message)
+        self.report = report

@@ -5,6 +5,7 @@ need of a solved field kept elsewhere (a .blend); a network read from a tet
 mesh with tagged edges (tetnetwork.py)."""
 
 from .formats import (
+    load_hex_input,
     load_result,
     network_from_dict,
     network_to_dict,
@@ -15,10 +16,15 @@ from .formats import (
     write_network,
     write_obj,
 )
+from .hexformats import HEX_FORMATS, export_hexmesh, read_hexex
 from .interchange import FieldData, export_field, field_data, quaternion_frames
 from .tetnetwork import read_tet_network
 
 __all__ = [
+    "HEX_FORMATS",
+    "export_hexmesh",
+    "load_hex_input",
+    "read_hexex",
     "FieldData",
     "export_field",
     "field_data",

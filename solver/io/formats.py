@@ -39,7 +39,7 @@ from dataclasses import asdict, fields
 import numpy as np
 
 from .. import checks
-from ..errors import NetworkError, OptionsError, SurfaceError
+from ..errors import NetworkError, OptionsError, SurfaceError, SymFramesError
 from ..network.network import Curve, Network
 from ..surface.polygons import triangulate_polygons
 
@@ -241,12 +241,35 @@ def save_result(path: str, result) -> None:
     ct, cto = _flat([result.curve_tets(i) for i in range(n)])
     report = result.report.to_dict()
     report["options"] = asdict(result.problem.options)
+    from ..hexmesh import HexInput, hex_source_arrays
+
     np.savez_compressed(
         path, vertices=mesh.vertices, tets=mesh.tets, edges=mesh.edges, faces=mesh.faces, omega=result.omega,
         frames=result.frames, quaternions=result.quaternions(), root=np.int64(result.root),
         curve_faces=cf, curve_faces_offsets=cfo, curve_tets=ct, curve_tets_offsets=cto,
         report=np.array(json.dumps(report, default=float)),
+        # what hex meshing needs to mesh this field again (hexmesh/source.py)
+        **hex_source_arrays(HexInput.from_result(result)),
     )
+
+
+def load_hex_input(path: str):
+    """The field of a saved result as a hexmesh.HexInput, to mesh it again
+    without solving (``python -m solver --from-result``)."""
+    from ..hexmesh import input_from_arrays
+    from ..mesh.tetmesh import TetMesh
+
+    try:
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as e:
+        raise SymFramesError(f"cannot read result file {path!r}: {e}") from None
+    missing = [k for k in ("vertices", "tets", "omega", "frames", "hex_meta") if k not in arrays]
+    if missing:
+        raise SymFramesError(f"{path}: not a SymFrames result with what hex meshing needs (missing "
+                             f"{', '.join(missing)}); solve the network again to write one")
+    mesh = TetMesh(arrays["vertices"], arrays["tets"])
+    return input_from_arrays(mesh, arrays["frames"], arrays["omega"], arrays)
 
 
 def load_result(path: str) -> dict:

@@ -1,0 +1,543 @@
+"""Hex meshing, stage by stage: from a solved field to a pure hex mesh.
+
+    curves onto tet edges -> transitions from omega -> seamless map
+        -> integer-grid map -> extraction -> smoothing -> quality
+
+``hexmesh(result, cell_size)`` runs it on a solver Result; ``HexInput``
+holds what it needs of the field (so a stored field can be meshed without
+solving again).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import Cancelled, HexMeshError
+from ..stages import Stages
+from ..surface.trisurface import TriSurface, closest_point_on_triangles
+from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
+from .extract import extract_hexes, snap
+from .quality import HEX_EDGES, boundary_quads, edge_valences, euler_characteristic, scaled_jacobian
+from .quantize import integer_grid_map, optimise_map, seamless_map
+from .report import DEFECTIVE, VALID, CurveMatch, HexReport
+from .seamless import MapError, build_map_system, degenerate_tets
+from .smooth import BoundaryMotion, optimise
+from .source import HexInput
+from .transitions import build_transitions
+
+SHARP_DIHEDRAL = 30.0
+SPRING = 0.1
+"""Weight of the spring holding singular-curve vertices during smoothing
+(per cell of displacement, against the mean corner energy): at 1.0 the
+ball's cells at its nodes kept a minimum scaled Jacobian of 0.54, at 0.1
+0.72, with the irregular edges still within a cell of their curves."""
+DEFAULT_HEXES = 3000
+MAX_HEXES = 2_000_000
+
+
+@dataclass
+class HexMesh:
+    """A hexahedral mesh.
+
+    vertices : (n, 3) float array
+    hexes    : (m, 8) int array, VTK_HEXAHEDRON order (bottom face
+               counter-clockwise seen from inside... i.e. corners (0,0,0),
+               (1,0,0), (1,1,0), (0,1,0), then the same at z = 1)
+    scaled_jacobian : (m,) Verdict's scaled Jacobian per cell (min over corners)
+    report   : HexReport
+    irregular_edges : (k, 2) vertex pairs of the interior edges whose valence
+               is not 4; irregular_valence (k,) their valences
+    grid_map : (tet vertices (n, 3), tets (t, 4), parameters (t, 4, 3)) the
+               integer-grid map the hexes were extracted from (.hexex)
+    """
+
+    vertices: np.ndarray
+    hexes: np.ndarray
+    scaled_jacobian: np.ndarray
+    report: HexReport
+    irregular_edges: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    irregular_valence: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    grid_map: tuple | None = None
+
+    def boundary_quads(self) -> np.ndarray:
+        """(k, 4) boundary faces, oriented outward."""
+        return boundary_quads(self.hexes)[0]
+
+
+STAGE_WEIGHTS = {"curves onto edges": 0.03, "transitions": 0.15, "seamless map": 0.15, "integer-grid map": 0.1,
+                 "extraction": 0.07, "smoothing": 0.4, "quality": 0.1}
+"""Share of a typical hex-meshing run each stage takes (the progress bar)."""
+
+
+# ------------------------------------------------------------ cell size
+
+
+def _curve_lengths(net) -> np.ndarray:
+    return np.array([float(np.sum(np.linalg.norm(np.diff(c.points, axis=0), axis=1))) for c in net.curves])
+
+
+def default_cell_size(inp: HexInput, target_hexes: int = DEFAULT_HEXES) -> float:
+    """A cell size for about target_hexes hexahedra, finer where the network
+    needs it: at least 1.5 cells along its shortest singular curve (so that
+    the rounding keeps it one cell long or more)."""
+    vol = float(np.sum(inp.mesh.tet_volumes))
+    cell = (vol / target_hexes) ** (1.0 / 3.0)
+    L = _curve_lengths(inp.network)
+    sing = np.array([c.sigma != 0 for c in inp.network.curves], bool)
+    if np.any(sing):
+        cell = min(cell, float(L[sing].min()) / 1.5)
+    return cell
+
+
+def _check_cell(inp: HexInput, cell: float) -> None:
+    ext = np.ptp(inp.mesh.vertices, axis=0)
+    vol = float(np.sum(inp.mesh.tet_volumes))
+    if cell >= 0.5 * ext.min():
+        raise HexMeshError(
+            f"cell size {cell:.4g} is larger than half the solid's smallest extent ({ext.min():.4g}): the solid "
+            f"would be less than two cells thick; choose a cell size below {0.25 * ext.min():.4g}")
+    n = vol / cell**3
+    if n > MAX_HEXES:
+        raise HexMeshError(f"cell size {cell:.4g} would make about {n:,.0f} hexahedra (the limit is "
+                           f"{MAX_HEXES:,}); choose a cell size of at least {(vol / MAX_HEXES) ** (1 / 3):.4g}")
+
+
+def _check_indices(inp: HexInput) -> None:
+    """A curve of index sigma becomes hex edges of valence 4 - 4 sigma;
+    valence 2 or less means cells meeting flat: no valid hex mesh has them."""
+    for i, c in enumerate(inp.network.curves):
+        if c.sigma >= 0.5:
+            name = f" '{c.name}'" if c.name else ""
+            raise HexMeshError(
+                f"curve {inp.network.source[i]}{name} has index {c.sigma:+g}: its hex edges would have valence "
+                f"{int(round(4 - 4 * c.sigma))}, cells meeting flat, which no valid hex mesh has; use curves of "
+                "index +1/4 (valence 3) or negative indices (valence 5, 6, ...)")
+
+
+# ------------------------------------------------------------ the stages
+
+
+def _split_choice(cem: CurveEdgeMesh, tets: np.ndarray) -> np.ndarray:
+    """One edge per structurally flat tet whose midpoint frees it: between two
+    constrained vertices (boundary or curve), not a curve edge nor a sharp
+    boundary edge; interior edges first, then the longest."""
+    mesh = cem.mesh
+    X = mesh.vertices
+    constrained = mesh.is_boundary_vertex.copy()
+    chain_keys = set()
+    for ch in cem.chains:
+        constrained[ch.vertices] = True
+        for a, b in ch.edges.tolist():
+            chain_keys.add((min(a, b), max(a, b)))
+    B = mesh.boundary
+    sharp_local = B.edges[np.degrees(B.dihedral_angles) > SHARP_DIHEDRAL]
+    sharp = {tuple(sorted(e)) for e in mesh.boundary_vertices[sharp_local].tolist()}
+    onb = mesh.is_boundary_edge
+    out = set()
+    for t in tets.tolist():
+        T = mesh.tets[t]
+        cands = []
+        for i in range(4):
+            for j in range(i + 1, 4):
+                a, b = sorted((int(T[i]), int(T[j])))
+                if (a, b) in chain_keys or (a, b) in sharp:
+                    continue
+                e = int(mesh.edge_index(np.array([a]), np.array([b]))[0])
+                both = constrained[a] and constrained[b]
+                cands.append((not both, bool(onb[e]), -float(np.linalg.norm(X[a] - X[b])), (a, b)))
+        if cands:
+            out.add(min(cands)[3])
+    return np.array(sorted(out), dtype=np.int64).reshape(-1, 2)
+
+
+def _map_system(cem: CurveEdgeMesh, inp: HexInput, cell: float, report: HexReport, max_rounds: int = 6):
+    """Transitions and the map system, splitting edges until no tet is flat
+    whatever the map (degenerate_tets); refuses transitions that do not
+    close as the network prescribes."""
+    for _ in range(max_rounds):
+        tr = build_transitions(cem, inp.mesh, inp.omega, inp.frames)
+        report.holonomy_bad_edges = len(tr.bad_edges)
+        if tr.bad_edges or len(tr.ambiguous_faces):
+            P = cem.mesh.vertices[np.r_[cem.mesh.edges[tr.bad_edges].reshape(-1),
+                                        cem.mesh.faces[tr.ambiguous_faces].reshape(-1)].astype(np.int64)]
+            raise HexMeshError(
+                f"the field's transitions do not close as the network prescribes around {len(tr.bad_edges)} tet "
+                f"edges ({len(tr.ambiguous_faces)} faces ambiguous) near {_where(P)}: the field has singularities "
+                "the network does not ask for there" + _unconverged(inp) + "; a field that is not hex-meshable as "
+                "solved cannot give a hex mesh (solve it on a finer mesh, or check the network there)", report)
+        try:
+            ms = build_map_system(cem, tr, cell)
+        except MapError as e:
+            raise HexMeshError(f"the map's constraints cannot be met: {e}", report) from None
+        flat = degenerate_tets(ms)
+        if not len(flat):
+            break
+        edges = _split_choice(cem, flat)
+        if not len(edges):
+            break
+        cem = split_edges(cem, edges)
+    return cem, tr, ms, flat
+
+
+def _unconverged(inp: HexInput) -> str:
+    status = getattr(inp, "status", "")
+    return f" (the field itself is {status})" if status and status != "converged" else ""
+
+
+def _where(points: np.ndarray) -> str:
+    c = points.mean(axis=0)
+    return f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})"
+
+
+def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, progress=None, cancel=None,
+            target_hexes: int = DEFAULT_HEXES) -> HexMesh:
+    """A pure hexahedral mesh of a solved field whose irregular edges are the
+    prescribed curves.
+
+    Parameters
+    ----------
+    result : solver Result, or HexInput
+        the solved field (``solve(...)``)
+    cell_size : float, optional
+        hex edge length in the units of the surface; default: about
+        target_hexes cells, at least three along the shortest singular curve
+    smooth : bool
+        optimise the vertex positions afterwards (never lowering the
+        minimum scaled Jacobian)
+    progress : callable(stage, fraction, message), optional
+    cancel : callable() -> bool, optional; raises Cancelled when it returns True
+
+    Returns
+    -------
+    HexMesh
+        with ``report.status`` 'valid', or 'defective' and the reason
+
+    Raises
+    ------
+    HexMeshError
+        when no valid integer-grid map exists at this cell size (the message
+        says how many tets are inverted and where) or the cell size does not
+        fit the solid
+    """
+    inp = result if isinstance(result, HexInput) else HexInput.from_result(result)
+    report = HexReport()
+    clock = Stages(STAGE_WEIGHTS, report.stage_seconds, progress, cancel)
+    cell = float(cell_size) if cell_size is not None else default_cell_size(inp, target_hexes)
+    if not np.isfinite(cell) or cell <= 0:
+        raise HexMeshError(f"cell size must be a positive length, got {cell_size!r}")
+    _check_cell(inp, cell)
+    _check_indices(inp)
+    report.cell_size = cell
+
+    try:
+        cem = clock.run("curves onto edges", curves_on_edges, inp.mesh, inp.embedding, inp.network)
+    except CurveEdgeError as e:
+        raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}", report) from None
+    cem, tr, ms, flat = clock.run("transitions", _map_system, cem, inp, cell, report)
+    report.sizes.update(cem.stats)
+    report.sizes.update(ms.stats)
+    if len(flat):
+        raise HexMeshError(f"{len(flat)} tets near {_where(cem.mesh.vertices[cem.mesh.tets[flat]].reshape(-1, 3))} "
+                           "are flat in every map the constraints allow", report)
+    sm, red = clock.run("seamless map", seamless_map, ms)
+    report.seamless_inverted = sm.inverted
+    gm = clock.run("integer-grid map", integer_grid_map, ms, red)
+    if gm.inverted:
+        gm = clock.run("integer-grid map", optimise_map, ms, gm, callback=_ticker(clock, "integer-grid map",
+                                                                                     "untangling"))
+    report.map_inverted, report.rounding_shift, report.stiffening = gm.inverted, gm.max_shift, gm.stiffening
+    if gm.inverted:
+        bad = np.nonzero(gm.det <= 0)[0]
+        where = _where(cem.mesh.vertices[cem.mesh.tets[bad]].reshape(-1, 3))
+        if sm.inverted > 0.01 * len(sm.det):
+            raise HexMeshError(
+                f"the field admits no valid map to the integer grid: already before rounding, {sm.inverted:,} of "
+                f"{len(sm.det):,} tets fold (around {where}); the singular curves do not give the boundary the "
+                "corners a hex mesh needs (a smooth solid torus, for example, needs curves around its tube) or "
+                "the field is not adapted to the surface there", report)
+        raise HexMeshError(
+            f"no valid integer-grid map at cell size {cell:.4g}: {gm.inverted} of {len(gm.det):,} tets stay "
+            f"inverted after rounding, stiffening and untangling, around {where}; try a smaller cell size (the "
+            "network's curves, the surface or its thin parts are closer there than the rounding can keep apart)",
+            report)
+    raw = clock.run("extraction", extract_hexes, cem.mesh, tr.faces, tr.tets, tr.transition, gm.corners, cell)
+    if not len(raw.hexes):
+        raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g}; choose a smaller cell size", report)
+    V, H = raw.vertices, raw.hexes
+    sj0 = scaled_jacobian(V, H)
+    report.sj_min_raw, report.sj_mean_raw = float(sj0.min()), float(sj0.mean())
+    if smooth:
+        V = clock.run("smoothing", _smooth, V, H, cell, inp, _curve_vertices(V, cem, cell),
+                      _ticker(clock, "smoothing", "smoothing"))
+    clock.run("quality", _assess, report, inp, V, H, cell)
+    report.sizes["lost_corners"] = raw.lost_corners
+    e, val = _irregular(H)
+    return HexMesh(V, H, scaled_jacobian(V, H), report, e, val,
+                   (cem.mesh.vertices, cem.mesh.tets, snap(gm.corners)))
+
+
+def _ticker(clock: Stages, stage: str, what: str):
+    """An L-BFGS callback: cancel when asked, a progress line every 25
+    iterations."""
+
+    def tick(it, energy):
+        if clock.cancel is not None and clock.cancel():
+            raise Cancelled()
+        if it % 25 == 0:
+            clock.say(stage, f"hex: {what}, iteration {it}, energy {energy:.6g}")
+
+    return tick
+
+
+def _irregular(H: np.ndarray):
+    q, _ = boundary_quads(H)
+    e, val, onb = edge_valences(H, q)
+    irr = (~onb) & (val != 4)
+    return e[irr], val[irr]
+
+
+# ------------------------------------------------------------ smoothing
+
+
+def _curve_vertices(V: np.ndarray, cem: CurveEdgeMesh, cell: float) -> list:
+    """Per chain: the hex vertices lying on it (the map puts them there)."""
+    X = cem.mesh.vertices
+    out = []
+    for ch in cem.chains:
+        A, B = X[ch.vertices[:-1]], X[ch.vertices[1:]]
+        d = _segments_distance(V, A, B)
+        out.append(np.nonzero(d <= 1e-6 * cell)[0])
+    return out
+
+
+def _smooth(V: np.ndarray, H: np.ndarray, cell: float, inp: HexInput, on_curve: list, callback=None) -> np.ndarray:
+    """Untangle and improve the vertex positions (smooth.optimise): interior
+    vertices freely, boundary vertices along the input surface, vertices of
+    sharp edges and of the network's curves along them; kept only if the
+    minimum scaled Jacobian does not drop."""
+    q, _ = boundary_quads(H)
+    S = inp.surface
+    sharp = S.edges[inp.sharp]
+    segs_a, segs_b = [S.V[sharp[:, 0]]], [S.V[sharp[:, 1]]]
+    # creases of the hex boundary that follow the input's sharp edges (a
+    # crease the cells make on a smooth bend is smoothed like the surface)
+    fe = _feature_edges(q, V)
+    if len(fe) and len(sharp):
+        d = _segments_distance(0.5 * (V[fe[:, 0]] + V[fe[:, 1]]), segs_a[0], segs_b[0])
+        fe = fe[d <= 0.25 * cell]
+    else:
+        fe = fe[:0]
+    lines = [fe]
+    # hex edges along each curve (singular or feature), and the curve itself
+    E = np.sort(H[:, HEX_EDGES].reshape(-1, 2), axis=1)
+    E = np.unique(E, axis=0)
+    fixed = np.zeros(len(V), bool)
+    onb = np.zeros(len(V), bool)
+    onb[np.unique(q)] = True
+    anchor = np.zeros(len(V), bool)
+    for verts, c in zip(on_curve, inp.network.curves):
+        if not len(verts):
+            continue
+        if c.sigma != 0:
+            # singular curves, their ends on the surface too: held near the
+            # map's place by a spring (the cells around nodes and ends need
+            # room); the report checks that they stay within a cell
+            anchor[verts] = True
+            continue
+        fixed[verts[onb[verts]]] = True  # where a feature curve meets the surface
+        mark = np.zeros(len(V), bool)
+        mark[verts] = True
+        lines.append(E[mark[E[:, 0]] & mark[E[:, 1]]])
+        segs_a.append(c.points[:-1])
+        segs_b.append(c.points[1:])
+    motion = BoundaryMotion(V, q, np.vstack(lines), S, (np.vstack(segs_a), np.vstack(segs_b)), fixed)
+    best_min = float(scaled_jacobian(V, H).min())
+    spring = anchor & ~fixed
+
+    sing_curves = [c.points for c in inp.network.curves if c.sigma != 0]
+    sv = np.nonzero(spring)[0]
+
+    def moved(W):
+        """Largest distance of a singular curve's vertex from the curves."""
+        if not len(sv):
+            return 0.0
+        return float(np.min([_polyline_distance(P, W[sv]) for P in sing_curves], axis=0).max())
+
+    # the weakest spring that keeps the curves' vertices within 0.9 of a
+    # cell of the curves, then the largest step towards the stiffest optimum
+    # that keeps the minimum
+    W = V
+    for weight in (SPRING, 3 * SPRING, 10 * SPRING, 100 * SPRING):
+        W = optimise(V, H, cell, motion, anchor=spring, anchor_weight=weight, callback=callback)
+        if moved(W) <= 0.9 * cell and float(scaled_jacobian(W, H).min()) >= best_min:
+            return W
+    for a in (0.5, 0.25, 0.125):
+        Wa = V + a * (W - V)
+        if moved(Wa) <= 0.9 * cell and float(scaled_jacobian(Wa, H).min()) >= best_min:
+            return Wa
+    return V
+
+
+def _feature_edges(quads, V) -> np.ndarray:
+    """(k, 2) edges of the quad boundary whose two quads meet at more than
+    SHARP_DIHEDRAL degrees."""
+    Q = quads
+    P = V[Q]
+    n = np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 1])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)
+    key = np.sort(E, axis=1)
+    f = np.repeat(np.arange(len(Q)), 4)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    key, f = key[order], f[order]
+    same = np.all(key[1:] == key[:-1], axis=1)
+    i = np.nonzero(same)[0]
+    cosang = np.einsum("ij,ij->i", n[f[i]], n[f[i + 1]])
+    return key[i[cosang < np.cos(np.radians(SHARP_DIHEDRAL))]]
+
+
+# ------------------------------------------------------------ quality
+
+
+def _assess(report: HexReport, inp: HexInput, V: np.ndarray, H: np.ndarray, cell: float) -> None:
+    sj = scaled_jacobian(V, H)
+    report.hexes, report.vertices = len(H), len(V)
+    report.inverted = int(np.sum(sj <= 0))
+    report.sj_min, report.sj_mean = float(sj.min()), float(sj.mean())
+    q, over = boundary_quads(H)
+    report.faces_over_two = over
+    report.euler = _euler_per_component(q)
+    report.euler_expected = sorted(int(x) for x in inp.surface.euler_characteristics())
+    e, val, onb = edge_valences(H, q)
+    irr = (~onb) & (val != 4)
+    report.irregular = {int(v): int(n) for v, n in zip(*np.unique(val[irr], return_counts=True))}
+    # cells touching an irregular edge
+    if irr.any():
+        touch = np.isin(H, np.unique(e[irr])).sum(axis=1) >= 2
+        report.sj_mean_irregular = float(sj[touch].mean()) if touch.any() else 1.0
+    else:
+        report.sj_mean_irregular = 1.0
+    _match_curves(report, inp, V, e[irr], val[irr], cell)
+    report.hausdorff = _hausdorff(inp.surface, V, q)
+    report.hausdorff_relative = report.hausdorff / inp.surface.bbox_diagonal
+    _verdict(report)
+
+
+def _euler_per_component(q: np.ndarray) -> list:
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    if not len(q):
+        return []
+    n = int(q.max()) + 1
+    a = np.r_[q[:, 0], q[:, 1], q[:, 2]]
+    b = np.r_[q[:, 1], q[:, 2], q[:, 3]]
+    _, lab = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+    comp = lab[q[:, 0]]
+    return sorted(euler_characteristic(q[comp == c]) for c in np.unique(comp))
+
+
+def _polyline_distance(P: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Distance from points X (k, 3) to the polyline P (n, 3)."""
+    a, d = P[:-1], P[1:] - P[:-1]
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    out = np.full(len(X), np.inf)
+    for s in range(0, len(X), 4096):
+        Y = X[s:s + 4096]
+        t = np.clip(np.einsum("kij,ij->ki", Y[:, None] - a[None], d) / dd, 0.0, 1.0)
+        out[s:s + 4096] = np.linalg.norm(Y[:, None] - (a[None] + t[..., None] * d[None]), axis=2).min(axis=1)
+    return out
+
+
+def _match_curves(report: HexReport, inp: HexInput, V, E, val, cell: float) -> None:
+    """Each irregular interior edge near a singular curve of the right index,
+    and every singular curve covered by such edges (within one cell)."""
+    net = inp.network
+    sing = [i for i, c in enumerate(net.curves) if c.sigma != 0]
+    mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]]) if len(E) else np.zeros((0, 3))
+    if not sing:
+        report.extra_irregular = len(E)
+        report.structure_exact = len(E) == 0
+        return
+    D = np.stack([_polyline_distance(net.curves[i].points, mid) for i in sing], axis=1) if len(E) else \
+        np.zeros((0, len(sing)))
+    near = np.argmin(D, axis=1) if len(E) else np.zeros(0, dtype=np.int64)
+    dist = D[np.arange(len(E)), near] if len(E) else np.zeros(0)
+    want = np.array([int(round(4 - 4 * net.curves[i].sigma)) for i in sing])
+    ok = (dist <= cell) & (val == want[near]) if len(E) else np.zeros(0, bool)
+    report.extra_irregular = int(np.sum(~ok))
+    curves = []
+    all_covered = True
+    for j, i in enumerate(sing):
+        c = net.curves[i]
+        mine = ok & (near == j)
+        P = c.points
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        n = np.maximum(1, np.ceil(seg / (0.25 * cell)).astype(int))
+        S = np.vstack([P[k] + np.linspace(0, 1, n[k], endpoint=False)[:, None] * (P[k + 1] - P[k])
+                       for k in range(len(seg))] + [P[-1:]])
+        if mine.any():
+            Em = E[mine]
+            # distance from samples to the matched edges (segments)
+            d = _segments_distance(S, V[Em[:, 0]], V[Em[:, 1]])
+            covered = float(np.mean(d <= cell))
+            far = float(dist[mine].max())
+        else:
+            covered, far = 0.0, float("inf")
+        all_covered &= covered >= 1.0
+        curves.append(CurveMatch(int(net.source[i]), c.name, float(c.sigma), int(want[j]), int(mine.sum()),
+                                 covered, far))
+    report.curves = curves
+    report.structure_exact = bool(report.extra_irregular == 0 and all_covered)
+
+
+def _segments_distance(X, A, B):
+    out = np.full(len(X), np.inf)
+    d = B - A
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    for s in range(0, len(A), 2048):
+        a, dv, ddv = A[s:s + 2048], d[s:s + 2048], dd[s:s + 2048]
+        t = np.clip(np.einsum("kij,ij->ki", X[:, None] - a[None], dv) / ddv, 0.0, 1.0)
+        out = np.minimum(out, np.linalg.norm(X[:, None] - (a[None] + t[..., None] * dv[None]), axis=2).min(axis=1))
+    return out
+
+
+def _hausdorff(S: TriSurface, V: np.ndarray, q: np.ndarray) -> float:
+    """Two-sided distance between the quad boundary and the surface, sampled
+    at vertices, edge midpoints and face centres of both."""
+    if not len(q):
+        return float("inf")
+    P = V[q]
+    samples = np.vstack([V[np.unique(q)], P.mean(axis=1), 0.5 * (P + np.roll(P, -1, axis=1)).reshape(-1, 3)])
+    d1, _, _ = S.closest_points(samples)
+    tri = np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+    T = V[tri]
+    tree = cKDTree(T.mean(axis=1))
+    Y = np.vstack([S.V, S.V[S.F].mean(axis=1)])
+    k = min(16, len(T))
+    _, idx = tree.query(Y, k=k)
+    idx = idx.reshape(len(Y), k)
+    C = closest_point_on_triangles(np.repeat(Y, k, axis=0), T[idx.reshape(-1)])
+    d2 = np.linalg.norm(C - np.repeat(Y, k, axis=0), axis=1).reshape(len(Y), k).min(axis=1)
+    return float(max(d1.max(), d2.max()))
+
+
+def _verdict(report: HexReport) -> None:
+    why = []
+    if report.non_hex_cells:
+        why.append(f"{report.non_hex_cells} cells are not hexahedra")
+    if report.inverted:
+        why.append(f"{report.inverted} cells are inverted")
+    if report.faces_over_two:
+        why.append(f"{report.faces_over_two} faces are shared by more than two cells")
+    if report.euler != report.euler_expected:
+        why.append(f"the boundary's Euler characteristic is {report.euler}, the surface's {report.euler_expected}")
+    if not report.structure_exact:
+        why.append("the irregular edges are not exactly the prescribed curves")
+    if report.hausdorff_relative > 0.01:
+        why.append(f"the boundary is {100 * report.hausdorff_relative:.1f}% of the diagonal off the surface")
+    report.status = DEFECTIVE if why else VALID
+    report.reason = "; ".join(why)

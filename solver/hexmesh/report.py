@@ -1,0 +1,106 @@
+"""What a hex-meshing run reports, and when its mesh counts as valid."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+VALID = "valid"
+DEFECTIVE = "defective"
+
+
+@dataclass
+class CurveMatch:
+    """How the hex mesh follows one prescribed singular curve.
+
+    valence   : the valence the curve asks for (4 - 4 sigma)
+    edges     : irregular interior hex edges matched to it
+    covered   : fraction of the curve within one cell of those edges
+    distance  : largest distance (model units) of those edges from the curve
+    """
+
+    curve: int
+    name: str
+    sigma: float
+    valence: int
+    edges: int
+    covered: float
+    distance: float
+
+
+@dataclass
+class HexReport:
+    """Figures of a hex mesh and the verdict on it.
+
+    status : 'valid' (pure hex, manifold, no inverted cell, the irregular
+             edges exactly the prescribed curves, the boundary's topology and
+             position right) or 'defective' (the reason says which check failed)
+    sj_*   : Verdict's scaled Jacobian (corner definition), after smoothing;
+             sj_*_raw before it; sj_mean_irregular over the cells touching an
+             irregular edge
+    irregular : {valence: count} of the interior edges whose valence is not 4
+    hausdorff : two-sided (sampled) distance between the hex mesh's boundary
+             and the input surface; hausdorff_relative divides by the
+             bounding-box diagonal
+    """
+
+    status: str = DEFECTIVE
+    reason: str = ""
+    cell_size: float = 0.0
+    hexes: int = 0
+    vertices: int = 0
+    non_hex_cells: int = 0
+    inverted: int = 0
+    sj_min: float = 0.0
+    sj_mean: float = 0.0
+    sj_min_raw: float = 0.0
+    sj_mean_raw: float = 0.0
+    sj_mean_irregular: float = 0.0
+    faces_over_two: int = 0
+    euler: list = field(default_factory=list)
+    euler_expected: list = field(default_factory=list)
+    irregular: dict = field(default_factory=dict)
+    extra_irregular: int = 0
+    curves: list = field(default_factory=list)
+    structure_exact: bool = False
+    hausdorff: float = 0.0
+    hausdorff_relative: float = 0.0
+    holonomy_bad_edges: int = 0
+    seamless_inverted: int = 0
+    map_inverted: int = 0
+    rounding_shift: float = 0.0
+    stiffening: int = 0
+    stage_seconds: dict = field(default_factory=dict)
+    sizes: dict = field(default_factory=dict)
+
+    @property
+    def valid(self) -> bool:
+        return self.status == VALID
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["irregular"] = {str(k): v for k, v in self.irregular.items()}
+        return d
+
+    def summary(self) -> str:
+        lines = [f"hex mesh: {self.status}" + (f" ({self.reason})" if self.reason else ""),
+                 f"  {self.hexes:,} hexahedra ({self.non_hex_cells} other cells), {self.vertices:,} vertices, "
+                 f"cell size {self.cell_size:.4g}",
+                 f"  scaled Jacobian: min {self.sj_min:.3f}, mean {self.sj_mean:.3f} (before smoothing "
+                 f"{self.sj_min_raw:.3f} / {self.sj_mean_raw:.3f}); cells at irregular edges: mean "
+                 f"{self.sj_mean_irregular:.3f}; inverted {self.inverted}",
+                 "  irregular interior edges: " + (", ".join(f"{n} of valence {v}" for v, n in
+                                                            sorted(self.irregular.items())) or "none")
+                 + f"; {'exactly the prescribed curves' if self.structure_exact else 'NOT the prescribed curves'}"
+                 + (f" ({self.extra_irregular} elsewhere)" if self.extra_irregular else ""),
+                 f"  boundary: Euler characteristic {self.euler} (surface {self.euler_expected}); faces in more "
+                 f"than two cells {self.faces_over_two}; Hausdorff distance {self.hausdorff:.3g} "
+                 f"({100 * self.hausdorff_relative:.2f}% of the diagonal)",
+                 f"  map: holonomy wrong on {self.holonomy_bad_edges} edges; inverted tets seamless "
+                 f"{self.seamless_inverted}, integer-grid {self.map_inverted}; rounding moved up to "
+                 f"{self.rounding_shift:.2f} cells; stiffening {self.stiffening}",
+                 "  seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in self.stage_seconds.items())]
+        for c in self.curves:
+            if c.covered < 1.0 or c.distance > self.cell_size:
+                lines.append(f"  curve {c.curve} {c.name!r}: {c.edges} edges of valence {c.valence}, covers "
+                             f"{100 * c.covered:.0f}%, up to {c.distance:.3g} away")
+        return "\n".join(lines)

@@ -1,0 +1,637 @@
+"""Stage 3 of hex meshing: the seamless map and its integer variables.
+
+The map u gives each tet corner a point of R^3 (parameter units: cells).
+It minimises the frame-fitting energy (AlgoHex's FrameFittingElement3D,
+CubeCover's least squares, paper §5 "Meshing")
+
+    E(u) = sum_t V_t || cell * grad(u_t) F_t - I ||_F^2
+
+subject to linear constraints:
+
+* across a face off the cut the charts agree (corners are merged: one
+  unknown per *wedge*, the corners of a vertex joined through non-cut faces);
+* across a cut face of patch P, ``u_to = G[M_P] u_from + tau_P`` (one
+  translation per manifold cut patch, AlgoHex's trick);
+* a boundary face keeps the coordinate along its normal axis constant, a
+  curve edge (singular or feature) the two coordinates across its axis.
+
+Every constraint relates at most two scalar unknowns up to translations, so
+they are eliminated exactly by an affine union-find over the scalars (with
+offsets that are combinations of the tau): classes of scalars that must be
+equal up to sign and a translation, classes fixed by a cycle (the two
+coordinates of a singular edge's vertex, fixed by its quarter-turn
+holonomy), and linear relations among the translations alone (at cut
+junctions).  Those relations, and the parity of the singular lines, are
+eliminated over the integers with unimodular pivots (``IntegerSpace``), so
+that integer values of the remaining variables give integer translations,
+boundary planes and curve lines: the integer-grid map (quantize.py) is then
+a rounding of plain coordinates of the reduced vector z.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..linalg.rotations import CUBE_GROUP
+from ..mesh.tetmesh import TET_FACES, TetMesh
+from .curve_edges import CurveEdgeError, CurveEdgeMesh
+from .quality import det3
+from .transitions import GROUP_INVERSE, GROUP_PRODUCT, Transitions, edge_rings
+
+G = CUBE_GROUP
+
+
+class MapError(CurveEdgeError):
+    """The constraints of the map cannot be met (an inconsistent field)."""
+
+
+# ============================================================== cut patches
+
+
+def cut_patches(mesh: TetMesh, tr: Transitions):
+    """Group the cut faces into patches joined across interior non-singular
+    edges that hold exactly two cut faces, with an orientation per face.
+
+    Returns (patch (k,) per interior face, -1 off the cut; orient (k,) +-1,
+    +1 where the face maps A -> B as the patch does; patch_M (P,) index).
+    """
+    k = len(tr.faces)
+    cutpos = np.nonzero(tr.cut)[0]
+    face_pos = np.full(mesh.n_faces, -1, dtype=np.int64)
+    face_pos[tr.faces] = np.arange(k)
+    fe = mesh.face_edges[tr.faces[cutpos]]  # (c, 3)
+    e, cnt = np.unique(fe, return_counts=True)
+    sing = np.zeros(mesh.n_edges, bool)
+    sing[tr.singular_edges] = True
+    join = e[(cnt == 2) & ~sing[e] & ~mesh.is_boundary_edge[e]]
+    rings = edge_rings(mesh, join, face_pos)
+    ab = tr.tets
+    links = {}  # cut position -> list of (other position, relative sign)
+    for edge in join.tolist():
+        order, crossed = rings[edge]
+        idx = [i for i, p in enumerate(crossed) if tr.cut[p]]
+        if len(idx) != 2:
+            raise MapError("internal: a cut edge's ring holds another count of cut faces")
+        i, j = idx
+        pi, pj = crossed[i], crossed[j]
+        bi_in_x = ab[pi, 1] == order[i + 1]  # arc X runs from face i to face j
+        bj_in_x = ab[pj, 1] == order[j]
+        s = 1 if bi_in_x == bj_in_x else -1
+        links.setdefault(pi, []).append((pj, s))
+        links.setdefault(pj, []).append((pi, s))
+    patch = np.full(k, -1, dtype=np.int64)
+    orient = np.zeros(k, dtype=np.int64)
+    patch_M = []
+    M = tr.transition
+    for p0 in cutpos.tolist():
+        if patch[p0] >= 0:
+            continue
+        pid = len(patch_M)
+        patch_M.append(int(M[p0]))
+        patch[p0], orient[p0] = pid, 1
+        stack = [p0]
+        while stack:
+            p = stack.pop()
+            for q, s in links.get(p, ()):
+                o = orient[p] * s
+                if patch[q] < 0:
+                    patch[q], orient[q] = pid, o
+                    stack.append(q)
+                elif orient[q] != o:
+                    raise MapError("a cut patch is not orientable (the field's transitions are inconsistent)")
+    patch_M = np.array(patch_M, dtype=np.int64)
+    # every face of a patch carries its transition (holonomy is the identity
+    # around the edges that join them)
+    on = patch >= 0
+    want = np.where(orient[on] > 0, patch_M[patch[on]], GROUP_INVERSE[patch_M[patch[on]]])
+    if np.any(want != M[on]):
+        raise MapError(f"{int(np.sum(want != M[on]))} cut faces disagree with their patch's transition")
+    return patch, orient, patch_M
+
+
+# ==================================================================== wedges
+
+
+def corner_wedges(mesh: TetMesh, tr: Transitions):
+    """Wedge id per tet corner (#T, 4) (corners of one vertex joined through
+    non-cut faces) and the vertex of each wedge."""
+    T = mesh.tets
+    nT = len(T)
+    keep = ~tr.cut
+    A, B = tr.tets[keep, 0], tr.tets[keep, 1]
+    Fv = mesh.faces[tr.faces[keep]]
+    rows, cols = [], []
+    for k in range(3):
+        x = Fv[:, k]
+        la = np.argmax(T[A] == x[:, None], axis=1)
+        lb = np.argmax(T[B] == x[:, None], axis=1)
+        rows.append(4 * A + la)
+        cols.append(4 * B + lb)
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    g = sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(4 * nT, 4 * nT))
+    n, lab = connected_components(g, directed=False)
+    wedge = lab.reshape(nT, 4)
+    wv = np.empty(n, dtype=np.int64)
+    wv[wedge.reshape(-1)] = T.reshape(-1)
+    return wedge, wv
+
+
+# ============================================================ affine union-find
+
+
+class AffineUnionFind:
+    """Scalars x_s related by rows ``a x_s + b x_r + e.tau = 0`` (a, b in
+    {0, +-1}): each scalar is ``sign * x_root + off . tau``; a root may be
+    fixed to ``val . tau``; rows among the tau alone are collected."""
+
+    def __init__(self, n: int, ntau: int):
+        self.parent = np.arange(n)
+        self.sign = np.ones(n)
+        self.off: dict[int, np.ndarray] = {}
+        self.fixed: dict[int, np.ndarray] = {}
+        self.ntau = ntau
+        self.tau_rows: list[np.ndarray] = []
+
+    def _zero(self):
+        return np.zeros(self.ntau)
+
+    def find(self, s: int):
+        path = []
+        while self.parent[s] != s:
+            path.append(s)
+            s = self.parent[s]
+        root = s
+        # compress: re-express every scalar on the path directly on the root
+        sg, off = 1.0, self._zero()
+        for v in reversed(path):
+            o = self.off.get(v)
+            # x_v = sign_v x_p + off_v ; x_p = sg x_root + off (accumulated)
+            sg, off = self.sign[v] * sg, self.sign[v] * off + (o if o is not None else 0.0)
+            self.parent[v], self.sign[v] = root, sg
+            if np.any(off):
+                self.off[v] = off.copy()
+            else:
+                self.off.pop(v, None)
+        if not path:
+            return root, 1.0, self._zero()
+        s0 = path[0]
+        return root, float(self.sign[s0]), self.off.get(s0, self._zero()).copy()
+
+    def flatten(self):
+        """(root, sign, offsets as a sparse (n, ntau) matrix) of every scalar:
+        x_s = sign_s x_root(s) + offsets[s] . tau, by pointer jumping."""
+        n = len(self.parent)
+        parent, sign = self.parent.copy(), self.sign.copy()
+        if self.off:
+            keys = np.array(sorted(self.off), dtype=np.int64)
+            dense = np.array([self.off[int(k)] for k in keys]).reshape(-1, self.ntau)
+            P = sp.csr_matrix((np.ones(len(keys)), (keys, np.arange(len(keys)))), shape=(n, len(keys)))
+            O = (P @ sp.csr_matrix(dense)).tocsr()
+        else:
+            O = sp.csr_matrix((n, self.ntau))
+        while True:
+            pp = parent[parent]
+            if np.array_equal(pp, parent):
+                break
+            # x_s = sign_s (sign_p x_pp + O_p) + O_s
+            O = (O + sp.diags(sign) @ O[parent]).tocsr()
+            sign = sign * sign[parent]
+            parent = pp
+        return parent, sign, O
+
+    def add(self, terms, e: np.ndarray | None):
+        """Add the row sum(c * x_s for s, c in terms) + e . tau = 0."""
+        e = self._zero() if e is None else np.asarray(e, float).copy()
+        coef: dict[int, float] = {}
+        for s, c in terms:
+            if c == 0:
+                continue
+            r, sg, off = self.find(int(s))
+            coef[r] = coef.get(r, 0.0) + c * sg
+            e += c * off
+        for r in [r for r, c in coef.items() if c == 0.0]:
+            del coef[r]
+        for r in [r for r in coef if r in self.fixed]:
+            e += coef.pop(r) * self.fixed[r]
+        if not coef:
+            if np.any(np.abs(e) > 1e-12):
+                self.tau_rows.append(e)
+            return
+        if len(coef) == 1:
+            (r, c), = coef.items()
+            self.fixed[r] = -e / c
+            return
+        (r1, c1), (r2, c2) = coef.items()
+        if abs(c2) != 1.0 and abs(c1) == 1.0:
+            r1, c1, r2, c2 = r2, c2, r1, c1
+        if abs(c2) != 1.0:
+            raise MapError("internal: a constraint with coefficients other than +-1")
+        # x_r2 = -(c1 / c2) x_r1 - e / c2
+        self.parent[r2] = r1
+        self.sign[r2] = -c1 / c2
+        off = -e / c2
+        if np.any(off):
+            self.off[r2] = off
+        else:
+            self.off.pop(r2, None)
+
+
+# ============================================================ integer space
+
+
+class IntegerSpace:
+    """Unknowns q = [tau; lines] with linear relations among them, reduced
+    to free integer variables k with q = N k (N integer where every pivot is
+    +-1, which holds for the relations the map produces)."""
+
+    def __init__(self, n: int):
+        self.N = np.eye(n)
+        self.cols = np.arange(n)  # the original unknown each k stands for
+        self.nonunimodular = 0
+
+    def add(self, row: np.ndarray, prefer: np.ndarray | None = None) -> None:
+        r = row @ self.N
+        r[np.abs(r) < 1e-9] = 0.0
+        if not np.any(r):
+            return
+        unit = np.nonzero(np.isclose(np.abs(r), 1.0))[0]
+        if len(unit) and prefer is not None:
+            pu = prefer[self.cols[unit]]
+            pref = unit[pu] if np.any(pu) else unit
+            p = int(pref[-1])
+        elif len(unit):
+            p = int(unit[-1])
+        else:
+            p = int(np.argmax(np.abs(r)))
+            self.nonunimodular += 1
+        # k_p = -(sum_{i != p} r_i k_i) / r_p, substituted into q = N k
+        coeff = np.delete(-r / r[p], p)
+        self.N = np.delete(self.N, p, axis=1) + np.outer(self.N[:, p], coeff)
+        self.cols = np.delete(self.cols, p)
+
+
+# ================================================================== the system
+
+
+@dataclass
+class MapSystem:
+    """The reduced system of the seamless map (module docs).
+
+    mesh, frames : the split mesh and its combed tet frames
+    cell         : the target cell size (model units)
+    wedge        : (#T, 4) wedge id per corner; wedge_vertex (#W,)
+    X            : (12 #T, nz) sparse: corner coordinates from z, row
+                   12 t + 3 c + a (tet t, corner c, coordinate a)
+    x0           : (12 #T,) the constant part (pinned vertex), usually 0
+    Q, b         : the energy 1/2 z'Qz - b'z (+ const) of z
+    integer      : (nz,) bool, z entries that must be integers in an
+                   integer-grid map
+    boundary_axis: (#bF,) normal axis per boundary face of the split mesh,
+                   boundary_angle its angle to the normal (degrees)
+    stats        : sizes and counts
+    """
+
+    mesh: TetMesh
+    frames: np.ndarray
+    cell: float
+    wedge: np.ndarray
+    wedge_vertex: np.ndarray
+    X: sp.csr_matrix
+    Q: sp.csr_matrix
+    b: np.ndarray
+    integer: np.ndarray
+    tet_weight: np.ndarray
+    grad: np.ndarray
+    boundary_angle: np.ndarray
+    LX: sp.csr_matrix
+    stats: dict = field(default_factory=dict)
+
+    def least_squares(self):
+        """(LX, w): the residuals cell * grad(u) F - I of every tet, 9 rows
+        per tet, are LX z - vec(I), weighted by w (the tet volumes)."""
+        return self.LX, np.repeat(self.tet_weight, 9)
+
+    def corners(self, z: np.ndarray) -> np.ndarray:
+        """(#T, 4, 3) parameter points of the tet corners."""
+        return (self.X @ z).reshape(-1, 4, 3)
+
+    def energy(self, z: np.ndarray) -> float:
+        J = np.einsum("tca,tcj->taj", self.corners(z), self.grad)  # cell * grad(u) F
+        return float(np.sum(self.tet_weight[:, None, None] * (J - np.eye(3)) ** 2))
+
+
+def _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau):
+    """Per wedge: A (group index) and B (3, ntau) with u_w = G[A] r_v + B tau,
+    by BFS over each vertex's wedges through the cut; cycle rows
+    (scalar terms, tau row) for the union-find."""
+    nW = len(wv)
+    A = np.zeros(nW, dtype=np.int64)
+    Bd: dict[int, np.ndarray] = {}
+    T = mesh.tets
+    cutpos = np.nonzero(tr.cut)[0]
+    rel: dict[int, list] = {}  # wedge -> [(other wedge, M, tau col, direction)]
+    Fv = mesh.faces[tr.faces[cutpos]]
+    for i, p in enumerate(cutpos.tolist()):
+        a, bb = tr.tets[p]
+        pid = int(patch[p])
+        if orient[p] > 0:
+            src, dst = a, bb
+        else:
+            src, dst = bb, a
+        m = int(patch_M[pid])
+        for x in Fv[i].tolist():
+            ws = int(wedge[src, np.argmax(T[src] == x)])
+            wd = int(wedge[dst, np.argmax(T[dst] == x)])
+            rel.setdefault(ws, []).append((wd, m, pid, +1))
+            rel.setdefault(wd, []).append((ws, int(GROUP_INVERSE[m]), pid, -1))
+    rows = []
+    seen = np.zeros(nW, bool)
+    zero = np.zeros((3, ntau))
+
+    def tau_block(pid):
+        E = np.zeros((3, ntau))
+        E[:, 3 * pid:3 * pid + 3] = np.eye(3)
+        return E
+
+    for w0 in list(rel):
+        if seen[w0]:
+            continue
+        seen[w0] = True
+        v = int(wv[w0])
+        stack = [w0]
+        while stack:
+            w = stack.pop()
+            Bw = Bd.get(w, zero)
+            for w2, m, pid, d in rel[w]:
+                # u_w2 = G[m] u_w + s tau, s = +tau_P forward, -G[m] tau_P backward
+                Mg = G[m]
+                tb = tau_block(pid) if d > 0 else -Mg @ tau_block(pid)
+                newA = int(GROUP_PRODUCT[m, A[w]])
+                newB = Mg @ Bw + tb
+                if not seen[w2]:
+                    seen[w2] = True
+                    A[w2] = newA
+                    if np.any(newB):
+                        Bd[w2] = newB
+                    stack.append(w2)
+                    continue
+                # a cycle: G[A_w2] r + B_w2 tau = G[newA] r + newB tau
+                D = G[A[w2]] - G[newA]
+                Etau = Bd.get(w2, zero) - newB
+                for a in range(3):
+                    terms = [(3 * v + j, D[a, j]) for j in range(3) if D[a, j] != 0]
+                    if terms or np.any(np.abs(Etau[a]) > 1e-12):
+                        rows.append((terms, Etau[a]))
+    return A, Bd, rows
+
+
+def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSystem:
+    """Assemble the reduced seamless-map system (module docs).
+
+    Parameters
+    ----------
+    cem : CurveEdgeMesh
+    tr : Transitions
+        combed frames, transitions and cut of cem.mesh
+    cell : float
+        the target hex edge length, in model units
+
+    Returns
+    -------
+    MapSystem
+    """
+    mesh = cem.mesh
+    T, X = mesh.tets, mesh.vertices
+    nT, nV = len(T), mesh.n_vertices
+    F = tr.frames
+    patch, orient, patch_M = cut_patches(mesh, tr)
+    P = len(patch_M)
+    ntau = 3 * P
+    wedge, wv = corner_wedges(mesh, tr)
+    A, Bd, cycle_rows = _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau)
+
+    integer_scalar = np.zeros(3 * nV, bool)
+    Ga_all = G[A]  # (nW, 3, 3)
+    jmax = np.argmax(np.abs(Ga_all), axis=2)  # (nW, 3): the scalar each coordinate reads
+    gsign = np.take_along_axis(Ga_all, jmax[..., None], axis=2)[..., 0]  # (nW, 3)
+    bw = np.array(sorted(Bd), dtype=np.int64)
+    Bstack = np.array([Bd[int(w)] for w in bw]) if len(bw) else np.zeros((0, 3, ntau))
+    brow = np.full(len(wv), -1, dtype=np.int64)
+    brow[bw] = np.arange(len(bw))
+
+    def coords(t, c, a):
+        """(scalar, sign, tau row index into Bstack or -1) of coordinate a of
+        corner c of tets t (arrays)."""
+        w = wedge[t, c]
+        return 3 * T[t, c] + jmax[w, a], gsign[w, a], brow[w]
+
+    rows0, rows1 = [], []  # pairs of (scalar, sign, B row, coordinate) that must be equal
+    # boundary faces: the coordinate along the normal's axis is constant
+    bf = mesh.boundary_faces
+    bt = mesh.face_tets[bf, 0]
+    on_face = (T[bt][:, :, None] == mesh.faces[bf][:, None, :]).any(axis=2)
+    loc = np.argmax(~on_face, axis=1)  # the vertex off the face
+    P3 = X[T[bt][np.arange(len(bt))[:, None], TET_FACES[loc]]]
+    n = np.cross(P3[:, 1] - P3[:, 0], P3[:, 2] - P3[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    proj = np.abs(np.einsum("tji,tj->ti", F[bt], n))  # |F^T n|
+    axis = np.argmax(proj, axis=1)
+    angle = np.degrees(np.arccos(np.clip(proj.max(axis=1), -1.0, 1.0)))
+    cs = TET_FACES[loc]  # (b, 3) corners on the face
+    for m in (1, 2):
+        rows0.append((bt, cs[:, 0], axis))
+        rows1.append((bt, cs[:, m], axis))
+    # curve edges: the coordinates across the curve's axis are constant
+    for ch in cem.chains:
+        e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
+        te = mesh.tet_edges
+        # one tet per chain edge
+        hit = np.isin(te, e)
+        r, c = np.nonzero(hit)
+        first = {}
+        for t, k in zip(r.tolist(), c.tolist()):
+            first.setdefault(int(te[t, k]), t)
+        tt = np.array([first[int(x)] for x in e], dtype=np.int64)
+        cx = np.argmax(T[tt] == ch.vertices[:-1, None], axis=1)
+        cy = np.argmax(T[tt] == ch.vertices[1:, None], axis=1)
+        k = np.argmax(np.abs(np.einsum("tji,tj->ti", F[tt], ch.tangents(X))), axis=1)
+        for d in (1, 2):
+            a = (k + d) % 3
+            rows0.append((tt, cx, a))
+            rows1.append((tt, cy, a))
+    S0, G0, B0 = (np.concatenate(x) for x in zip(*[coords(*r) for r in rows0]))
+    S1, G1, B1 = (np.concatenate(x) for x in zip(*[coords(*r) for r in rows1]))
+    AX = np.concatenate([r[2] for r in rows0])
+    integer_scalar[S0] = integer_scalar[S1] = True
+    # equal scalars with no translation between them: merged at once
+    plain = (B0 < 0) & (B1 < 0) & (G0 == G1)
+    uf = AffineUnionFind(3 * nV, ntau)
+    if plain.any():
+        g = sp.coo_matrix((np.ones(int(plain.sum())), (S0[plain], S1[plain])), shape=(3 * nV, 3 * nV))
+        _, lab = connected_components(g, directed=False)
+        rep = np.full(lab.max() + 1, 3 * nV)
+        np.minimum.at(rep, lab, np.arange(3 * nV))
+        uf.parent = rep[lab]
+    for terms, e in cycle_rows:
+        uf.add(terms, e)
+    zero_row = np.zeros(ntau)
+    for i in np.nonzero(~plain)[0].tolist():
+        e0 = Bstack[B0[i], AX[i]] if B0[i] >= 0 else zero_row
+        e1 = Bstack[B1[i], AX[i]] if B1[i] >= 0 else zero_row
+        uf.add([(int(S0[i]), float(G0[i])), (int(S1[i]), -float(G1[i]))], e0 - e1)
+
+    # ------------------------------------------------ reduce to z
+    roots, sgn, Off = uf.flatten()
+    offs = {int(i): Off[i].toarray().ravel() for i in np.unique(Off.nonzero()[0])}
+    root_int = np.zeros(3 * nV, bool)
+    np.logical_or.at(root_int, roots, integer_scalar)
+    fixed_int = [r for r in uf.fixed if root_int[r]]
+    # integer space over [tau; one line value per fixed integer root]
+    q = ntau + len(fixed_int)
+    isp = IntegerSpace(q)
+    prefer = np.zeros(q, bool)
+    prefer[:ntau] = True
+    if uf.tau_rows:
+        # the same relation comes from many cycles: each distinct one once
+        R = np.unique(np.round(np.array(uf.tau_rows), 9), axis=0)
+        for row in R:
+            isp.add(np.r_[row, np.zeros(len(fixed_int))], prefer)
+    for i, r in enumerate(fixed_int):
+        row = np.r_[2.0 * uf.fixed[r], np.zeros(len(fixed_int))]
+        row[ntau + i] = -2.0
+        rk = row @ isp.N
+        if np.all(np.isclose(np.rint(rk) % 2, 0)) and np.allclose(rk, np.rint(rk)):
+            row = 0.5 * row  # integer already: the line value follows from the tau
+        isp.add(row, prefer)
+    # the gauge (a global translation): one vertex pinned at the origin; a
+    # coordinate fixed by the network is pinned through its line value
+    is_root = roots == np.arange(3 * nV)
+    free = is_root & ~np.isin(np.arange(3 * nV), list(uf.fixed))
+    pin = _pin_vertex(cem, mesh)
+    for j in range(3):
+        r = int(roots[3 * pin + j])
+        if r in uf.fixed:
+            row = np.zeros(q)
+            if r in fixed_int:
+                row[ntau + fixed_int.index(r)] = 1.0
+            else:
+                row[:ntau] = uf.fixed[r]
+            isp.add(row, prefer)
+        free[r] = False
+    N = isp.N
+    Ntau, Nline = N[:ntau], N[ntau:]
+    nk = N.shape[1]
+    col = np.full(3 * nV, -1, dtype=np.int64)
+    col[free] = np.arange(int(free.sum()))
+    nr = int(free.sum())
+    nz = nr + nk
+    # scalar s = sgn s * x_root + off . tau; x_root free, fixed or pinned
+    fixed_val = {}
+    for i, r in enumerate(fixed_int):
+        fixed_val[r] = Nline[i]  # in k
+    for r, val in uf.fixed.items():
+        if r not in fixed_val:
+            fixed_val[r] = val @ Ntau
+    # corner coordinate rows
+    rows_i, cols_i, vals = [], [], []
+    dense_rows, dense_vals = [], []
+    Tf = T.reshape(-1)
+    Wf = wedge.reshape(-1)
+    for a in range(3):
+        Ga = G[A[Wf]][:, a, :]  # (4nT, 3) one nonzero per row
+        j = np.argmax(np.abs(Ga), axis=1)
+        g = Ga[np.arange(len(Ga)), j]
+        s = 3 * Tf + j
+        r = roots[s]
+        rid = 12 * np.repeat(np.arange(nT), 4) + 3 * np.tile(np.arange(4), nT) + a
+        ok = col[r] >= 0
+        rows_i.append(rid[ok])
+        cols_i.append(col[r[ok]])
+        vals.append((g * sgn[s])[ok])
+        # tau parts: the wedge's B, the scalar's offset, a fixed root's value
+        need = np.nonzero(np.isin(Wf, list(Bd)) | np.isin(s, list(offs)) | np.isin(r, list(fixed_val)))[0]
+        for i in need.tolist():
+            vec = np.zeros(nk)
+            w = int(Wf[i])
+            if w in Bd:
+                vec += Bd[w][a] @ Ntau
+            si = int(s[i])
+            if si in offs:
+                vec += g[i] * (offs[si] @ Ntau)
+            ri = int(r[i])
+            if ri in fixed_val:
+                vec += g[i] * sgn[si] * fixed_val[ri]
+            if np.any(vec):
+                dense_rows.append(int(rid[i]))
+                dense_vals.append(vec)
+    if dense_rows:
+        D = np.array(dense_vals)
+        nzr, nzc = np.nonzero(np.abs(D) > 1e-12)
+        rows_i.append(np.array(dense_rows)[nzr])
+        cols_i.append(nr + nzc)
+        vals.append(D[nzr, nzc])
+    Xm = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows_i), np.concatenate(cols_i))),
+                       shape=(12 * nT, nz))
+
+    # energy: cell * grad(u) F per tet is linear in the corners
+    Xt = X[T]
+    Mb = Xt[:, 1:] - Xt[:, :1]  # (nT, 3, 3) rows: edge vectors
+    Minv = np.linalg.inv(np.transpose(Mb, (0, 2, 1)))  # columns edges -> gradients of lambda_1..3
+    gl = np.zeros((nT, 4, 3))
+    gl[:, 1:] = Minv  # rows: grad lambda_1..3
+    gl[:, 0] = -gl[:, 1:].sum(axis=1)
+    coef = cell * np.einsum("tck,tkj->tcj", gl, F)  # (nT, 4, 3): corner c, frame axis j
+    vol = mesh.tet_volumes
+    # residual (t, a, j) = sum_c u[t, c, a] coef[t, c, j] - delta_aj
+    rr, cc, vv = [], [], []
+    for a in range(3):
+        for j in range(3):
+            for c in range(4):
+                rr.append(9 * np.arange(nT) + 3 * a + j)
+                cc.append(12 * np.arange(nT) + 3 * c + a)
+                vv.append(coef[:, c, j])
+    L = sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(9 * nT, 12 * nT))
+    LX = (L @ Xm).tocsr()
+    w = np.repeat(vol, 9)
+    target = np.tile(np.eye(3).reshape(-1), nT)
+    Q = (LX.T @ sp.diags(w) @ LX).tocsr()
+    bvec = LX.T @ (w * target)
+    integer = np.zeros(nz, bool)
+    integer[col[free & root_int]] = True
+    integer[nr:] = True
+    stats = {"patches": P, "cut_faces": int(tr.cut.sum()), "wedges": len(wv), "unknowns": nz,
+             "integer_unknowns": int(integer.sum()), "translations": nk, "tau_relations": len(uf.tau_rows),
+             "fixed_scalars": len(uf.fixed), "nonunimodular_pivots": isp.nonunimodular,
+             "boundary_angle_max": float(angle.max()) if len(angle) else 0.0}
+    return MapSystem(mesh, F, cell, wedge, wv, Xm, Q, np.asarray(bvec).ravel(), integer, vol, coef,
+                     angle, LX, stats)
+
+
+def _pin_vertex(cem: CurveEdgeMesh, mesh: TetMesh) -> int:
+    """The vertex pinned at the origin: a node, else a curve vertex, else a
+    boundary vertex (all lie on integer points of an integer-grid map)."""
+    if len(cem.node_vertices):
+        return int(cem.node_vertices[0])
+    for ch in cem.chains:
+        if ch.sigma != 0:
+            return int(ch.vertices[0])
+    return int(mesh.boundary_vertices[0])
+
+
+def degenerate_tets(ms: MapSystem, seed: int = 0) -> np.ndarray:
+    """Tets whose image is flat whatever the unknowns: their constraints
+    put four corners in one plane or three on one line (a tet with all its
+    vertices on one boundary chart, three on one sharp edge).  Found by
+    evaluating the map at random unknowns, twice."""
+    rng = np.random.default_rng(seed)
+    flat = np.ones(len(ms.tet_weight), bool)
+    for _ in range(2):
+        U = ms.corners(rng.standard_normal(ms.X.shape[1]))
+        E = U[:, 1:] - U[:, :1]
+        scale = np.linalg.norm(E, axis=2).max(axis=1) ** 3
+        flat &= np.abs(det3(E)) <= 1e-9 * np.maximum(scale, 1e-300)
+    return np.nonzero(flat)[0]

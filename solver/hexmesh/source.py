@@ -1,0 +1,130 @@
+"""What hex meshing needs of a solved field, and how it is kept.
+
+A field is meshed from a ``HexInput``: the tet mesh with its frames and
+omega, the network as the solve traced it through that mesh (the embedding
+and the prepared curves), and the input surface with its sharp edges.
+A solver Result gives all of it; a stored field gives it back through
+``hex_source_arrays`` / ``input_from_arrays`` (the .npz result file), or by
+tracing the prepared network through the stored mesh again
+(``input_from_check``: the add-on's .blend keeps the field, and the scene
+keeps the network and the surface).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mesh.embed import CurveTrace, Embedding, embed_network
+from ..mesh.tetmesh import TetMesh
+from ..network.network import Curve, Node, PreparedNetwork
+from ..surface.trisurface import TriSurface
+
+
+@dataclass
+class HexInput:
+    """What hex meshing needs of a solved field.
+
+    mesh, omega (#E, 3), frames (#V, 3, 3) : the field on its tet mesh
+    embedding : mesh.embed.Embedding (the curves traced through the mesh)
+    network   : network.network.PreparedNetwork (the curves and nodes traced)
+    surface   : the input surface (TriSurface), for the boundary's position
+    sharp     : (#E,) bool over surface.edges, its sharp edges
+    status    : the field's status ('converged' or 'not converged')
+    """
+
+    mesh: TetMesh
+    omega: np.ndarray
+    frames: np.ndarray
+    embedding: Embedding
+    network: PreparedNetwork
+    surface: TriSurface
+    sharp: np.ndarray
+    status: str = "converged"
+
+    @classmethod
+    def from_result(cls, result) -> HexInput:
+        """The HexInput of a solver Result."""
+        checked = result.problem.checked
+        return cls(result.mesh, np.asarray(result.omega), np.asarray(result.frames), result.embedding,
+                   result.problem.network, checked.surface, np.asarray(checked.features.sharp, bool),
+                   result.report.status)
+
+
+def _flat(parts):
+    parts = [np.asarray(p) for p in parts]
+    off = np.cumsum([0] + [len(p) for p in parts]).astype(np.int64)
+    shape = parts[0].shape[1:] if parts else ()
+    flat = np.concatenate(parts) if parts else np.zeros((0, *shape))
+    return flat, off
+
+
+def _split(flat, off):
+    return [flat[a:b] for a, b in zip(off[:-1], off[1:])]
+
+
+def hex_source_arrays(inp: HexInput) -> dict:
+    """Arrays (prefixed ``hex_``) from which input_from_arrays rebuilds the
+    network, its embedding and the surface on the stored tet mesh."""
+    emb, net = inp.embedding, inp.network
+    tr = emb.traces
+    out = {}
+    for name, parts in (("tets", [t.tets for t in tr]), ("faces", [t.faces for t in tr]),
+                        ("points", [np.asarray(t.points).reshape(-1, 3) for t in tr]),
+                        ("tangents", [np.asarray(t.tangents).reshape(-1, 3) for t in tr]),
+                        ("polyline", [t.polyline for t in tr]), ("curve_points", [c.points for c in net.curves]),
+                        ("node_region", [np.asarray(r, np.int64) for r in emb.node_region])):
+        flat, off = _flat(parts)
+        out[f"hex_{name}"], out[f"hex_{name}_offsets"] = flat, off
+    out["hex_ends"] = np.array([[t.start_face, t.end_face] for t in tr], np.int64).reshape(-1, 2)
+    out["hex_node_tets"] = np.asarray(emb.node_tets, np.int64)
+    meta = {"curves": [{"sigma": float(c.sigma), "name": c.name, "role": c.role.value, "source": int(s),
+                        "start": k0, "end": k1, "closed": bool(c.closed)}
+                       for c, s, k0, k1 in zip(net.curves, net.source, net.start_kind, net.end_kind)],
+            "nodes": [{"position": [float(x) for x in nd.position], "ends": [[int(a), int(b)] for a, b in nd.ends]}
+                      for nd in net.nodes],
+            "status": inp.status}
+    out["hex_meta"] = np.array(json.dumps(meta))
+    out["hex_surface_vertices"] = inp.surface.V
+    out["hex_surface_faces"] = inp.surface.F
+    out["hex_surface_sharp"] = inp.sharp
+    return out
+
+
+def input_from_arrays(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, arrays: dict) -> HexInput:
+    """The HexInput of a stored field (hex_source_arrays' arrays)."""
+    meta = json.loads(str(arrays["hex_meta"]))
+    parts = {k: _split(arrays[f"hex_{k}"], arrays[f"hex_{k}_offsets"])
+             for k in ("tets", "faces", "points", "tangents", "polyline", "curve_points", "node_region")}
+    curves, traces = [], []
+    for i, c in enumerate(meta["curves"]):
+        curves.append(Curve(parts["curve_points"][i], c["sigma"], c["role"], name=c["name"], closed=c["closed"]))
+        s, e = arrays["hex_ends"][i]
+        traces.append(CurveTrace(parts["tets"][i].astype(np.int64), parts["faces"][i].astype(np.int64),
+                                 parts["tangents"][i], parts["points"][i], int(s), int(e), parts["polyline"][i]))
+    nodes = [Node(np.asarray(nd["position"], float), [tuple(x) for x in nd["ends"]]) for nd in meta["nodes"]]
+    net = PreparedNetwork(curves, [c["source"] for c in meta["curves"]], [c["start"] for c in meta["curves"]],
+                          [c["end"] for c in meta["curves"]], nodes)
+    emb = Embedding(traces, np.asarray(arrays["hex_node_tets"], np.int64),
+                    [r.astype(np.int64) for r in parts["node_region"]], np.zeros((mesh.n_faces, 3)),
+                    np.zeros(mesh.n_faces, bool), np.zeros(mesh.n_faces, np.int64))
+    S = TriSurface(np.asarray(arrays["hex_surface_vertices"], float), np.asarray(arrays["hex_surface_faces"], np.int64))
+    return HexInput(mesh, np.asarray(omega, float), np.asarray(frames, float), emb, net, S,
+                    np.asarray(arrays["hex_surface_sharp"], bool), meta.get("status", "converged"))
+
+
+def input_from_check(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, checked, node_radius: float,
+                     status: str = "converged") -> HexInput:
+    """The HexInput of a field stored without its embedding: the prepared
+    network of ``checked`` (solver.check's CheckedInput, made with the
+    solve's options) traced through the stored mesh again.
+
+    node_radius : radius of the node regions (model units); the hex stage
+        grows them into star-shaped balls, so an upper bound is fine
+    """
+    net = checked.network
+    emb = embed_network(mesh, net, node_radius)
+    return HexInput(mesh, np.asarray(omega, float), np.asarray(frames, float), emb, net, checked.surface,
+                    np.asarray(checked.features.sharp, bool), status)

@@ -1,0 +1,338 @@
+"""Stage 2 of hex meshing: frames per tet, transitions from omega, holonomy,
+combing and the cut.
+
+Transitions from omega (paper §5 "Meshing": matchings "should be ... even
+more robust near singularities by using angle information from omega").
+For an edge ij of the field's mesh, g_ij is the cube symmetry with
+``E_j G[g_ij]`` nearest ``exp(omega_ij) E_i`` (Eq. 8; analysis.measures.
+omega_matchings): the frame at i carried across the edge by the field's own
+Darboux derivative, not compared with E_j directly.  Its margin is the
+integrability defect, not the turn along the edge, so it holds where the
+field turns fast (next to curves, on coarse meshes).
+
+A tet t of the split mesh (curve_edges.py) has old vertices S(t) spanning a
+simplex on which the g close; its base b(t) is the first of them and its
+frame the chordal mean of ``E_s G[g_bs]`` over s in S(t).  Across a face
+between tets A and B sharing an old vertex s, ``F_A ~ F_B M`` with
+``M = G[g_s,b(B)] G[g_b(A),s]``: the same for every shared old vertex, as
+the test in ``face_transitions`` checks.  A parametrisation u with
+``grad u ~ F^T / cell`` then satisfies ``u_B = M u_A + tau`` across it.
+
+Holonomy: the product of the transitions around an interior edge is the
+identity off the network and a quarter turn about the edge on a curve edge
+(the pierced face's monodromy).  Combing relabels every frame along a dual
+spanning tree so that tree faces carry the identity; the cut is the rest,
+shrunk where a non-singular interior edge holds a single cut face (AlgoHex's
+``generate_cut_surface``, CubeCover's cut to a simply connected domain).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+from ..field.matchings import omega_matchings
+from ..linalg.rotations import CUBE_GROUP, GROUP_INVERSE, GROUP_PRODUCT, polar_rotation
+from ..mesh.tetmesh import TET_EDGES, TetMesh
+from .curve_edges import CurveEdgeError, CurveEdgeMesh
+
+G = CUBE_GROUP
+IDENTITY = 0  # CUBE_GROUP[0] is the identity
+
+
+def rotation_axis_angle(g: np.ndarray):
+    """(axis index 0-2 or -1, quarter turns 0-3 about +axis) of cube
+    symmetries given by index; -1 for rotations not about a frame axis."""
+    g = np.asarray(g)
+    M = G[g]
+    tr = np.einsum("nii->n", M)
+    axis = np.full(len(g), -1)
+    quarters = np.zeros(len(g), dtype=np.int64)
+    # a rotation about axis k keeps e_k: M[k, k] = 1
+    for k in range(3):
+        keep = np.isclose(M[:, k, k], 1.0)
+        i, j = (k + 1) % 3, (k + 2) % 3
+        # angle from the (i, j) block: cos = M[i,i], sin = M[j,i]
+        ang = np.rint(np.arctan2(M[:, j, i], M[:, i, i]) / (0.5 * np.pi)).astype(np.int64) % 4
+        sel = keep & (ang != 0)
+        axis[sel] = k
+        quarters[sel] = ang[sel]
+    quarters[np.isclose(tr, 3.0)] = 0
+    axis[np.isclose(tr, 3.0)] = -1
+    return axis, quarters
+
+
+@dataclass
+class Transitions:
+    """Per-tet frames and face transitions of a CurveEdgeMesh, combed.
+
+    frames      : (#T, 3, 3) combed tet frames, columns the cross axes
+    faces       : (k,) interior face ids of the split mesh
+    tets        : (k, 2) tets (A, B) on either side (mesh.face_tets)
+    transition  : (k,) CUBE_GROUP index M with u_B = G[M] u_A + tau (combed)
+    cut         : (k,) bool, face lies on the cut (may carry a translation)
+    edge_holonomy : dict edge id -> CUBE_GROUP index around it (cut edges)
+    singular_edges : (s,) edge ids of curve edges with sigma != 0
+    bad_edges   : edge ids whose holonomy is not what the network prescribes
+    ambiguous_faces : faces whose shared old vertices gave different M
+    """
+
+    frames: np.ndarray
+    faces: np.ndarray
+    tets: np.ndarray
+    transition: np.ndarray
+    cut: np.ndarray
+    edge_holonomy: dict
+    singular_edges: np.ndarray
+    bad_edges: list
+    ambiguous_faces: np.ndarray
+
+
+def _pair_matchings(field_mesh: TetMesh, omega, frames, src_pairs: np.ndarray) -> np.ndarray:
+    """CUBE_GROUP index g_ij for ordered old-vertex pairs (i, j); the
+    identity where i == j.  Computed once per edge and inverted for the
+    reverse direction, so g_ji = g_ij^-1 exactly."""
+    out = np.zeros(len(src_pairs), dtype=np.int64)
+    diff = src_pairs[:, 0] != src_pairs[:, 1]
+    if not diff.any():
+        return out
+    lo = np.minimum(src_pairs[diff, 0], src_pairs[diff, 1])
+    hi = np.maximum(src_pairs[diff, 0], src_pairs[diff, 1])
+    e = field_mesh.edge_index(lo, hi)
+    if np.any(e < 0):
+        raise CurveEdgeError("internal: two old vertices of a split tet are not joined by an edge")
+    ue, inv = np.unique(e, return_inverse=True)
+    g = omega_matchings(field_mesh, omega, frames, field_mesh.edges[ue])[inv]
+    fwd = src_pairs[diff, 0] < src_pairs[diff, 1]
+    out[diff] = np.where(fwd, g, GROUP_INVERSE[g])
+    return out
+
+
+def tet_frames(cem: CurveEdgeMesh, field_mesh: TetMesh, omega, frames):
+    """Base old vertex per tet (#T,) and the tet frames (#T, 3, 3): the
+    chordal mean of the frame sources' frames matched to the base."""
+    src = cem.frame_sources  # (#T, 4), -1 padded
+    has = src >= 0
+    if not has.any(axis=1).all():
+        raise CurveEdgeError("internal: a split tet has no vertex of the field's mesh to take its frame from")
+    base = src[np.arange(len(src)), np.argmax(has, axis=1)]
+    acc = np.zeros((len(src), 3, 3))
+    for k in range(4):
+        s = np.where(has[:, k], src[:, k], base)
+        g = _pair_matchings(field_mesh, omega, frames, np.c_[base, s])
+        acc += frames[s] @ G[g]
+    return base, polar_rotation(acc)
+
+
+def face_transitions(cem: CurveEdgeMesh, base: np.ndarray, field_mesh: TetMesh, omega, frames):
+    """Interior faces, their tets (A, B) and M with F_A ~ F_B G[M], through
+    every frame source the two tets share; faces where those disagree are
+    returned too."""
+    mesh = cem.mesh
+    src = cem.frame_sources
+    faces = np.nonzero(~mesh.is_boundary_face)[0]
+    A, B = mesh.face_tets[faces, 0], mesh.face_tets[faces, 1]
+    M = np.full((len(faces), 4), -1, dtype=np.int64)
+    for k in range(4):
+        s = src[A, k]
+        ok = (s >= 0) & (src[B] == s[:, None]).any(axis=1)
+        g1 = _pair_matchings(field_mesh, omega, frames, np.c_[base[A[ok]], s[ok]])
+        g2 = _pair_matchings(field_mesh, omega, frames, np.c_[s[ok], base[B[ok]]])
+        M[ok, k] = GROUP_PRODUCT[g2, g1]
+    if np.any((M < 0).all(axis=1)):
+        raise CurveEdgeError("internal: two neighbouring split tets share no frame source")
+    first = M[np.arange(len(M)), np.argmax(M >= 0, axis=1)]
+    ambiguous = np.any((M >= 0) & (M != first[:, None]), axis=1)
+    return faces, np.c_[A, B], first, faces[ambiguous]
+
+
+def comb(n_tets: int, tets: np.ndarray, M: np.ndarray, root: int = 0):
+    """Relabelling C per tet along a BFS tree of the dual graph so that the
+    tree faces carry the identity; returns (C, combed M, tree-face mask)."""
+    A, B = tets[:, 0], tets[:, 1]
+    adj = sp.coo_matrix((np.arange(1, len(A) + 1), (A, B)), shape=(n_tets, n_tets)).tocsr()
+    adj = adj + adj.T
+    ncomp, _ = connected_components(adj, directed=False)
+    if ncomp != 1:
+        raise CurveEdgeError(f"internal: the split mesh has {ncomp} face-connected parts")
+    order, pred = breadth_first_order(adj, root, directed=False, return_predecessors=True)
+    # the face between each tet and its predecessor
+    key = {}
+    for i, (a, b) in enumerate(zip(A.tolist(), B.tolist())):
+        key[(a, b)] = i
+        key[(b, a)] = i
+    C = np.zeros(n_tets, dtype=np.int64)
+    tree = np.zeros(len(A), bool)
+    Ml, Al = M.tolist(), A.tolist()
+    inv = GROUP_INVERSE
+    for t in order[1:].tolist():
+        p = int(pred[t])
+        i = key[(p, t)]
+        tree[i] = True
+        m = Ml[i] if Al[i] == p else int(inv[Ml[i]])  # transition p -> t
+        C[t] = GROUP_PRODUCT[m, C[p]]
+    combed = GROUP_PRODUCT[GROUP_PRODUCT[inv[C[B]], M], C[A]]
+    return C, combed, tree
+
+
+def _edge_faces(mesh: TetMesh, faces: np.ndarray):
+    """CSR-like map edge -> positions in `faces` of the faces holding it."""
+    fe = mesh.face_edges[faces]  # (k, 3)
+    rows = fe.reshape(-1)
+    cols = np.repeat(np.arange(len(faces)), 3)
+    return sp.csr_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(mesh.n_edges, len(faces)))
+
+
+def shrink_cut(mesh: TetMesh, faces: np.ndarray, cut: np.ndarray, keep_edges: np.ndarray) -> np.ndarray:
+    """Remove cut faces hanging off an interior edge that holds no other cut
+    face, until none is left; edges in keep_edges (singular, boundary) are
+    never shrunk across."""
+    cut = cut.copy()
+    E2F = _edge_faces(mesh, faces)
+    count = np.asarray(E2F[:, np.nonzero(cut)[0]].sum(axis=1)).ravel()
+    blocked = keep_edges
+    fe = mesh.face_edges[faces]
+    indptr, indices = E2F.indptr, E2F.indices
+    queue = deque(np.nonzero((count == 1) & ~blocked)[0].tolist())
+    while queue:
+        e = queue.popleft()
+        if count[e] != 1 or blocked[e]:
+            continue
+        fs = indices[indptr[e]:indptr[e + 1]]
+        f = fs[cut[fs]]
+        if len(f) != 1:
+            continue
+        f = int(f[0])
+        cut[f] = False
+        for e2 in fe[f]:
+            count[e2] -= 1
+            if count[e2] == 1 and not blocked[e2]:
+                queue.append(int(e2))
+    return cut
+
+
+def edge_rings(mesh: TetMesh, edges: np.ndarray, face_pos: np.ndarray) -> dict:
+    """For each edge id in edges: the tets around it in order and, between
+    consecutive tets, the position (into the interior-face list) of the face
+    crossed; boundary edges give an open fan (first and last tets touch the
+    boundary).  face_pos maps a face id to its interior position (-1 on the
+    boundary)."""
+    tf, ft = mesh.tet_faces, mesh.face_tets
+    E = mesh.edges
+    # tets around every edge
+    te = mesh.tet_edges  # (#T, 6)
+    want = np.zeros(mesh.n_edges, bool)
+    want[edges] = True
+    r, c = np.nonzero(want[te])
+    by_edge: dict[int, list] = {}
+    for t, k in zip(r.tolist(), c.tolist()):
+        by_edge.setdefault(int(te[t, k]), []).append((t, k))
+    out = {}
+    for e in edges.tolist():
+        entries = by_edge[e]
+        a, b = E[e]
+        # faces of tet t holding edge (a, b): the faces opposite the other two vertices
+        def faces_of(t, k):
+            i, j = TET_EDGES[k]
+            o = [x for x in range(4) if x not in (i, j)]
+            return int(tf[t, o[0]]), int(tf[t, o[1]])
+        tet_set = {t: k for t, k in entries}
+        # start at a tet with a boundary face at this edge, if any (an open fan)
+        start = entries[0][0]
+        for t, k in entries:
+            if any(face_pos[f] < 0 for f in faces_of(t, k)):
+                start = t
+                break
+        order, crossed = [start], []
+        prev_face = None
+        f0, f1 = faces_of(start, tet_set[start])
+        nxt = f1 if face_pos[f0] < 0 else f0
+        if face_pos[f0] < 0 and face_pos[f1] < 0:
+            out[e] = (order, crossed)  # a single tet between two boundary faces
+            continue
+        cur, f = start, nxt
+        while True:
+            crossed.append(int(face_pos[f]))
+            other = int(ft[f, 0] if ft[f, 0] != cur else ft[f, 1])
+            if other == start:
+                break
+            order.append(other)
+            g0, g1 = faces_of(other, tet_set[other])
+            prev_face = f
+            f = g1 if g0 == prev_face else g0
+            cur = other
+            if face_pos[f] < 0:
+                break
+            if len(order) > len(entries) + 1:
+                raise CurveEdgeError("internal: an edge's ring of tets does not close")
+        out[e] = (order, crossed)
+    return out
+
+
+def _ring_product(ring, tets_ab: np.ndarray, M: np.ndarray) -> int:
+    """CUBE_GROUP index of the transitions composed once around a ring."""
+    order, crossed = ring
+    h = IDENTITY
+    for i, p in enumerate(crossed):
+        cur = order[i]
+        m = int(M[p]) if tets_ab[p, 0] == cur else int(GROUP_INVERSE[M[p]])
+        h = int(GROUP_PRODUCT[m, h])
+    return h
+
+
+def build_transitions(cem: CurveEdgeMesh, field_mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> Transitions:
+    """Frames per tet, transitions from omega, combing, the cut and the
+    holonomy check (module docs).
+
+    Parameters
+    ----------
+    cem : CurveEdgeMesh
+        the split mesh (curve_edges.curves_on_edges)
+    field_mesh : TetMesh
+        the field's mesh; omega (#E, 3) and frames (#V, 3, 3) live on it
+
+    Returns
+    -------
+    Transitions
+    """
+    mesh = cem.mesh
+    base, F = tet_frames(cem, field_mesh, omega, frames)
+    faces, ab, M, ambiguous = face_transitions(cem, base, field_mesh, omega, frames)
+    C, Mc, tree = comb(mesh.n_tets, ab, M)
+    F = F @ G[C]
+    # singular and boundary edges block the shrinking
+    sing = np.zeros(mesh.n_edges, bool)
+    tangent = np.zeros((mesh.n_edges, 3))  # the curve's tangent at its chain edges
+    for ch in cem.chains:
+        e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
+        if ch.sigma != 0:
+            sing[e] = True
+            tangent[e] = ch.tangents(mesh.vertices)
+    keep = sing | mesh.is_boundary_edge
+    cut = shrink_cut(mesh, faces, ~tree, keep)
+    # holonomy on every interior edge touching a non-identity face, and on
+    # every singular edge
+    face_pos = np.full(mesh.n_faces, -1, dtype=np.int64)
+    face_pos[faces] = np.arange(len(faces))
+    touch = np.zeros(mesh.n_edges, bool)
+    touch[mesh.face_edges[faces[Mc != IDENTITY]].reshape(-1)] = True
+    check = np.nonzero((touch | sing) & ~mesh.is_boundary_edge)[0]
+    rings = edge_rings(mesh, check, face_pos)
+    hol = {e: _ring_product(rings[e], ab, Mc) for e in check.tolist()}
+    bad = []
+    for e, h in hol.items():
+        if sing[e]:
+            # a quarter turn about the frame axis along the curve (its
+            # tangent, not the chain edge's own direction: a chain zig-zags)
+            axis, q = rotation_axis_angle(np.array([h]))
+            t0 = rings[e][0][0]
+            d = F[t0].T @ tangent[e]
+            if axis[0] != int(np.argmax(np.abs(d))) or q[0] == 0:
+                bad.append(e)
+        elif h != IDENTITY:
+            bad.append(e)
+    return Transitions(F, faces, ab, Mc, cut, hol, np.nonzero(sing)[0], bad, ambiguous)

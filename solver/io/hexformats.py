@@ -1,0 +1,153 @@
+"""Hex meshes written for other tools, and the integer-grid map for HexEx.
+
+``export_hexmesh(hex_mesh, path)`` picks the format from the extension:
+
+``.vtu``    VTK XML UnstructuredGrid of VTK_HEXAHEDRON cells (ParaView,
+            meshio) with the scaled Jacobian per cell
+``.vtk``    the same as legacy ASCII VTK (older tools, Gmsh, HexaLab)
+``.mesh``   MEDIT ``Hexahedra`` (Gmsh, meshio, many FE codes)
+``.hexex``  the integer-grid map per tet corner (HexEx / libHexHex / QGP3D
+            input): vertex count, ``x y z`` lines, tet count, then per tet
+            its four vertex ids (positively oriented) and the 4 x 3
+            parameters of its corners (the format of the HexEx paper's
+            additional material)
+
+Every file is written to a temporary name in its folder and renamed when
+complete, so a failure leaves the old file or none, never a partial one.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import numpy as np
+
+from .interchange import _fmt_rows, _vtu_array
+
+_VTK_HEXAHEDRON = 12
+
+HEX_FORMATS = {".vtu": "VTK XML", ".vtk": "legacy VTK", ".mesh": "MEDIT", ".hexex": "HexEx integer-grid map"}
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _atomic_text(path: str, text: str) -> None:
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".symframes-", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding="ascii") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it private
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+
+
+def write_hex_vtu(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None,
+                  binary: bool = True) -> None:
+    """VTK XML UnstructuredGrid of hexahedra (VTK_HEXAHEDRON, type 12, VTK
+    corner order); cell_data: name -> (m,) or (m, k) array."""
+    V = np.asarray(vertices, float)
+    H = np.asarray(hexes, np.int64)
+    m = len(H)
+    out = ['<?xml version="1.0"?>\n',
+           '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
+           "<UnstructuredGrid>\n", f'<Piece NumberOfPoints="{len(V)}" NumberOfCells="{m}">\n',
+           "<Points>\n", _vtu_array("Points", V, binary), "</Points>\n", "<Cells>\n",
+           _vtu_array("connectivity", H.reshape(-1), binary),
+           _vtu_array("offsets", 8 * np.arange(1, m + 1, dtype=np.int64), binary),
+           _vtu_array("types", np.full(m, _VTK_HEXAHEDRON, np.uint8), binary), "</Cells>\n"]
+    if cell_data:
+        out.append("<CellData>\n")
+        out.extend(_vtu_array(k, v, binary) for k, v in cell_data.items())
+        out.append("</CellData>\n")
+    out += ["</Piece>\n", "</UnstructuredGrid>\n", "</VTKFile>\n"]
+    _atomic_text(path, "".join(out))
+
+
+def write_hex_vtk(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None) -> None:
+    """Legacy ASCII VTK (version 4.2 DATASET UNSTRUCTURED_GRID) of hexahedra;
+    cell_data: name -> (m,) float array (SCALARS)."""
+    V = np.asarray(vertices, float)
+    H = np.asarray(hexes, np.int64)
+    m = len(H)
+    out = ["# vtk DataFile Version 4.2\n", "SymFrames hex mesh\n", "ASCII\n", "DATASET UNSTRUCTURED_GRID\n",
+           f"POINTS {len(V)} double\n", _fmt_rows(V, "%.17g"),
+           f"CELLS {m} {9 * m}\n", _fmt_rows(np.c_[np.full(m, 8), H], "%d"),
+           f"CELL_TYPES {m}\n", _fmt_rows(np.full((m, 1), _VTK_HEXAHEDRON), "%d")]
+    if cell_data:
+        out.append(f"CELL_DATA {m}\n")
+        for name, a in cell_data.items():
+            out += [f"SCALARS {name} double 1\n", "LOOKUP_TABLE default\n",
+                    _fmt_rows(np.asarray(a, float).reshape(-1, 1), "%.9g")]
+    _atomic_text(path, "".join(out))
+
+
+def write_hex_medit(path: str, vertices: np.ndarray, hexes: np.ndarray, refs=None) -> None:
+    """MEDIT ASCII mesh with a ``Hexahedra`` section (1-based, VTK's corner
+    order, which MEDIT shares), refs default 0."""
+    V = np.asarray(vertices, float)
+    H = np.asarray(hexes, np.int64)
+    r = np.zeros(len(H), np.int64) if refs is None else np.asarray(refs, np.int64)
+    out = ["MeshVersionFormatted 2\n", "Dimension 3\n", f"Vertices\n{len(V)}\n",
+           _fmt_rows(np.c_[V, np.zeros(len(V))], "%.17g"),
+           f"Hexahedra\n{len(H)}\n", _fmt_rows(np.c_[H + 1, r], "%d"), "End\n"]
+    _atomic_text(path, "".join(out))
+
+
+def write_hexex(path: str, vertices: np.ndarray, tets: np.ndarray, params: np.ndarray) -> None:
+    """The integer-grid map in HexEx's ``.hexex`` format (module docs).
+
+    vertices : (n, 3); tets : (m, 4) positively oriented; params : (m, 4, 3)
+    the parameter point of each tet corner (a tet soup: charts may differ
+    across the cut)."""
+    V = np.asarray(vertices, float)
+    T = np.asarray(tets, np.int64)
+    U = np.asarray(params, float).reshape(len(T), 12)
+    out = [f"{len(V)}\n", _fmt_rows(V, "%.17g"), f"{len(T)}\n",
+           _fmt_rows(np.c_[T, U], "%.17g")]  # %g writes the vertex ids as integers
+    _atomic_text(path, "".join(out))
+
+
+def read_hexex(path: str):
+    """(vertices (n, 3), tets (m, 4), params (m, 4, 3)) of a ``.hexex`` file."""
+    with open(path, encoding="ascii") as fh:
+        tok = fh.read().split()
+    try:
+        n = int(tok[0])
+        V = np.asarray(tok[1:1 + 3 * n], float).reshape(n, 3)
+        m = int(tok[1 + 3 * n])
+        rows = np.asarray(tok[2 + 3 * n:2 + 3 * n + 16 * m], float).reshape(m, 16)
+    except (IndexError, ValueError) as e:
+        raise ValueError(f"{path}: not a complete .hexex file ({e})") from None
+    return V, rows[:, :4].astype(np.int64), rows[:, 4:].reshape(m, 4, 3)
+
+
+def export_hexmesh(hex_mesh, path: str) -> list[str]:
+    """Write a HexMesh in the format its extension names (module docs);
+    returns the paths written."""
+    ext = os.path.splitext(path)[1].lower()
+    V, H = hex_mesh.vertices, hex_mesh.hexes
+    sj = np.asarray(hex_mesh.scaled_jacobian, float)
+    if ext == ".vtu":
+        write_hex_vtu(path, V, H, {"scaled_jacobian": sj})
+    elif ext == ".vtk":
+        write_hex_vtk(path, V, H, {"scaled_jacobian": sj})
+    elif ext == ".mesh":
+        write_hex_medit(path, V, H)
+    elif ext == ".hexex":
+        gm = hex_mesh.grid_map
+        if gm is None:
+            raise ValueError(f"{path}: this hex mesh carries no integer-grid map to write")
+        write_hexex(path, *gm)
+    else:
+        raise ValueError(f"{path}: unknown hex mesh format {ext or '(no extension)'!r}; use one of "
+                         f"{', '.join(HEX_FORMATS)}")
+    return [path]

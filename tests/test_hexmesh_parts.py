@@ -1,0 +1,184 @@
+"""The hex-meshing stage's parts on inputs with known answers (no meshing)."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from solver.hexmesh.curve_edges import _prism_tets
+from solver.hexmesh.extract import extract_hexes
+from solver.hexmesh.quality import boundary_quads, edge_valences, euler_characteristic, scaled_jacobian
+from solver.hexmesh.quantize import greedy_round
+from solver.hexmesh.seamless import AffineUnionFind, IntegerSpace
+from solver.hexmesh.smooth import foldover_free
+from solver.linalg.rotations import CUBE_GROUP
+from solver.mesh.tetmesh import TetMesh
+
+CUBE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+
+
+def grid_tets(nx, ny, nz, h=1.0):
+    """A box of nx x ny x nz cubes, six Kuhn tets each (conforming)."""
+    idx = np.arange((nx + 1) * (ny + 1) * (nz + 1)).reshape(nx + 1, ny + 1, nz + 1)
+    V = np.stack(np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), np.arange(nz + 1), indexing="ij"), -1)
+    V = V.reshape(-1, 3) * h
+    T = []
+    for i, j, k in itertools.product(range(nx), range(ny), range(nz)):
+        c = [idx[i + a, j + b, k + d] for a, b, d in itertools.product((0, 1), repeat=3)]  # bit order a b d
+        for perm in itertools.permutations(range(3)):
+            path = [0]
+            cur = 0
+            for ax in perm:
+                cur |= 1 << (2 - ax)
+                path.append(cur)
+            T.append([c[p] for p in path])
+    return TetMesh(V.astype(float), np.array(T))
+
+
+# ------------------------------------------------------------------ quality
+
+
+def test_scaled_jacobian_is_one_for_a_cube_and_negative_when_inverted():
+    H = np.arange(8)[None]
+    assert scaled_jacobian(CUBE, H)[0] == pytest.approx(1.0)
+    sheared = CUBE.copy()
+    sheared[4:, 0] += 1.0  # top face shifted by one edge length: corners at 45 degrees
+    assert scaled_jacobian(sheared, H)[0] == pytest.approx(np.sqrt(0.5))
+    flipped = CUBE.copy()
+    flipped[4:, 2] = -1.0
+    assert scaled_jacobian(flipped, H)[0] < 0
+
+
+def test_boundary_quads_valences_and_euler_characteristic_of_a_block():
+    n = 3
+    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
+    V = np.stack(np.meshgrid(*[np.arange(n + 1)] * 3, indexing="ij"), -1).reshape(-1, 3).astype(float)
+    H = np.array([[idx[i + a, j + b, k + c] for a, b, c in CUBE.astype(int)]
+                  for i, j, k in itertools.product(range(n), repeat=3)])
+    q, over = boundary_quads(H)
+    assert over == 0 and len(q) == 6 * n * n
+    assert euler_characteristic(q) == 2
+    e, val, onb = edge_valences(H, q)
+    assert set(val[~onb]) == {4}
+    # outward orientation: the quads' normals point away from the centre
+    P = V[q]
+    nrm = np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 1])
+    assert np.all(np.einsum("ij,ij->i", nrm, P.mean(axis=1) - n / 2) > 0)
+
+
+# ------------------------------------------------------------------ rounding
+
+
+def test_greedy_round_matches_the_integer_optimum_of_a_small_coupled_quadratic():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        A = rng.standard_normal((3, 3))
+        S = A @ A.T + 3 * np.eye(3)
+        c = rng.uniform(-5, 5, 3)
+        w, shift = greedy_round(S, c)
+        assert np.all(w == np.rint(w))
+        best = min((0.5 * np.array(k) @ S @ np.array(k) - c @ np.array(k), k)
+                   for k in itertools.product(range(-8, 9), repeat=3))
+        e = 0.5 * w @ S @ w - c @ w
+        # greedy is not exact in general; on well-conditioned problems it is within one step
+        assert e <= best[0] + 0.5 * np.max(np.diag(S)) + 1e-9
+        assert shift <= 0.5 + 1e-9
+
+
+def test_integer_space_keeps_unit_pivots_integer():
+    isp = IntegerSpace(4)
+    isp.add(np.array([1.0, 1.0, -1.0, 0.0]))  # t0 + t1 = t2
+    isp.add(np.array([0.0, 1.0, 0.0, -2.0]))  # t1 = 2 t3
+    N = isp.N
+    assert N.shape == (4, 2)
+    assert np.allclose(N, np.rint(N)) and isp.nonunimodular == 0
+    k = np.array([3.0, -2.0])
+    t = N @ k
+    assert t[0] + t[1] == t[2] and t[1] == 2 * t[3]
+
+
+def test_affine_union_find_fixes_a_quarter_turn_cycle_and_collects_tau_rows():
+    uf = AffineUnionFind(3, 2)
+    # (I - R) x = e tau for a quarter turn about z: x0 + x1 = tau0, -x0 + x1 = tau1
+    uf.add([(0, 1.0), (1, 1.0)], np.array([-1.0, 0.0]))
+    uf.add([(0, -1.0), (1, 1.0)], np.array([0.0, -1.0]))
+    r0, s0, o0 = uf.find(0)
+    r1, s1, o1 = uf.find(1)
+    assert r0 == r1 and r0 in uf.fixed
+    tau = np.array([3.0, 1.0])
+    x_root = uf.fixed[r0] @ tau
+    x0, x1 = s0 * x_root + o0 @ tau, s1 * x_root + o1 @ tau
+    assert x0 + x1 == pytest.approx(3.0) and -x0 + x1 == pytest.approx(1.0)
+    uf.add([(2, 1.0), (2, -1.0)], np.array([1.0, 1.0]))  # 0 = tau0 + tau1
+    assert len(uf.tau_rows) == 1
+
+
+def test_foldover_free_gradient_matches_finite_differences():
+    rng = np.random.default_rng(1)
+    J = np.eye(3) + 0.3 * rng.standard_normal((5, 3, 3))
+    J[0, 2] *= -1  # one inverted
+    f, g = foldover_free(J, 0.05)
+    d = 1e-6
+    for i, j in [(0, 0), (1, 2), (2, 1)]:
+        Jp = J.copy()
+        Jp[:, i, j] += d
+        fp, _ = foldover_free(Jp, 0.05)
+        assert np.allclose((fp - f) / d, g[:, i, j], rtol=1e-4, atol=1e-5)
+
+
+# ------------------------------------------------------------- node balls
+
+
+def test_prism_split_is_positive_and_neighbouring_prisms_agree():
+    rng = np.random.default_rng(0)
+    skin = rng.standard_normal((6, 3))
+    skin /= np.linalg.norm(skin, axis=1, keepdims=True)
+    P = np.vstack([skin * 0.5, skin])  # shell 1 (ids 0-5) and the skin (ids 6-11)
+    tris = [(0, 1, 2), (0, 2, 3)]  # two skin triangles sharing the edge 0-2
+    faces = []
+    for tri in tris:
+        tets = _prism_tets(list(tri), [v + 6 for v in tri])
+        for t in tets:
+            X = P[list(t)]
+            vol = np.linalg.det(X[1:] - X[0])
+            assert abs(vol) > 1e-9
+            faces += [tuple(sorted(f)) for f in itertools.combinations(t, 3)]
+    # the shared quad (0, 2, 8, 6) is cut by the same diagonal from both sides
+    shared = [f for f in set(faces) if set(f) <= {0, 2, 6, 8}]
+    assert len(shared) == 2 and all(faces.count(f) == 2 for f in shared)
+
+
+# ------------------------------------------------------------- extraction
+
+
+def test_extraction_of_the_identity_map_is_the_grid():
+    mesh = grid_tets(4, 2, 2, h=0.5)
+    cell = 0.25
+    U = mesh.vertices[mesh.tets] / cell
+    faces = np.nonzero(~mesh.is_boundary_face)[0]
+    ab = mesh.face_tets[faces]
+    raw = extract_hexes(mesh, faces, ab, np.zeros(len(faces), np.int64), U, cell)
+    assert len(raw.hexes) == 8 * 4 * 4 and raw.lost_corners == 0
+    assert np.allclose(scaled_jacobian(raw.vertices, raw.hexes), 1.0)
+    assert np.allclose(raw.vertices / cell, np.rint(raw.vertices / cell))
+
+
+def test_extraction_follows_a_rotated_chart_across_a_cut():
+    mesh = grid_tets(4, 2, 2, h=0.5)
+    cell = 0.25
+    X = mesh.vertices[mesh.tets]
+    U = X / cell
+    # tets right of x = 1 use a chart turned a quarter about z and shifted
+    g = 1 + int(np.argmax([np.allclose(G, [[0, -1, 0], [1, 0, 0], [0, 0, 1]]) for G in CUBE_GROUP[1:]]))
+    R, tau = CUBE_GROUP[g], np.array([3.0, -5.0, 2.0])
+    right = X.mean(axis=1)[:, 0] > 1.0
+    U[right] = np.einsum("ij,tcj->tci", R, U[right]) + tau
+    faces = np.nonzero(~mesh.is_boundary_face)[0]
+    ab = mesh.face_tets[faces]
+    M = np.zeros(len(faces), np.int64)
+    M[~right[ab[:, 0]] & right[ab[:, 1]]] = g
+    inv = int(np.argmax(np.isclose(np.einsum("kij,ij->k", CUBE_GROUP, R.T), 3.0)))  # R^T
+    M[right[ab[:, 0]] & ~right[ab[:, 1]]] = inv
+    raw = extract_hexes(mesh, faces, ab, M, U, cell)
+    assert len(raw.hexes) == 8 * 4 * 4 and raw.lost_corners == 0 and raw.duplicate_cells == 0
+    assert np.allclose(scaled_jacobian(raw.vertices, raw.hexes), 1.0)
