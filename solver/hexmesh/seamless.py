@@ -476,13 +476,21 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
         rep = np.full(lab.max() + 1, 3 * nV)
         np.minimum.at(rep, lab, np.arange(3 * nV))
         uf.parent = rep[lab]
+    zero_row = np.zeros(ntau)
     for terms, e in cycle_rows:
         uf.add(terms, e)
-    zero_row = np.zeros(ntau)
     for i in np.nonzero(~plain)[0].tolist():
         e0 = Bstack[B0[i], AX[i]] if B0[i] >= 0 else zero_row
         e1 = Bstack[B1[i], AX[i]] if B1[i] >= 0 else zero_row
         uf.add([(int(S0[i]), float(G0[i])), (int(S1[i]), -float(G1[i]))], e0 - e1)
+
+    # the gauge (a global translation): the coordinates of one vertex that
+    # lies on the integer grid anyway (a node, a curve's end, a boundary
+    # vertex) are 0 -- the vertex's own coordinates, which differ from their
+    # class's root by a sign and a translation
+    pin = _pin_vertex(cem, integer_scalar)
+    for j in range(3):
+        uf.add([(3 * pin + j, 1.0)], None)
 
     # ------------------------------------------------ reduce to z
     roots, sgn, Off = uf.flatten()
@@ -507,21 +515,8 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
         if np.all(np.isclose(np.rint(rk) % 2, 0)) and np.allclose(rk, np.rint(rk)):
             row = 0.5 * row  # integer already: the line value follows from the tau
         isp.add(row, prefer)
-    # the gauge (a global translation): one vertex pinned at the origin; a
-    # coordinate fixed by the network is pinned through its line value
     is_root = roots == np.arange(3 * nV)
     free = is_root & ~np.isin(np.arange(3 * nV), list(uf.fixed))
-    pin = _pin_vertex(cem, mesh)
-    for j in range(3):
-        r = int(roots[3 * pin + j])
-        if r in uf.fixed:
-            row = np.zeros(q)
-            if r in fixed_int:
-                row[ntau + fixed_int.index(r)] = 1.0
-            else:
-                row[:ntau] = uf.fixed[r]
-            isp.add(row, prefer)
-        free[r] = False
     N = isp.N
     Ntau, Nline = N[:ntau], N[ntau:]
     nk = N.shape[1]
@@ -611,15 +606,14 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
                      angle, LX, stats)
 
 
-def _pin_vertex(cem: CurveEdgeMesh, mesh: TetMesh) -> int:
-    """The vertex pinned at the origin: a node, else a curve vertex, else a
-    boundary vertex (all lie on integer points of an integer-grid map)."""
+def _pin_vertex(cem: CurveEdgeMesh, integer_scalar: np.ndarray) -> int:
+    """The vertex pinned at the origin: one whose three coordinates are
+    integers in any integer-grid map (a node, a curve's end on the surface, a
+    corner of the boundary), a node first; else the one with the most."""
+    count = integer_scalar.reshape(-1, 3).sum(axis=1)
     if len(cem.node_vertices):
         return int(cem.node_vertices[0])
-    for ch in cem.chains:
-        if ch.sigma != 0:
-            return int(ch.vertices[0])
-    return int(mesh.boundary_vertices[0])
+    return int(np.argmax(count))
 
 
 def degenerate_tets(ms: MapSystem, seed: int = 0) -> np.ndarray:
