@@ -53,6 +53,11 @@ LAMBDA_MIN = 0.1
 """Smallest barycentric coordinate of a split point on its face: children
 keep at least this fraction of their parent's volume."""
 
+VERTEX_ROUTE = 0.2
+"""A curve passing closer than this fraction of the local edge length to a
+vertex of the field's mesh is routed through the vertex: clamping the pierce
+points of the faces around it would make the chain zig-zag backwards."""
+
 CONE_HEIGHT_MIN = 0.15
 """A node ball's skin face must be seen from the node at a height of at
 least this fraction of the face's size (sqrt of twice its area)."""
@@ -180,8 +185,14 @@ class _Builder:
         self.face_curve[f] = curve
         return v
 
-    def cross(self, t: int, f_in: int, f_out: int, curve: int) -> None:
-        self.tet_splits.setdefault(int(t), []).append((int(f_in), int(f_out), curve))
+    def cross(self, t: int, f_in: int | None, f_out: int | None, curve: int) -> None:
+        """Tet t is crossed from face f_in to face f_out; None where the curve
+        enters or leaves through a vertex of t instead."""
+        self.tet_splits.setdefault(int(t), []).append((f_in, f_out, curve))
+
+    def keep(self, t: int) -> None:
+        """Tet t is crossed between two of its vertices' faces: left whole."""
+        self.tet_splits.setdefault(int(t), []).append((None, None, -1))
 
 
 def _skin(T: np.ndarray, tet_faces: np.ndarray, face_tets: np.ndarray, region: np.ndarray, inside: np.ndarray):
@@ -287,6 +298,7 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
 
     # ------------------------------------------------------- curve crossings
     chains = []
+    routed: set[int] = set()  # field-mesh vertices a chain passes through
     for ci, (c, tr) in enumerate(zip(network.curves, embedding.traces)):
         tets, faces, pts = np.asarray(tr.tets), np.asarray(tr.faces), np.asarray(tr.points)
         closed = network.start_kind[ci] == "loop"
@@ -303,6 +315,14 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
             while hi >= 0 and ball_of[tets[hi]] == k:
                 hi -= 1
             end_v = int(node_vertex[k])
+        if lo == hi + 1 and start_v >= 0 and end_v >= 0 and 0 < lo < n:
+            # a node-to-node curve that passes from one node's ball straight
+            # into the other's: the face between them is split, both cones
+            # reach the pierce point
+            p = b.split_face(int(faces[lo - 1]), pts[lo - 1], ci)
+            chains.append(Chain(np.array([start_v, p, end_v], dtype=np.int64), ci, float(c.sigma), False,
+                                np.asarray(tr.polyline, float)))
+            continue
         if lo > hi:
             raise CurveEdgeError(
                 f"curve {labels[ci]} lies inside its nodes' balls of tets (it is shorter than about two tets of "
@@ -323,31 +343,104 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
             chains.append(Chain(np.array(verts + verts[:1], dtype=np.int64), ci, float(c.sigma), True,
                                 np.asarray(tr.polyline, float)))
             continue
-        # entry face of tets[lo] and exit face of tets[hi]
-        if start_v < 0:
-            f0 = int(tr.start_face)
-            start_v = b.split_face(f0, tr.polyline[0], ci)
-        else:
-            f0 = int(faces[lo - 1])
-        if end_v < 0:
-            f1 = int(tr.end_face)
-            end_v = b.split_face(f1, _end_point(mesh, f1, tr.polyline), ci)
-        else:
-            f1 = int(faces[hi])
-        inner_faces = faces[lo:hi]
-        verts = []
-        if network.start_kind[ci] == "node":
-            verts.append(b.split_face(f0, pts[lo - 1], ci))
-        verts += [b.split_face(int(f), x, ci) for f, x in zip(inner_faces, pts[lo:hi])]
-        if network.end_kind[ci] == "node":
-            verts.append(b.split_face(f1, pts[hi], ci))
-        seq = [f0, *inner_faces.tolist(), f1]
-        for j, t in enumerate(inner):
-            b.cross(int(t), seq[j], seq[j + 1], ci)
-        chain = [start_v, *verts, end_v]
-        chains.append(Chain(np.array(chain, dtype=np.int64), ci, float(c.sigma), False, np.asarray(tr.polyline, float)))
+        # entry face of tets[lo] and exit face of tets[hi]; the start and end
+        # points (a node, or where the curve meets the surface)
+        start_node, end_node_ = network.start_kind[ci] == "node", network.end_kind[ci] == "node"
+        f0 = int(faces[lo - 1]) if start_node else int(tr.start_face)
+        f1 = int(faces[hi]) if end_node_ else int(tr.end_face)
+        x0 = pts[lo - 1] if start_node else tr.polyline[0]
+        x1 = pts[hi] if end_node_ else _end_point(mesh, f1, tr.polyline)
+        inner = tets[lo:hi + 1]
+        seq = [f0, *faces[lo:hi].tolist(), f1]  # entry face of inner[j] is seq[j], its exit seq[j + 1]
+        xs = [x0, *pts[lo:hi], x1]
+        runs = _vertex_runs(mesh, inner, seq, tr.polyline, routed, boundary_ok=(not start_node, not end_node_))
+        chain = [start_v] if start_node else []
+        j = 0
+        while j < len(inner):
+            run = runs.get(j)
+            if run is None:
+                # a plain crossing: the entry face split (the start's is split below)
+                if j == 0:
+                    chain.append(b.split_face(seq[0], xs[0], ci))
+                b.cross(int(inner[j]), seq[j], seq[j + 1], ci)
+                chain.append(b.split_face(seq[j + 1], xs[j + 1], ci))
+                j += 1
+                continue
+            v, k = run  # inner[j..k] all hold v: the chain goes through v
+            Fv = mesh.faces
+            entry_has_v = v in Fv[seq[j]]
+            exit_has_v = v in Fv[seq[k + 1]]
+            if not entry_has_v:
+                if j == 0:
+                    chain.append(b.split_face(seq[0], xs[0], ci))
+                b.cross(int(inner[j]), seq[j], None, ci)
+            chain.append(int(v))
+            routed.add(int(v))
+            if not exit_has_v:
+                b.cross(int(inner[k]), None, seq[k + 1], ci)
+                chain.append(b.split_face(seq[k + 1], xs[k + 1], ci))
+            for m in range(j, k + 1):
+                if (m != j or entry_has_v) and (m != k or exit_has_v):
+                    b.keep(int(inner[m]))  # crossed inside the star of v: left whole
+            j = k + 1
+        if end_node_:
+            chain.append(end_v)
+        chains.append(Chain(np.array(chain, dtype=np.int64), ci, float(c.sigma), False,
+                            np.asarray(tr.polyline, float)))
 
-    return _build(mesh, b, balls, node_vertex, chains, X)
+    return _build(mesh, b, balls, node_vertex, chains, X, routed)
+
+
+def _polyline_distance(P: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Distance from points X (k, 3) to the polyline P (n, 3)."""
+    a, d = P[:-1], P[1:] - P[:-1]
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    t = np.clip(np.einsum("kij,ij->ki", X[:, None] - a[None], d) / dd, 0.0, 1.0)
+    return np.linalg.norm(X[:, None] - (a[None] + t[..., None] * d[None]), axis=2).min(axis=1)
+
+
+def _vertex_runs(mesh: TetMesh, inner: np.ndarray, seq: list, polyline: np.ndarray, routed: set,
+                 boundary_ok: tuple) -> dict:
+    """Where the chain goes through a vertex of the field's mesh instead of
+    piercing the faces around it: {first crossed tet j: (vertex v, last tet
+    k)}, the tets inner[j..k] all holding v.  A vertex qualifies when the
+    curve passes within VERTEX_ROUTE of an edge length of it, it is inside
+    the solid (or the curve ends at it on the surface), and no other chain
+    goes through it."""
+    T, X = mesh.tets, mesh.vertices
+    n = len(inner)
+    V = T[inner]
+    d = _polyline_distance(polyline, X[V.reshape(-1)]).reshape(n, 4)
+    E = X[V[:, [0, 0, 0, 1, 1, 2]]] - X[V[:, [1, 2, 3, 2, 3, 3]]]
+    h = np.linalg.norm(E, axis=2).mean(axis=1)
+    onb = mesh.is_boundary_vertex
+    Fv = mesh.faces
+    runs, used, j = {}, set(), 0
+    while j < n:
+        best = None
+        for c in range(4):
+            v = int(V[j, c])
+            if d[j, c] > VERTEX_ROUTE * h[j] or v in routed or v in used:
+                continue
+            if j > 0 and v in V[j - 1]:
+                continue  # the block of tets around v starts earlier
+            k = j
+            while k + 1 < n and v in V[k + 1]:
+                k += 1
+            at_start = j == 0 and v in Fv[seq[0]]
+            at_end = k == n - 1 and v in Fv[seq[n]]
+            if onb[v] and not ((at_start and boundary_ok[0]) or (at_end and boundary_ok[1])):
+                continue  # a singular curve must not touch the surface on its way
+            if best is None or d[j, c] < best[0]:
+                best = (d[j, c], v, k)
+        if best is None:
+            j += 1
+            continue
+        _, v, k = best
+        runs[j] = (v, k)
+        used.add(v)
+        j = k + 1
+    return runs
 
 
 def _end_point(mesh: TetMesh, f: int, polyline: np.ndarray) -> np.ndarray:
@@ -360,7 +453,7 @@ def _end_point(mesh: TetMesh, f: int, polyline: np.ndarray) -> np.ndarray:
     return p + np.clip(s, 0.0, 1.0) * (q - p)
 
 
-def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X) -> CurveEdgeMesh:
+def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X, routed: set) -> CurveEdgeMesh:
     T, tf, ft = mesh.tets, mesh.tet_faces, mesh.face_tets
     nV = mesh.n_vertices
     P = np.vstack([X, np.array(b.points).reshape(-1, 3)])
@@ -369,17 +462,34 @@ def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X) -> CurveEd
         in_ball[ball] = True
     new_tets, parent = [], []
 
-    # crossed tets: five children each
+    # crossed tets: five children each (entry and exit faces split), three
+    # where the chain enters or leaves through a vertex, none between two
     for t, splits in b.tet_splits.items():
         if len(splits) != 1:
-            curves = sorted({b.labels[c] for *_, c in splits})
+            curves = sorted({b.labels[c] for *_, c in splits if c >= 0})
             x = X[T[t]].mean(axis=0)
             raise CurveEdgeError(
                 f"curve(s) {', '.join(curves)} cross one tet of the field's mesh {len(splits)} times near "
                 f"({x[0]:.4g}, {x[1]:.4g}, {x[2]:.4g}); solve the field on a finer mesh (a smaller edge length)")
         f_in, f_out, _ = splits[0]
-        l1, l2 = _tet_face_local(T, tf, t, f_in), _tet_face_local(T, tf, t, f_out)
-        p, q = b.face_point[f_in], b.face_point[f_out]
+        if f_in is None and f_out is None:
+            new_tets.append(T[t].copy())
+            parent.append(t)
+            continue
+        if f_in is None or f_out is None:
+            f = f_in if f_out is None else f_out
+            l1 = _tet_face_local(T, tf, t, int(f))
+            p = b.face_point[int(f)]
+            for i in range(4):
+                if i == l1:
+                    continue
+                child = T[t].copy()
+                child[i] = p
+                new_tets.append(child)
+                parent.append(t)
+            continue
+        l1, l2 = _tet_face_local(T, tf, t, int(f_in)), _tet_face_local(T, tf, t, int(f_out))
+        p, q = b.face_point[int(f_in)], b.face_point[int(f_out)]
         for i in range(4):
             if i in (l1, l2):
                 continue
@@ -467,6 +577,9 @@ def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X) -> CurveEd
                 ch.vertices = np.array(v, dtype=np.int64)
 
     # the rest: unchanged; split faces must belong to crossed tets or node skins
+    kept = [t for t, sp in b.tet_splits.items() if sp[0][0] is None and sp[0][1] is None]
+    if kept and np.isin(tf[kept], list(b.face_point)).any():
+        raise CurveEdgeError("internal: a tet left whole around a curve's vertex has a split face")
     keep = np.nonzero(~crossed & ~in_ball)[0]
     for f in b.face_point:
         for t in ft[f]:
@@ -488,6 +601,12 @@ def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X) -> CurveEd
     fsrc = np.where(Tn < nV0, Tn, -1)
     for i, sv in cone_src:
         fsrc[len(keep) + i] = np.r_[sv, -1]
+    # a vertex a chain goes through has no frame of its own (the field turns
+    # around it): the tets around it take theirs from their other vertices
+    if routed:
+        fsrc[np.isin(fsrc, list(routed))] = -1
+        if np.any((fsrc < 0).all(axis=1)):
+            raise CurveEdgeError("internal: a tet around a curve's vertex has no other vertex to take a frame from")
 
     # drop the vertices the cones removed and renumber
     used = np.zeros(len(P), bool)
@@ -503,7 +622,7 @@ def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X) -> CurveEd
         ch.vertices = new_id[ch.vertices]
     stats = {"split_faces": len(b.face_point), "crossed_tets": int(crossed.sum()),
              "cone_tets": int(sum(len(x) for x in balls)), "removed_vertices": int(nV - used[:nV].sum()),
-             "tets": out_mesh.n_tets}
+             "tets": out_mesh.n_tets, "routed_vertices": len(routed)}
     stats["min_volume_ratio"] = float(np.min(vol / TetMesh._signed_volumes(X, T)[par]))
     return CurveEdgeMesh(out_mesh, source, par, chains, new_id[node_vertex], stats, fsrc)
 
