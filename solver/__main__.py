@@ -302,12 +302,8 @@ def main(argv: list[str] | None = None) -> int:
             pstats.Stats(profiler, stream=sys.stdout).sort_stats("tottime").print_stats(15)
         io.save_result(out, result)
         print(f"wrote {out}")
-        if args.export:
-            from .io.interchange import field_export
-
-            data = field_export(result)
-            for path in args.export:
-                print("wrote " + ", ".join(io.export_field(result, path, data=data)))
+        for path in args.export:
+            print("wrote " + ", ".join(io.export_field(result, path)))
         status = 0
         if not result.report.converged:
             print(f"warning: not converged: {result.report.status_reason}", file=sys.stderr)

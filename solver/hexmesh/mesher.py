@@ -541,3 +541,66 @@ def _verdict(report: HexReport) -> None:
         why.append(f"the boundary is {100 * report.hausdorff_relative:.1f}% of the diagonal off the surface")
     report.status = DEFECTIVE if why else VALID
     report.reason = "; ".join(why)
+
+
+@dataclass
+class EdgeField:
+    """A solved field on its tet mesh split so that the network runs along
+    tet edges (curve_edges.py), one frame per tet, ready for a hex mesher
+    that wants singular edges on mesh edges (CubeCover, AlgoHex).
+
+    mesh         : TetMesh, the split mesh
+    tet_frames   : (#T, 3, 3) combed per-tet frames, columns the cross axes
+    faces, tets  : (k,) interior faces and (k, 2) their tets (A, B)
+    transition   : (k,) CUBE_GROUP index g with F_A ~ F_B G[g]
+    curve        : (#T,) the prepared curve whose chain runs along an edge of
+                   the tet, -1 elsewhere
+    vertex_frames: (#V, 3, 3) the field's frame at its own vertices; at the
+                   inserted ones (on the curves) that of a tet around them
+    chains       : the curve_edges.Chain of every prepared curve
+    """
+
+    mesh: object
+    tet_frames: np.ndarray
+    faces: np.ndarray
+    tets: np.ndarray
+    transition: np.ndarray
+    curve: np.ndarray
+    vertex_frames: np.ndarray
+    chains: list
+
+
+def field_on_edges(result) -> EdgeField:
+    """The field of a Result (or HexInput) with its curves on tet edges.
+
+    Raises
+    ------
+    HexMeshError
+        where the network cannot be put onto tet edges or the field's
+        transitions do not close as the network prescribes (then no hex
+        mesher can use it either)
+    """
+    inp = result if isinstance(result, HexInput) else HexInput.from_result(result)
+    try:
+        cem = curves_on_edges(inp.mesh, inp.embedding, inp.network)
+    except CurveEdgeError as e:
+        raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}") from None
+    tr = build_transitions(cem, inp.mesh, inp.omega, inp.frames)
+    if tr.bad_edges or len(tr.ambiguous_faces):
+        raise HexMeshError(f"the field's transitions do not close as the network prescribes around "
+                           f"{len(tr.bad_edges)} tet edges" + _unconverged(inp))
+    mesh = cem.mesh
+    curve = np.full(mesh.n_tets, -1, dtype=np.int64)
+    for ch in cem.chains:
+        e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
+        curve[np.nonzero(np.isin(mesh.tet_edges, e).any(axis=1))[0]] = ch.curve
+    VF = np.zeros((mesh.n_vertices, 3, 3))
+    src = cem.source_vertex
+    VF[src >= 0] = inp.frames[src[src >= 0]]
+    new = np.nonzero(src < 0)[0]
+    if len(new):
+        # the first tet around each inserted vertex
+        t_of = np.full(mesh.n_vertices, -1, dtype=np.int64)
+        t_of[mesh.tets.reshape(-1)[::-1]] = np.repeat(np.arange(mesh.n_tets), 4)[::-1]
+        VF[new] = tr.frames[t_of[new]]
+    return EdgeField(mesh, tr.frames, tr.faces, tr.tets, tr.transition, curve, VF, cem.chains)

@@ -190,6 +190,22 @@ def field_export(result) -> FieldExport:
     return FieldExport(mesh, np.asarray(fd.frames), tf, fm, fd.curve, fd.node_region, measures)
 
 
+def edge_field_export(result) -> FieldExport:
+    """The FieldExport of a Result (or hexmesh.HexInput) on its tet mesh split
+    so that every curve runs along tet edges (hexmesh.field_on_edges): the
+    per-tet field's singular edges are then the curves' chains, not
+    staircases of tet edges around them, which is what CubeCover's and
+    AlgoHex's parametrisations need.  Raises HexMeshError where that is not
+    possible."""
+    from ..hexmesh import field_on_edges
+
+    ef = field_on_edges(result)
+    nT = ef.mesh.n_tets
+    tf = TetFrames(ef.tet_frames, np.zeros((nT, 4), np.int64), np.zeros(nT))
+    fm = FaceMatchings(ef.faces, ef.tets, ef.transition, np.ones(len(ef.faces), bool), ef.transition)
+    return FieldExport(ef.mesh, ef.vertex_frames, tf, fm, ef.curve, np.zeros(nT, bool), {})
+
+
 # ======================================================================= VTU
 
 _VTK_TETRA = 10
@@ -665,7 +681,8 @@ FORMATS = {".vtu": "vtu", ".mesh": "medit", ".ovm": "ovm", ".qtn": "qtn"}
 
 
 def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
-                 all_faces: bool = False, data: FieldExport | None = None) -> list[str]:
+                 all_faces: bool = False, data: FieldExport | None = None,
+                 on_edges: bool | None = None) -> list[str]:
     """Write a solved field for ParaView or a hex mesher.
 
     Parameters
@@ -675,8 +692,13 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
     fmt : 'vtu', 'medit' (writes path.mesh + .fra + .perm), 'ovm' or 'qtn'
     binary : VTU only, base64 inline data instead of ASCII
     all_faces : .perm only, list identity matchings too
-    data : ``field_export(result)`` if already computed (to write several
-        formats without recomputing it)
+    data : ``field_export(result)`` or ``edge_field_export(result)`` if
+        already computed (the one this call would make: see on_edges)
+    on_edges : write the field on its tet mesh split so that the curves run
+        along tet edges (``edge_field_export``), for hex meshers; default:
+        yes for 'medit', 'ovm' and 'qtn' when result is a Result (or a
+        HexInput), no for 'vtu' (which shows the field as solved, with its
+        vertex frames and measures) and for a FieldData (no network)
 
     Returns
     -------
@@ -707,7 +729,14 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
         fmt = FORMATS[ext]
     if fmt not in FORMATS.values():
         raise ValueError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS.values())}")
-    fe = field_export(result) if data is None else data
+    if on_edges is None:
+        on_edges = fmt != "vtu" and not isinstance(result, FieldData)
+    if data is not None:
+        fe = data
+    elif on_edges:
+        fe = edge_field_export(result)
+    else:
+        fe = field_export(result)
     mesh = fe.mesh
     if fmt == "vtu":
         pd, cd = vtu_field_data(fe)
