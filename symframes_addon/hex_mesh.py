@@ -228,15 +228,20 @@ def write_hex_mesh(scene, hm: HexMesh, hex_id: str):
     """Replace the scene's hex mesh and irregular edges with hm's, all or
     nothing: both datablocks are built before either output is replaced.
     Returns the hex mesh object."""
-    ng = node_group()
     me = new_hex_mesh_data(hm, hex_id)
+    cu = None
     try:
         cu = new_edges_curve(hm, EDGE_RADIUS * float(hm.report.cell_size or 1.0))
+        ng = node_group()
     except Exception:
         bpy.data.meshes.remove(me)
+        if cu is not None:
+            bpy.data.curves.remove(cu)
         raise
+    first = hex_object(scene) is None
     obj = storage.replace_output(scene, ROLE, OBJECT_NAME, me)
-    obj.show_wire = True  # the cells' outlines: neighbours of equal quality share a color
+    if first:  # the cells' outlines (neighbours of equal quality share a color); the user may turn it off
+        obj.show_wire = True
     mod = obj.modifiers.get(MODIFIER)
     if mod is None:
         mod = obj.modifiers.new(MODIFIER, "NODES")

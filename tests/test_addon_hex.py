@@ -161,6 +161,7 @@ def test_hex_object_is_a_cell_soup_with_the_reports_figures(cyl):
     obj = output(hex_mesh.ROLE)
     assert obj is not None and obj.name == hex_mesh.OBJECT_NAME and obj.type == "MESH"
     assert obj.users_collection[0].get(storage.ROLE_KEY) == "results"
+    assert obj.show_wire  # the cells' outlines
     me, hm = obj.data, cyl.hm
     m = cyl.report.hexes
     # 8 vertices and 6 quads per cell, 12 edges: every cell an island
@@ -368,9 +369,11 @@ def test_hex_mesh_of_the_stored_field_in_a_thread(cyl):
     r = j.outcome.hex_mesh.report
     assert r.status == "valid" and r.hexes == cyl.report.hexes and r.irregular == cyl.report.irregular
     assert r.sj_min == pytest.approx(cyl.report.sj_min, abs=1e-3)  # frames and omega kept in float32
+    output(hex_mesh.ROLE).show_wire = False  # the user's choice, kept when the mesh is replaced
     level, msg = operators.finish_hex_job(scene(), j)
     assert level == "INFO" and f"{r.hexes:,} hexahedra" in msg and "exactly the prescribed curves" in msg
     obj = output(hex_mesh.ROLE)
+    assert not obj.show_wire
     assert obj.data[hex_mesh.HEX_ID_KEY] == j.outcome.hex_id and obj.data.name == hex_mesh.OBJECT_NAME
     assert len([o for o in bpy.data.objects if o.get(storage.ROLE_KEY) == hex_mesh.ROLE]) == 1  # replaced
     # a defective mesh is written all the same, and said to be
