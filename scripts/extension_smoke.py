@@ -11,7 +11,8 @@ bundles for this platform and Python into the user resources'
 extensions/.local site-packages, which comes first on sys.path as in
 Blender.  Then: an example's compute, glyphs, streamlines, the diagnostics
 (singular faces, error slice), save the .blend and reload it, glyphs again
-from the reloaded file, and clear.  Each step runs only if the previous
+from the reloaded file, a hex mesh of the reloaded field (its Hex View
+modifier evaluated exploded and fallen away, exported as .vtu), and clear.  Each step runs only if the previous
 ones passed; the last stdout line is ``RESULT {json}`` with a result per
 step (``ok`` or the error) and the versions that ran.  Used by
 tests/test_extension.py and scripts/matrix.py.
@@ -27,7 +28,7 @@ import sys
 import time
 import traceback
 
-STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "save_reload", "clear")
+STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "save_reload", "hex", "clear")
 ADDON = "bl_ext.user_default.symframes"
 
 
@@ -85,7 +86,7 @@ def main(argv: list[str]) -> int:
         if not mesher:
             raise RuntimeError("no fTetWild bindings (pytetwild or wildmeshing) were installed")
         ops = ("compute", "check_network", "show_glyphs", "trace_streamlines", "show_singular_faces",
-               "show_slice", "clear")
+               "show_slice", "hex_mesh", "export_hex_mesh", "clear")
         missing = [n for n in ops if not hasattr(bpy.ops.symframes, n)]
         if missing:
             raise RuntimeError(f"operators missing: {missing}")
@@ -129,6 +130,31 @@ def main(argv: list[str]) -> int:
         finished(bpy.ops.symframes.show_glyphs(), "show_glyphs after reload")
         if len(roles()["glyphs"].data.vertices) != out["glyphs"]:
             raise RuntimeError("glyphs differ after reload")
+
+    def hex():
+        # the reloaded file's field: the network is traced through it again
+        s = bpy.context.scene.symframes  # the scene of the reloaded file
+        s.hex_cells = 300
+        finished(bpy.ops.symframes.hex_mesh(), "hex_mesh")
+        obj = roles()["hex_mesh"]
+        report = json.loads(obj.data["symframes_hex_report"])
+        out["hexes"], out["hex_status"] = report["hexes"], report["status"]
+        if len(obj.data.polygons) != 6 * report["hexes"]:
+            raise RuntimeError(f"{len(obj.data.polygons)} faces for {report['hexes']} hexahedra")
+        # the Hex View modifier's nodes exist in this Blender: shrink the cells, hide half of them
+        s.hex_explode, s.hex_fall_away = 0.5, 0.5
+        dg = bpy.context.evaluated_depsgraph_get()
+        dg.update()
+        ev = obj.evaluated_get(dg)
+        me = ev.to_mesh()
+        shown = len(me.polygons)
+        ev.to_mesh_clear()
+        if not 0 < shown < len(obj.data.polygons):
+            raise RuntimeError(f"Hex View shows {shown} of {len(obj.data.polygons)} faces at Fall Away 0.5")
+        path = os.path.join(os.getcwd(), "smoke_hex.vtu")
+        finished(bpy.ops.symframes.export_hex_mesh(filepath=path, file_format="VTU"), "export_hex_mesh")
+        if not os.path.getsize(path):
+            raise RuntimeError("the hex mesh export is empty")
 
     def clear():
         finished(bpy.ops.symframes.clear(), "clear")

@@ -6,8 +6,9 @@ Blender (3.11 for 4.2-5.0, 3.13 for 5.1 and later), its bpy module and the
 numpy that Blender ships; the zip of the row's variant built by
 scripts/build_extension.py for linux-x64; then scripts/extension_smoke.py
 (install from disk into a temporary BLENDER_USER_RESOURCES, enable,
-compute, glyphs, streamlines, diagnostics, save and reload, clear).  Prints
-a table; --write puts it into README.md between the matrix markers.
+compute, glyphs, streamlines, diagnostics, save and reload, hex mesh,
+clear).  Prints a table; --write puts it into README.md between the matrix
+markers.
 
     ./dev.sh matrix                       # every row of ROWS
     ./dev.sh matrix --bpy 4.2.23 --bpy 5.1.2 --mesher wildmeshing
@@ -48,7 +49,7 @@ ROWS = [
     ("5.1.2", None), ("5.2.3", None), ("5.3.0", None),
     ("4.2.23", "wildmeshing"), ("5.0.1", "wildmeshing"), ("5.3.0", "wildmeshing"),
 ]
-STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "save_reload", "clear")
+STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "save_reload", "hex", "clear")
 MARK_BEGIN, MARK_END = "<!-- matrix -->", "<!-- /matrix -->"
 
 

@@ -10,7 +10,7 @@ Modules, in the order data flows through them:
 
 * properties        -- scene settings and per-curve settings (saved in the .blend)
 * scene_io          -- domain mesh + network curves -> solver arrays
-* job               -- the solve, off the main thread, cancellable
+* job               -- the solve and hex meshing, off the main thread, cancellable
 * display           -- glyph samples, streamlines and the diagnostics' slice
                        faces and edges from a field (solver.FrameField and its sampling)
 * storage           -- the solved field (frames, omega) in the .blend; the output objects
@@ -19,7 +19,10 @@ Modules, in the order data flows through them:
 * diagnostics       -- singular faces of a stored field as a mesh object
 * omega_arrows      -- the Darboux derivative omega as instanced arrows
 * error_slice       -- tet faces coloured by monodromy or adaptation error
-* exchange          -- Export Field, Import Network, the tet mesh as an object
+* hex_mesh          -- the hex mesh as cells (quality colors, the Hex View
+                       modifier: explode, fall away) and its irregular edges
+* exchange          -- Export Field, Export Hex Mesh, Import Network, the tet
+                       mesh as an object
 * operators, panel, menus -- the user interface (sidebar tab; Object, Add and
                        File menus, which F3 search finds)
 * examples, presentation -- example scenes; camera, lights, render settings

@@ -1,6 +1,6 @@
-"""Files in and out: Export Field (File > Export), Import Network (File >
-Import) and the tet mesh as a Blender object (so Blender's own exporters
-reach it).
+"""Files in and out: Export Field and Export Hex Mesh (File > Export),
+Import Network (File > Import) and the tet mesh as a Blender object (so
+Blender's own exporters reach it).
 
 The formats are the solver's (solver.io; docs/usage.md); this module only
 moves arrays between them and the scene.  A failed import or export leaves
@@ -17,8 +17,8 @@ from bpy.props import EnumProperty, FloatProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ..solver import SymFramesError
-from ..solver.io import export_field, read_network, read_obj, read_tet_network
-from . import examples, storage
+from ..solver.io import HEX_FORMATS, export_field, export_hexmesh, read_network, read_obj, read_tet_network
+from . import examples, hex_mesh, storage
 
 FORMATS = (
     ("VTU", "VTU (ParaView)", "VTK XML unstructured grid: vertex and per-tet frames, curve markers, error measures",
@@ -29,6 +29,9 @@ FORMATS = (
     ("QTN", "Quaternions (.qtn, AlgoHex)", "One w x y z line per tet, in the tet order of the other formats", ".qtn"),
 )
 EXTENSION = {key: ext for key, _, _, ext in FORMATS}
+HEX_FILE_FORMATS = tuple((ext[1:].upper(), f"{name} ({ext})", f"The hex mesh as {name} ({ext})", ext)
+                         for ext, name in HEX_FORMATS.items())
+HEX_EXTENSION = {key: ext for key, _, _, ext in HEX_FILE_FORMATS}
 TAG_CONVENTIONS = (
     ("INDEX", "Index", "Tag in quarter turns, +1 the valence-3 edge (SymFrames' sign)"),
     ("NEGATED", "Negated Index", "Tag in quarter turns counted the other way: -1 the valence-3 edge"),
@@ -87,6 +90,66 @@ class SYMFRAMES_OT_export_field(bpy.types.Operator, ExportHelper):
             return {"CANCELLED"}
         try:
             written = export_field(storage.read_field_data(context.scene), path, self.file_format.lower())
+        except (SymFramesError, ValueError, OSError) as e:
+            self.report({"ERROR"}, f"SymFrames: export failed: {e}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, "SymFrames: wrote " + ", ".join(os.path.basename(p) for p in written))
+        return {"FINISHED"}
+
+
+def _with_extension(path: str, ext: str, known) -> str:
+    """path ending in ext: a known extension replaced, any other kept and ext added."""
+    stem, old = os.path.splitext(path)
+    if old.lower() == ext:
+        return path
+    return (stem if old.lower() in known else path) + ext
+
+
+class SYMFRAMES_OT_export_hex_mesh(bpy.types.Operator, ExportHelper):
+    """Write the hex mesh for ParaView, a finite-element code or HexEx."""
+
+    bl_description = ("Write the last hex mesh: VTU or legacy VTK (with the scaled Jacobian per cell), MEDIT .mesh, "
+                      "or the integer-grid map it came from (.hexex, for HexEx and libHexHex)")
+
+    bl_idname = "symframes.export_hex_mesh"
+    bl_label = "Export SymFrames Hex Mesh"
+    bl_options = {"PRESET"}
+
+    filename_ext = ".vtu"
+    filter_glob: StringProperty(default=";".join(f"*{ext}" for ext in HEX_FORMATS), options={"HIDDEN"})
+    file_format: EnumProperty(name="Format", items=[f[:3] for f in HEX_FILE_FORMATS], default="VTU")
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None or hex_mesh.hex_object(context.scene) is None:
+            cls.poll_message_set("no hex mesh yet: press Hex Mesh first")
+            return False
+        return True
+
+    def check(self, context):
+        # keep the file name's extension in step with the chosen format
+        path = _with_extension(self.filepath, HEX_EXTENSION[self.file_format], HEX_FORMATS)
+        changed = path != self.filepath
+        self.filepath = path
+        return changed
+
+    def invoke(self, context, event):
+        self.filename_ext = HEX_EXTENSION[self.file_format]
+        return ExportHelper.invoke(self, context, event)
+
+    def execute(self, context):
+        path = _with_extension(self.filepath, HEX_EXTENSION[self.file_format], HEX_FORMATS)
+        folder = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(folder):
+            self.report({"ERROR"}, f"SymFrames: the folder {folder} does not exist")
+            return {"CANCELLED"}
+        try:
+            hm, made_here = hex_mesh.hex_mesh_to_export(context.scene)
+            if self.file_format == "HEXEX" and not made_here:
+                # the map is not kept in the .blend: only a hex mesh made in this session has it
+                raise ValueError("this hex mesh was read back from the .blend, which does not keep the integer-grid "
+                                 "map; make the hex mesh again to write its integer-grid map")
+            written = export_hexmesh(hm, path)
         except (SymFramesError, ValueError, OSError) as e:
             self.report({"ERROR"}, f"SymFrames: export failed: {e}")
             return {"CANCELLED"}
@@ -184,5 +247,6 @@ class SYMFRAMES_OT_import_network(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
-CLASSES = (SYMFRAMES_OT_export_field, SYMFRAMES_OT_tet_mesh_object, SYMFRAMES_OT_import_network)
+CLASSES = (SYMFRAMES_OT_export_field, SYMFRAMES_OT_export_hex_mesh, SYMFRAMES_OT_tet_mesh_object,
+           SYMFRAMES_OT_import_network)
 

@@ -1,61 +1,101 @@
-"""A solve run off the main thread (no bpy here).
+"""Work run off the main thread (no bpy here): a solve, or a hex mesh.
 
-``SolveJob`` takes plain arrays (scene_io.Inputs and a DisplaySettings
-snapshot), runs FieldProblem + solve + glyph/streamline sampling, and keeps
-the latest progress message, the outcome and the error.  The compute
-operator starts it in a thread and polls it from a modal timer; all writing
-to the scene happens afterwards on the main thread, and only on success.
-``run()`` is the same work in the calling thread (background mode, tests).
+A ``Job`` takes plain arrays, runs in a worker thread and keeps the latest
+progress message, the outcome and the error; the operators start it and
+poll it from a modal timer.  All writing to the scene happens afterwards on
+the main thread, and only on success.  ``run()`` is the same work in the
+calling thread (background mode, tests).
 
-The tet mesh of the last solve is kept in memory with the fingerprint of
-what it depends on, so re-solving after changing only solver settings
-(penalty, iterations, start, indices) does not remesh.
+* ``SolveJob``: FieldProblem + solve + glyph/streamline sampling.
+* ``HexJob``: solver.hexmesh of the last solve's Result, or of the stored
+  field with the network traced through it again (``StoredField``).
+
+Kept in memory beside the scene, each with what it depends on:
+
+* the tet mesh of the last solve, with the fingerprint of its inputs, so
+  re-solving after changing only solver settings (penalty, iterations,
+  start, indices) does not remesh;
+* the last solve's Result, under the id written on its field datablock, so
+  Hex Mesh uses the solve's own network embedding while that field is the
+  scene's;
+* the last HexMesh, under the id written on its object, so that the export
+  writes it in full precision with its integer-grid map.
 """
 
 from __future__ import annotations
 
 import threading
+import uuid
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..solver import Cancelled, FieldProblem, FrameField, Report, vertex_normal_adaptation
+from ..solver import (
+    Cancelled,
+    FieldProblem,
+    FrameField,
+    HexInput,
+    HexMesh,
+    Report,
+    check,
+    hexmesh,
+    input_from_check,
+    vertex_normal_adaptation,
+)
 from ..solver.io import FieldData, field_data
 from . import display
 
 _MESH_CACHE: dict = {}
+_RESULT_CACHE: dict = {}
+_HEX_CACHE: dict = {}
 
 
 def cached_mesh(key: str):
     return _MESH_CACHE.get("mesh") if _MESH_CACHE.get("key") == key else None
 
 
-@dataclass
-class Outcome:
-    """What the main thread writes after a successful solve."""
-
-    field: FieldData  # tet mesh, frames, omega, per-tet markers, prescribed Omega
-    quaternions: np.ndarray  # (#V, 4) w x y z
-    adaptation: np.ndarray  # (#V,) solver.vertex_normal_adaptation: radians, -1 where not measured
-    network_faces: np.ndarray  # (k,) ids of the faces the network passes through
-    report: Report
-    remeshed: bool = True
-    glyphs: tuple | None = None  # (points, quaternions, errors or None, error attribute name)
-    streamlines: tuple | None = None  # (lines, families)
+def new_id() -> str:
+    """An id for a result kept in memory and written on its datablock."""
+    return uuid.uuid4().hex
 
 
-@dataclass
-class SolveJob:
-    inputs: object  # scene_io.Inputs
-    display: display.DisplaySettings
-    want_glyphs: bool = True
-    want_streamlines: bool = False
-    reuse_mesh: bool = True
+def remember_result(solve_id: str, result) -> None:
+    """Keep the last solve's Result (one at a time: it holds the whole problem)."""
+    _RESULT_CACHE.clear()
+    _RESULT_CACHE.update(id=solve_id, result=result)
+
+
+def cached_result(solve_id: str | None):
+    """The Result written under solve_id, if it is the one kept, else None."""
+    return _RESULT_CACHE.get("result") if solve_id and _RESULT_CACHE.get("id") == solve_id else None
+
+
+def forget_results() -> None:
+    """Drop the kept Result and HexMesh (Clear Results: they are large); the
+    tet mesh stays, as re-solving the same inputs reuses it."""
+    _RESULT_CACHE.clear()
+    _HEX_CACHE.clear()
+
+
+def remember_hex(hex_id: str, hex_mesh: HexMesh) -> None:
+    _HEX_CACHE.clear()
+    _HEX_CACHE.update(id=hex_id, hex=hex_mesh)
+
+
+def cached_hex(hex_id: str | None) -> HexMesh | None:
+    """The HexMesh written under hex_id, if it is the one kept, else None."""
+    return _HEX_CACHE.get("hex") if hex_id and _HEX_CACHE.get("id") == hex_id else None
+
+
+@dataclass(kw_only=True)
+class Job:
+    """Work for a worker thread, cancellable; subclasses define _work()."""
+
     echo: bool = False  # print each stage (background mode)
     stage: str = ""
     fraction: float = 0.0
     message: str = "starting"
-    outcome: Outcome | None = None
+    outcome: object = None
     error: BaseException | None = None
     cancelled: bool = False
     _cancel: threading.Event = field(default_factory=threading.Event)
@@ -63,7 +103,7 @@ class SolveJob:
 
     # --------------------------------------------------------------- control
     def start(self) -> None:
-        self._thread = threading.Thread(target=self.run, name="SymFrames solve", daemon=True)
+        self._thread = threading.Thread(target=self.run, name=f"SymFrames {type(self).__name__}", daemon=True)
         self._thread.start()
 
     def cancel(self) -> None:
@@ -88,13 +128,42 @@ class SolveJob:
         return self._cancel.is_set()
 
     def run(self) -> None:
-        """Solve and sample; sets outcome, or error, or cancelled.  Never raises."""
+        """Do the work; sets outcome, or error, or cancelled.  Never raises."""
         try:
             self.outcome = self._work()
         except Cancelled:
             self.cancelled = True
         except BaseException as e:  # noqa: BLE001 -- handed to the main thread
             self.error = e
+
+    def _work(self):
+        raise NotImplementedError
+
+
+@dataclass
+class Outcome:
+    """What the main thread writes after a successful solve."""
+
+    field: FieldData  # tet mesh, frames, omega, per-tet markers, prescribed Omega
+    quaternions: np.ndarray  # (#V, 4) w x y z
+    adaptation: np.ndarray  # (#V,) solver.vertex_normal_adaptation: radians, -1 where not measured
+    network_faces: np.ndarray  # (k,) ids of the faces the network passes through
+    report: Report
+    remeshed: bool = True
+    glyphs: tuple | None = None  # (points, quaternions, errors or None, error attribute name)
+    streamlines: tuple | None = None  # (lines, families)
+    result: object = None  # the solver Result, kept for Hex Mesh once written (remember_result)
+    solve_id: str = ""  # written on the field datablock: the kept Result is that field's
+    inputs_key: str = ""  # scene_io.Inputs.field_key() of the inputs solved
+
+
+@dataclass
+class SolveJob(Job):
+    inputs: object  # scene_io.Inputs
+    display: display.DisplaySettings
+    want_glyphs: bool = True
+    want_streamlines: bool = False
+    reuse_mesh: bool = True
 
     def _work(self) -> Outcome:
         inp = self.inputs
@@ -107,7 +176,7 @@ class SolveJob:
         adaptation = vertex_normal_adaptation(result)
         network_faces = result.embedding.network_faces(result.mesh)
         out = Outcome(field_data(result), result.quaternions(), adaptation, network_faces, result.report,
-                      remeshed=mesh is None)
+                      remeshed=mesh is None, result=result, solve_id=new_id(), inputs_key=inp.field_key())
         if self.want_glyphs or self.want_streamlines:
             self._progress("display", 0.97, "sampling glyphs and streamlines")
             f = FrameField.from_result(result)
@@ -125,3 +194,54 @@ class SolveJob:
             raise Cancelled()
         return out
 
+
+@dataclass
+class StoredField:
+    """A field read back from the .blend, without the solve's Result: the
+    network is traced through its tet mesh again (solver.input_from_check)
+    from the scene's inputs, which must be the ones it was solved with.
+
+    field  : storage.read_field_data's FieldData (mesh, frames, omega)
+    inputs : scene_io.Inputs (surface, network, options)
+    node_radius : an upper bound of the solve's node-region radius
+    status : the stored Report's status ('converged' or not)
+    """
+
+    field: FieldData
+    inputs: object
+    node_radius: float
+    status: str
+
+    def hex_input(self) -> HexInput:
+        inp = self.inputs
+        checked = check(inp.V, inp.F, inp.network, options=inp.options).checked
+        f = self.field
+        return input_from_check(f.mesh, f.frames, f.omega, checked, self.node_radius, self.status)
+
+
+@dataclass
+class HexOutcome:
+    """What the main thread writes after a hex-meshing run."""
+
+    hex_mesh: HexMesh
+    hex_id: str
+
+
+@dataclass
+class HexJob(Job):
+    source: object  # a solver Result, or a StoredField
+    cell_size: float | None = None  # None: automatic, about target_hexes cells
+    target_hexes: int = 3000
+    smooth: bool = True
+
+    def _work(self) -> HexOutcome:
+        if isinstance(self.source, StoredField):
+            self._progress("network", 0.0, "tracing the network through the stored field")
+            inp = self.source.hex_input()
+        else:
+            inp = HexInput.from_result(self.source)
+        if self._is_cancelled():
+            raise Cancelled()
+        hm = hexmesh(inp, self.cell_size, smooth=self.smooth, progress=self._progress, cancel=self._is_cancelled,
+                     target_hexes=self.target_hexes)
+        return HexOutcome(hm, new_id())

@@ -27,12 +27,15 @@ OBJECT_ENTRIES = (
     ("symframes.show_omega", "ORIENTATION_GIMBAL"),
     ("symframes.show_slice", "MOD_BOOLEAN"),
     None,
+    ("symframes.hex_mesh", "MESH_CUBE"),
+    None,
     ("symframes.tet_mesh_object", "MESH_ICOSPHERE"),
     ("symframes.clear", "TRASH"),
 )
 # (operator bl_idname, menu text, icon), named as Blender names its importers and exporters
 IMPORT_ENTRIES = [("symframes.import_network", "SymFrames Network (.json, .ovm, .mesh)", "NONE")]
-EXPORT_ENTRIES = [("symframes.export_field", "SymFrames Field (.vtu, .mesh, .ovm, .qtn)", "NONE")]
+EXPORT_ENTRIES = [("symframes.export_field", "SymFrames Field (.vtu, .mesh, .ovm, .qtn)", "NONE"),
+                  ("symframes.export_hex_mesh", "SymFrames Hex Mesh (.vtu, .vtk, .mesh, .hexex)", "NONE")]
 
 
 def operator_registered(idname: str) -> bool:
@@ -64,7 +67,10 @@ class SYMFRAMES_MT_object(bpy.types.Menu):
         layout = self.layout
         draw_entries(layout, OBJECT_ENTRIES[:2])
         layout.operator_menu_enum("symframes.apply_preset", "preset", icon="PRESET")
-        draw_entries(layout, OBJECT_ENTRIES[2:])
+        hexing = OBJECT_ENTRIES.index(("symframes.hex_mesh", "MESH_CUBE"))
+        draw_entries(layout, OBJECT_ENTRIES[2:hexing + 1])
+        layout.operator_menu_enum("symframes.apply_hex_preset", "preset", icon="PRESET")
+        draw_entries(layout, OBJECT_ENTRIES[hexing + 1:])
 
 
 class SYMFRAMES_MT_add_example(bpy.types.Menu):

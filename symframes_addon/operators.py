@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty
 
-from ..solver import SymFramesError, TopologyError, check
+from ..solver import HexMeshError, SymFramesError, TopologyError, check
 from ..solver.examples import EXAMPLES
 from . import (
     diagnostics,
@@ -19,6 +19,7 @@ from . import (
     error_slice,
     examples,
     glyphs,
+    hex_mesh,
     job,
     omega_arrows,
     properties,
@@ -27,7 +28,7 @@ from . import (
     streamline_curves,
 )
 
-_RUNNING: dict = {}  # the one solve running in the background, if any
+_RUNNING: dict = {}  # the one job (solve or hex mesh) running in the background, if any
 
 
 def running_job():
@@ -53,6 +54,8 @@ def write_outcome(scene, out: job.Outcome) -> None:
         field_me = storage.new_field_mesh(out.field, out.quaternions, out.adaptation, out.network_faces, out.report,
                                           out.remeshed)
         created.append((bpy.data.meshes, field_me))
+        field_me[storage.SOLVE_ID_KEY] = out.solve_id
+        field_me[storage.INPUTS_KEY] = out.inputs_key
         glyph_me = curve = None
         if out.glyphs is not None:
             glyph_me = glyphs.new_glyph_mesh(*out.glyphs)
@@ -65,6 +68,8 @@ def write_outcome(scene, out: job.Outcome) -> None:
             coll.remove(data)
         raise
     storage.set_field(scene, field_me)
+    if out.result is not None:
+        job.remember_result(out.solve_id, out.result)
     if glyph_me is not None:
         glyphs.install_glyph_mesh(scene, glyph_me)
     else:
@@ -73,7 +78,7 @@ def write_outcome(scene, out: job.Outcome) -> None:
         storage.replace_output(scene, "streamlines", "SymFrames Streamlines", curve)
     else:
         storage.remove_output(scene, "streamlines")
-    for role in ("singular_faces", omega_arrows.ROLE, error_slice.ROLE):
+    for role in ("singular_faces", omega_arrows.ROLE, error_slice.ROLE, hex_mesh.ROLE, hex_mesh.EDGES_ROLE):
         storage.remove_output(scene, role)
 
 
@@ -152,39 +157,23 @@ class SYMFRAMES_OT_check_network(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class SYMFRAMES_OT_compute(bpy.types.Operator):
-    """Compute the cross field of the domain and network (Esc cancels)"""
-
-    bl_idname = "symframes.compute"
-    bl_label = "Compute Field"
-    bl_options = {"REGISTER", "UNDO"}
-
-    glyphs: BoolProperty(name="Glyphs", default=True, description="Also sample cross glyphs")
-    streamlines: BoolProperty(
-        name="Streamlines", default=False,
-        description="Also trace streamlines (they are always refreshed if the scene already has them)",
-    )
+class _Threaded:
+    """An operator whose work is a job.Job: in a worker thread polled by a
+    modal timer when invoked from the UI (progress in the status bar and the
+    panel, Esc cancels), in the calling thread by execute() (background
+    mode, scripts, tests).  Subclasses define _prepare(context, echo) -> Job
+    or None (reading the scene; None after reporting why) and
+    _finish(scene, job) -> (level, message) (writing it, on the main thread)."""
 
     @classmethod
     def poll(cls, context):
         if running_job() is not None:
-            cls.poll_message_set("a SymFrames solve is already running")
+            cls.poll_message_set("a SymFrames job is already running")
             return False
         return context.scene is not None
 
-    def _prepare(self, context, echo: bool = False):
-        try:
-            inp = scene_io.read_inputs(context)
-        except (SymFramesError, ValueError) as e:
-            self.report({"ERROR"}, error_text(e))
-            return None
-        scene = context.scene
-        want_lines = self.streamlines or storage.output_object(scene, "streamlines") is not None
-        return job.SolveJob(inp, display.DisplaySettings.from_scene(scene), want_glyphs=self.glyphs,
-                            want_streamlines=want_lines, echo=echo)
-
-    def _finish(self, scene, j) -> set:
-        level, msg = finish_job(scene, j)
+    def _done(self, scene, j) -> set:
+        level, msg = self._finish(scene, j)
         self.report({level}, msg)
         return {"FINISHED"} if level != "ERROR" and not j.cancelled else {"CANCELLED"}
 
@@ -193,7 +182,7 @@ class SYMFRAMES_OT_compute(bpy.types.Operator):
         if j is None:
             return {"CANCELLED"}
         j.run()
-        return self._finish(context.scene, j)
+        return self._done(context.scene, j)
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
@@ -223,7 +212,7 @@ class SYMFRAMES_OT_compute(bpy.types.Operator):
             self._show_status(context, j)
             if j.done:
                 self._cleanup(context)
-                return self._finish(bpy.data.scenes.get(self._scene_name), j)
+                return self._done(bpy.data.scenes.get(self._scene_name), j)
         return {"PASS_THROUGH"}
 
     def cancel(self, context):
@@ -250,6 +239,127 @@ class SYMFRAMES_OT_compute(bpy.types.Operator):
             context.workspace.status_text_set(None)
         _RUNNING.clear()
         _tag_redraw(context)
+
+
+class SYMFRAMES_OT_compute(_Threaded, bpy.types.Operator):
+    """Compute the cross field of the domain and network (Esc cancels)"""
+
+    bl_idname = "symframes.compute"
+    bl_label = "Compute Field"
+    bl_options = {"REGISTER", "UNDO"}
+
+    glyphs: BoolProperty(name="Glyphs", default=True, description="Also sample cross glyphs")
+    streamlines: BoolProperty(
+        name="Streamlines", default=False,
+        description="Also trace streamlines (they are always refreshed if the scene already has them)",
+    )
+
+    def _prepare(self, context, echo: bool = False):
+        try:
+            inp = scene_io.read_inputs(context)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return None
+        scene = context.scene
+        want_lines = self.streamlines or storage.output_object(scene, "streamlines") is not None
+        return job.SolveJob(inp, display.DisplaySettings.from_scene(scene), want_glyphs=self.glyphs,
+                            want_streamlines=want_lines, echo=echo)
+
+    def _finish(self, scene, j):
+        return finish_job(scene, j)
+
+
+def hex_source(context):
+    """What Hex Mesh meshes: the Result of the last Compute Field while the
+    stored field is that result; else the stored field, with the scene's
+    network traced through it again (job.StoredField), which needs the
+    scene's inputs to be the ones it was solved with.  ValueError (or a
+    SymFramesError) says why there is none."""
+    scene = context.scene
+    me = storage.stored_field(scene)
+    if me is None:
+        raise ValueError("no field computed yet: press Compute Field first")
+    result = job.cached_result(me.get(storage.SOLVE_ID_KEY))
+    if result is not None:
+        return result
+    report = storage.stored_report(scene)
+    if report is None or not report.edge_length:
+        raise ValueError("this result stores no report of its solve; compute the field again")
+    inp = scene_io.read_inputs(context)
+    solved = me.get(storage.INPUTS_KEY)
+    if solved is not None and solved != inp.field_key():
+        raise ValueError("the domain, the network or their settings changed since the field was computed, so the "
+                         "stored field is not theirs: press Compute Field again (or undo the change)")
+    # the solve's node regions had a radius of node_radius edge lengths at most
+    # (less between close nodes); the hex stage takes an upper bound
+    radius = inp.options.node_radius * report.edge_length * 1.5
+    return job.StoredField(storage.read_field_data(scene), inp, radius, report.status)
+
+
+def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
+    """Write a finished hex job into the scene (only if it succeeded);
+    returns (report level, message) as finish_job does."""
+    if j.cancelled:
+        return "WARNING", "SymFrames: hex meshing cancelled; the scene is unchanged"
+    if j.error is not None:
+        if not isinstance(j.error, (SymFramesError, ValueError)):
+            traceback.print_exception(j.error)
+        msg = error_text(j.error)
+        stage_failed = isinstance(j.error, HexMeshError) and j.error.report is not None  # not the settings
+        if isinstance(j.source, job.StoredField) and stage_failed:
+            # the network traced again is not always the solve's (node regions): say what else to try
+            msg += (" (the field was read back from the file, its network traced through it again; if this "
+                    "persists, Compute Field again and make the hex mesh in the same session: the solve's own "
+                    "network embedding is kept in memory, not in the file)")
+        return "ERROR", msg
+    if scene is None:
+        return "ERROR", "SymFrames: the scene was deleted during hex meshing; nothing was written"
+    out = j.outcome
+    try:
+        hex_mesh.write_hex_mesh(scene, out.hex_mesh, out.hex_id)
+    except Exception as e:
+        traceback.print_exc()
+        return "ERROR", error_text(e)
+    job.remember_hex(out.hex_id, out.hex_mesh)
+    r = out.hex_mesh.report
+    irregular = ", ".join(f"{n} of valence {v}" for v, n in sorted(r.irregular.items())) or "none"
+    msg = (f"SymFrames: {r.hexes:,} hexahedra, scaled Jacobian min {r.sj_min:.3f} mean {r.sj_mean:.3f}; "
+           f"irregular edges {irregular}, "
+           f"{'exactly the prescribed curves' if r.structure_exact else 'not the prescribed curves'}")
+    if r.status != "valid":
+        # written all the same, so that the defect can be seen, but said plainly
+        return "WARNING", f"{msg}; the hex mesh is defective: {r.reason}"
+    return "INFO", msg
+
+
+class SYMFRAMES_OT_hex_mesh(_Threaded, bpy.types.Operator):
+    """Make a pure hexahedral mesh of the computed field, its irregular edges the network's curves (Esc cancels)"""
+
+    bl_idname = "symframes.hex_mesh"
+    bl_label = "Hex Mesh"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if not super().poll(context):
+            return False
+        if storage.stored_field(context.scene) is None:
+            cls.poll_message_set("no field computed yet: press Compute Field first")
+            return False
+        return True
+
+    def _prepare(self, context, echo: bool = False):
+        try:
+            source = hex_source(context)
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return None
+        s = context.scene.symframes
+        return job.HexJob(source=source, cell_size=float(s.hex_cell_size) if s.hex_cell_size > 0 else None,
+                          target_hexes=int(s.hex_cells), smooth=bool(s.hex_smooth), echo=echo)
+
+    def _finish(self, scene, j):
+        return finish_hex_job(scene, j)
 
 
 def _stored_field(op, context):
@@ -410,11 +520,13 @@ class SYMFRAMES_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         removed = storage.clear_results(context.scene)
+        job.forget_results()
         # shared helpers (the glyph node groups, the materials), once nothing uses them
         glyphs.remove_unused_helpers()
         omega_arrows.remove_unused_helpers()
         diagnostics.remove_unused_materials()
         error_slice.remove_unused_material()
+        hex_mesh.remove_unused_helpers()
         if not removed:
             self.report({"INFO"}, "SymFrames: nothing to clear")
             return {"CANCELLED"}
@@ -463,9 +575,27 @@ class SYMFRAMES_OT_apply_preset(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SYMFRAMES_OT_apply_hex_preset(bpy.types.Operator):
+    """Set the automatic hex cell size for a number of cells: Coarse, Medium (the default) or Fine"""
+
+    bl_idname = "symframes.apply_hex_preset"
+    bl_label = "Apply Hex Preset"
+    bl_options = {"REGISTER", "UNDO"}
+
+    preset: EnumProperty(name="Preset", items=properties.HEX_PRESET_ITEMS, default="MEDIUM")
+
+    def execute(self, context):
+        s = context.scene.symframes
+        s.hex_cells = properties.HEX_PRESETS[self.preset]
+        s.hex_cell_size = 0.0  # the preset is a cell count: the automatic size
+        self.report({"INFO"}, f"SymFrames: {self.preset.capitalize()} hex mesh, about {s.hex_cells:,} cells")
+        return {"FINISHED"}
+
+
 CLASSES = (
     SYMFRAMES_OT_check_network,
     SYMFRAMES_OT_compute,
+    SYMFRAMES_OT_hex_mesh,
     SYMFRAMES_OT_show_glyphs,
     SYMFRAMES_OT_trace_streamlines,
     SYMFRAMES_OT_show_singular_faces,
@@ -474,4 +604,5 @@ CLASSES = (
     SYMFRAMES_OT_clear,
     SYMFRAMES_OT_add_example,
     SYMFRAMES_OT_apply_preset,
+    SYMFRAMES_OT_apply_hex_preset,
 )

@@ -4,7 +4,7 @@ import fnmatch
 
 import bpy
 
-from . import diagnostics, error_slice, operators, storage
+from . import diagnostics, error_slice, hex_mesh, job, operators, storage
 
 
 class SymFramesPanel:
@@ -47,7 +47,7 @@ class SYMFRAMES_PT_main(SymFramesPanel, bpy.types.Panel):
         row.operator_enum("symframes.apply_preset", "preset")
         layout.operator("symframes.check_network", icon="CHECKMARK")
         j = operators.running_job()
-        if j is not None:
+        if isinstance(j, job.SolveJob):
             layout.progress(factor=j.fraction, text=f"{j.message} (Esc to cancel)")
         else:
             layout.operator("symframes.compute", icon="PLAY")
@@ -224,6 +224,62 @@ class SYMFRAMES_PT_result(SymFramesPanel, bpy.types.Panel):
         row.operator("symframes.tet_mesh_object", text="Tet Mesh", icon="MESH_ICOSPHERE")
 
 
+class SYMFRAMES_PT_hex(SymFramesPanel, bpy.types.Panel):
+    bl_label = "Hex Mesh"
+    bl_parent_id = "SYMFRAMES_PT_main"
+
+    def draw(self, context):
+        scene = context.scene
+        s = scene.symframes
+        layout = _split(self.layout)
+        col = layout.column()
+        col.prop(s, "hex_cell_size")
+        sub = col.row()
+        sub.active = s.hex_cell_size == 0  # the cell count only picks the automatic size
+        sub.prop(s, "hex_cells")
+        row = layout.row(align=True)
+        row.use_property_split = False
+        row.operator_enum("symframes.apply_hex_preset", "preset")
+        layout.prop(s, "hex_smooth")
+        j = operators.running_job()
+        if isinstance(j, job.HexJob):
+            layout.progress(factor=j.fraction, text=f"{j.message} (Esc to cancel)")
+        else:
+            layout.operator("symframes.hex_mesh", icon="MESH_CUBE")
+        r = hex_mesh.stored_report(scene)
+        if r is None:
+            if storage.stored_field(scene) is None:
+                layout.label(text="Compute a field first")
+            return
+        draw_hex_report(layout.column(align=True), r)
+        col = layout.column(heading="View")
+        col.prop(s, "hex_explode")
+        col.prop(s, "hex_fall_away")
+        col.prop(s, "hex_axis")
+        layout.label(text="Quality colors: Solid view, Color: Material or Attribute", icon="INFO")
+        layout.operator("symframes.export_hex_mesh", text="Export Hex Mesh…", icon="EXPORT")
+
+
+def draw_hex_report(col, r: dict) -> None:
+    """The verdict and figures of a stored HexReport (as_dict)."""
+    valid = r.get("status") == "valid"
+    col.label(text="Valid hex mesh" if valid else "Defective hex mesh", icon="CHECKMARK" if valid else "ERROR")
+    if not valid and r.get("reason"):
+        for part in str(r["reason"]).split("; "):
+            col.label(text=f"   {part}")
+    col.label(text=f"Hexahedra {r.get('hexes', 0):,}   vertices {r.get('vertices', 0):,}")
+    col.label(text=f"Cell size {r.get('cell_size', 0):.3g}")
+    col.label(text=f"Scaled Jacobian min {r.get('sj_min', 0):.3f}   mean {r.get('sj_mean', 0):.3f}")
+    col.label(text=f"   before smoothing min {r.get('sj_min_raw', 0):.3f}")
+    irregular = r.get("irregular") or {}
+    by_valence = ", ".join(f"{n} of valence {v}" for v, n in sorted(irregular.items(), key=lambda kv: int(kv[0])))
+    col.label(text=f"Irregular edges: {by_valence or 'none'}")
+    exact = bool(r.get("structure_exact"))
+    col.label(text="   exactly the prescribed curves" if exact else "   not the prescribed curves",
+              icon="CHECKMARK" if exact else "ERROR")
+    col.label(text=f"Hausdorff distance {100 * r.get('hausdorff_relative', 0):.2f}% of the diagonal")
+
+
 class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
     bl_label = "Diagnostics"
     bl_parent_id = "SYMFRAMES_PT_main"
@@ -267,4 +323,4 @@ class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):
 
 
 CLASSES = (SYMFRAMES_UL_curves, SYMFRAMES_PT_main, SYMFRAMES_PT_curve, SYMFRAMES_PT_advanced, SYMFRAMES_PT_display,
-           SYMFRAMES_PT_result, SYMFRAMES_PT_diagnostics)
+           SYMFRAMES_PT_result, SYMFRAMES_PT_hex, SYMFRAMES_PT_diagnostics)

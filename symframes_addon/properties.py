@@ -64,6 +64,14 @@ PRESET_ITEMS = (
     ("STANDARD", "Standard", "Auto resolution aiming at about 15,000 tets, at most 50 iterations (the defaults)"),
     ("FINE", "Fine", "Auto resolution aiming at about 50,000 tets, at most 60 iterations: a finer field, slower"),
 )
+# Hex Cells presets (the Apply Hex Preset operator): about how many hexahedra
+# the automatic cell size aims at.  Medium is the default, as the solver's.
+HEX_PRESETS = {"COARSE": 800, "MEDIUM": 3000, "FINE": 12000}
+HEX_PRESET_ITEMS = (
+    ("COARSE", "Coarse", "Automatic cell size for about 800 hexahedra: the quickest"),
+    ("MEDIUM", "Medium", "Automatic cell size for about 3,000 hexahedra (the default)"),
+    ("FINE", "Fine", "Automatic cell size for about 12,000 hexahedra"),
+)
 INITS = (
     ("zero", "Zero", "Start Levenberg-Marquardt from omega = 0"),
     ("linear", "Linear", "Start from the solution of the linearised problem"),
@@ -110,6 +118,13 @@ def _update_omega_scale(self, context):
     from . import omega_arrows
 
     omega_arrows.sync_modifier(context.scene)
+
+
+def _update_hex_view(self, context):
+    # Explode, Fall Away and Axis are live inputs of the hex mesh's Geometry Nodes modifier
+    from . import hex_mesh
+
+    hex_mesh.sync_modifier(context.scene)
 
 
 def _update_streamline_radius(self, context):
@@ -247,6 +262,32 @@ class SymFramesSettings(bpy.types.PropertyGroup):
     seed: IntProperty(name="Random Seed", default=0, min=0,
                       description="Seed of the display's random choices: glyph and streamline seed points, and "
                       "which omega arrows are drawn beyond the Arrows limit (not the solve: see Solve Seed)")
+    # -------------------------------------------------------------- hex mesh
+    hex_cell_size: FloatProperty(
+        name="Cell Size", default=0.0, min=0.0, soft_max=10.0, subtype="DISTANCE", precision=3,
+        description="Edge length of the hexahedra (0: automatic, about Hex Cells cells, finer where the "
+        "network's short curves need it)",
+    )
+    hex_cells: IntProperty(
+        name="Hex Cells", default=HEX_PRESETS["MEDIUM"], min=10, soft_max=100000, step=100,
+        description="With Cell Size 0: about how many hexahedra the automatic cell size aims at",
+    )
+    hex_smooth: BoolProperty(
+        name="Smooth", default=True,
+        description="Optimise the hex vertices after extraction (it never lowers the minimum scaled Jacobian)",
+    )
+    hex_explode: FloatProperty(
+        name="Explode", default=0.0, min=0.0, max=0.9, subtype="FACTOR", update=_update_hex_view,
+        description="Shrink every hex cell about its centre, to see the cells inside (live)",
+    )
+    hex_fall_away: FloatProperty(
+        name="Fall Away", default=0.0, min=0.0, max=1.0, subtype="FACTOR", update=_update_hex_view,
+        description="Hide the hex cells beyond a plane sweeping along the axis: 0 hides none, 1 all (live)",
+    )
+    hex_axis: EnumProperty(
+        name="Axis", items=AXES, default="Z", update=_update_hex_view,
+        description="The axis along which Fall Away sweeps (cells on its positive side go first)",
+    )
     # ---------------------------------------------------------------- result
     field: PointerProperty(
         name="Field", type=bpy.types.Mesh,

@@ -55,6 +55,18 @@ class Inputs:
         h.update(repr((self.options.edge_length, auto, self.network.node_tolerance)).encode())
         return h.hexdigest()
 
+    def field_key(self) -> str:
+        """Fingerprint of what a field's network depends on beyond its tet
+        mesh (mesh_key, the curves' indices, the sharp features): equal keys
+        mean that tracing these inputs through a stored field finds the
+        network it was solved with (Hex Mesh on a reopened file)."""
+        h = hashlib.sha1(self.mesh_key().encode())
+        h.update(repr([c.sigma for c in self.network.curves]).encode())
+        h.update(repr(self.network.sharp_angle).encode())
+        if self.network.sharp_edges is not None:
+            h.update(np.ascontiguousarray(self.network.sharp_edges, np.int64).tobytes())
+        return h.hexdigest()
+
 
 def read_domain(obj, depsgraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World-space triangles of a mesh object with modifiers applied.

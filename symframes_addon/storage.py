@@ -24,14 +24,25 @@ setting ``symframes.field`` (a pointer counts as a user, so it is saved):
 * ``["symframes_report"]`` = JSON, solver.Report.to_dict() of the solve;
   ``["symframes_remeshed"]`` = whether the solve made its tet mesh (else it
   reused the previous one)
+* ``["symframes_solve_id"]`` = the id under which job.py keeps the solve's
+  Result in memory (Hex Mesh uses it while it is kept);
+  ``["symframes_inputs_key"]`` = scene_io.Inputs.field_key() of the inputs
+  solved (Hex Mesh on a reopened file traces the scene's network through the
+  stored mesh again, and refuses if the inputs changed since)
 
-Positions, quaternions and omega are float32 in Blender; the frames are
-rebuilt from the normalised quaternions (solver.io.quaternion_frames), so
-they are exact rotations.
+Quaternions and omega are float32 in Blender; the frames are rebuilt from
+the normalised quaternions (solver.io.quaternion_frames), so they are exact
+rotations.  The vertex positions are kept in full precision as well, in
+``["symframes_positions"]`` (float64, flattened (n, 3)), and read from there:
+Hex Mesh on a reopened file traces the network through the stored tet mesh
+again, and where the mesher put vertices on a curve, positions rounded to
+float32 send the trace through other faces than the solve's (the field's
+singular faces then no longer lie where the network passes).
 
-Output objects (glyphs, streamlines, the diagnostics: see OUTPUT_ROLES) are
-found by the custom property ``symframes_role`` on objects of the scene, so
-that renaming them is harmless.
+Output objects (glyphs, streamlines, the diagnostics, the hex mesh and its
+irregular edges: see OUTPUT_ROLES) are found by the custom property
+``symframes_role`` on objects of the scene, so that renaming them is
+harmless.
 """
 
 from __future__ import annotations
@@ -54,9 +65,13 @@ CURVE_ATTRIBUTE = "curve"
 NODE_ATTRIBUTE = "node_region"
 REPORT_KEY = "symframes_report"
 REMESHED_KEY = "symframes_remeshed"
+POSITIONS_KEY = "symframes_positions"
+SOLVE_ID_KEY = "symframes_solve_id"
+INPUTS_KEY = "symframes_inputs_key"
 ROLE_KEY = "symframes_role"
 RESULTS_COLLECTION = "SymFrames Results"
-OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "error_slice")
+OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "error_slice", "hex_mesh",
+                "irregular_edges")
 
 
 # ------------------------------------------------------------------- field
@@ -77,6 +92,7 @@ def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.nda
     try:
         me.vertices.add(n)
         me.attributes["position"].data.foreach_set("vector", np.asarray(mesh.vertices, np.float32).ravel())
+        me[POSITIONS_KEY] = np.asarray(mesh.vertices, np.float64).ravel()
         me.loops.add(4 * m)
         me.polygons.add(m)
         me.polygons.foreach_set("loop_start", np.arange(0, 4 * m, 4, dtype=np.int32))
@@ -139,7 +155,12 @@ def read_field(me) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     me.attributes[FRAME_ATTRIBUTE].data.foreach_get("value", q)
     q = q.reshape(-1, 4).astype(float)
     q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return co.reshape(-1, 3).astype(float), T.reshape(-1, 4).astype(np.int64), q
+    V = co.astype(float)
+    exact = np.asarray(me.get(POSITIONS_KEY, ()), np.float64)
+    # the solve's own positions, unless the mesh was edited since (float32 is good to ~1e-7)
+    if n and exact.shape == V.shape and np.abs(exact - V).max() <= 1e-6 * max(np.abs(V).max(), 1.0):
+        V = exact
+    return V.reshape(-1, 3), T.reshape(-1, 4).astype(np.int64), q
 
 
 def read_adaptation(me) -> np.ndarray | None:

@@ -25,6 +25,7 @@ from symframes.symframes_addon import (  # noqa: E402
     error_slice,
     exchange,
     glyphs,
+    hex_mesh,
     menus,
     omega_arrows,
     operators,
@@ -103,7 +104,8 @@ def test_menus_are_appended_and_reach_every_operator():
     assert examples.texts == [name.capitalize() for name in EXAMPLES]
     for idname in ("symframes.check_network", "symframes.compute", "symframes.show_glyphs",
                    "symframes.trace_streamlines", "symframes.show_singular_faces", "symframes.show_omega",
-                   "symframes.show_slice", "symframes.clear", "symframes.apply_preset"):
+                   "symframes.show_slice", "symframes.hex_mesh", "symframes.apply_hex_preset", "symframes.clear",
+                   "symframes.apply_preset"):
         assert idname in in_object, idname
     # every operator of the add-on is in a menu, hence in F3 search
     in_file = draw(menus.draw_import_menu).operators + draw(menus.draw_export_menu).operators
@@ -112,7 +114,7 @@ def test_menus_are_appended_and_reach_every_operator():
 
 def test_file_menus_draw_the_entries_of_registered_operators(monkeypatch):
     assert draw(menus.draw_import_menu).operators == ["symframes.import_network"]
-    assert draw(menus.draw_export_menu).operators == ["symframes.export_field"]
+    assert draw(menus.draw_export_menu).operators == ["symframes.export_field", "symframes.export_hex_mesh"]
     # an entry shows only once its operator is registered
     monkeypatch.setattr(menus, "IMPORT_ENTRIES", [("symframes.no_such_importer", "Nothing (.xyz)", "NONE")])
     monkeypatch.setattr(menus, "EXPORT_ENTRIES", [("symframes.check_network", "Stand-in (.npz)", "NONE")])
@@ -257,7 +259,7 @@ def test_no_user_visible_string_says_colour():
     for cls in panel.CLASSES:
         if issubclass(cls, bpy.types.Panel):
             strings += draw(cls.draw).texts
-    for group in (glyphs.node_group(), omega_arrows.node_group()):  # modifier inputs
+    for group in (glyphs.node_group(), omega_arrows.node_group(), hex_mesh.node_group()):  # modifier inputs
         strings += [item.name for item in group.interface.items_tree]
     assert len(strings) > 200
     said = [t for t in strings if "colour" in t.lower()]
@@ -328,5 +330,6 @@ def test_other_outputs_and_the_network_have_viewport_colors():
     curve = next(o for o in scene().symframes.network.all_objects if o.type == "CURVE")
     mats = [curve.data.materials[0], omega_arrows.material()]
     mats += [diagnostics._material(name, colour) for name, colour in diagnostics.MATERIALS]
+    mats += hex_mesh.quality_materials() + hex_mesh.valence_materials()
     for mat in mats:
         assert _diffuse(mat) != DEFAULT_DIFFUSE, mat.name

@@ -150,6 +150,7 @@ def _check_smoke(out: dict, res_dir=None):
     assert out["mesher"] == "pytetwild"
     assert out["roles"] == ["error_slice", "glyphs", "singular_faces", "streamlines"]
     assert out["glyphs"] == 300 and 27 <= out["streamlines"] <= 30 and out["tets"] > 100
+    assert out["hex_status"] == "valid" and out["hexes"] > 100  # the cube: a grid of cells
     assert out["left"] == []
 
 

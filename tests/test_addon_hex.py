@@ -1,0 +1,455 @@
+"""Hex Mesh in the add-on, with the bpy module: the operator (in the calling
+thread as in background mode, and as a thread job), the cell-soup object and
+its attributes, the irregular edges, the Hex View modifier, the panel, the
+export, and a refused or cancelled run leaving the scene as it was.
+
+One solve of the cylinder (4 curves of index +1/4) at a coarse resolution and
+one hex mesh of it at the Coarse preset are shared (a module fixture, saved
+as a .blend and reopened per test); the figures are the solver's report.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import bpy
+import meshio
+import numpy as np
+import pytest
+
+from tests import addon_package
+from tests.addon_package import load_addon
+
+addon = load_addon()
+from symframes.symframes_addon import (  # noqa: E402
+    exchange,
+    hex_mesh,
+    job,
+    menus,
+    operators,
+    panel,
+    properties,
+    storage,
+)
+
+registered = addon_package.registered  # fixtures shared by the add-on tests
+empty_scene = addon_package.empty_scene
+
+EDGE_LENGTH = 0.4  # the cylinder's field: about 3,500 tets
+HEX_PRESET = "COARSE"  # about 800 hexahedra
+
+
+def scene():
+    return bpy.context.scene
+
+
+def output(role):
+    return storage.output_object(scene(), role)
+
+
+def scene_state() -> dict:
+    """Everything a hex run could add, change or leave behind."""
+    hex_obj = output(hex_mesh.ROLE)
+    return {
+        "objects": sorted((o.name, o.type, o.data.name if o.data else "") for o in bpy.data.objects),
+        "meshes": sorted((m.name, len(m.vertices), len(m.polygons)) for m in bpy.data.meshes),
+        "curves": sorted((c.name, len(c.splines)) for c in bpy.data.curves),
+        "collections": sorted(c.name for c in bpy.data.collections),
+        "node_groups": sorted(g.name for g in bpy.data.node_groups),
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "hex": None if hex_obj is None else (hex_obj.data.get(hex_mesh.HEX_ID_KEY),
+                                             hex_obj.data.get(hex_mesh.REPORT_KEY)),
+    }
+
+
+def attribute(me, name, count, dtype=np.float32, width=1):
+    a = np.empty(count * width, dtype)
+    attr = me.attributes[name]
+    attr.data.foreach_get("vector" if width == 3 and attr.data_type == "FLOAT_VECTOR" else "value", a)
+    return a.reshape(-1, width) if width > 1 else a
+
+
+def evaluated_counts(obj) -> tuple[int, int, np.ndarray]:
+    """(vertices, faces, positions) of the object after its modifiers."""
+    obj.update_tag()
+    dg = bpy.context.evaluated_depsgraph_get()
+    dg.update()
+    ev = obj.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        co = np.empty(3 * len(me.vertices))
+        me.vertices.foreach_get("co", co)
+        return len(me.vertices), len(me.polygons), co.reshape(-1, 3)
+    finally:
+        ev.to_mesh_clear()
+
+
+class Layout:
+    """Records the texts a panel's draw function would show."""
+
+    def __init__(self):
+        self.texts, self.operators, self.props = [], [], []
+
+    def _record(self, name, args, kw):
+        if "text" in kw:
+            self.texts.append(kw["text"])
+        if name in ("operator", "operator_enum"):
+            self.operators.append(args[0])
+            return SimpleNamespace()
+        if name == "prop":
+            getattr(args[0], args[1])
+            self.props.append(args[1])
+        return self
+
+    def __getattr__(self, name):
+        return lambda *args, **kw: self._record(name, args, kw)
+
+
+def draw_hex_panel() -> Layout:
+    layout = Layout()
+    panel.SYMFRAMES_PT_hex.draw(SimpleNamespace(layout=layout), bpy.context)
+    return layout
+
+
+@pytest.fixture(scope="module")
+def cyl(registered, tmp_path_factory):
+    """The cylinder solved and hex meshed (in background mode's execute),
+    saved; what the tests compare against."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.symframes.add_example(example="cylinder")
+    s = scene().symframes
+    s.edge_length, s.glyph_count = EDGE_LENGTH, 200
+    assert bpy.ops.symframes.compute() == {"FINISHED"}
+    assert bpy.ops.symframes.apply_hex_preset(preset=HEX_PRESET) == {"FINISHED"}
+    assert (s.hex_cells, s.hex_cell_size) == (properties.HEX_PRESETS[HEX_PRESET], 0.0)
+    assert bpy.ops.symframes.hex_mesh() == {"FINISHED"}
+    obj = output(hex_mesh.ROLE)
+    hm = job.cached_hex(obj.data[hex_mesh.HEX_ID_KEY])
+    assert hm is not None, "the hex mesh written is kept in memory for the export"
+    solve_id = s.field[storage.SOLVE_ID_KEY]
+    assert job.cached_result(solve_id) is not None, "the solve's Result is kept for Hex Mesh"
+    ns = SimpleNamespace(hm=hm, report=hm.report, stored=hex_mesh.stored_report(scene()),
+                         memory=(solve_id, job.cached_result(solve_id), obj.data[hex_mesh.HEX_ID_KEY], hm))
+    ns.path = tmp_path_factory.mktemp("hex") / "cylinder_hex.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(ns.path))
+    return ns
+
+
+def reopen(cyl, new_session: bool = False):
+    """Open the fixture's file with what the session that wrote it kept in
+    memory (its Result and HexMesh), or, as a new session, with nothing."""
+    bpy.ops.wm.open_mainfile(filepath=str(cyl.path))
+    job.forget_results()
+    if not new_session:
+        solve_id, result, hex_id, hm = cyl.memory
+        job.remember_result(solve_id, result)
+        job.remember_hex(hex_id, hm)
+
+
+# ------------------------------------------------------------------ the run
+def test_the_hex_run_is_valid_and_reported(cyl):
+    reopen(cyl)
+    r = cyl.report
+    assert r.status == "valid", r.summary()
+    assert r.structure_exact and r.irregular == {3: r.irregular[3]} and r.irregular[3] > 0
+    assert cyl.stored["hexes"] == r.hexes == len(cyl.hm.hexes)
+    assert cyl.stored["status"] == "valid" and cyl.stored["irregular"] == {"3": r.irregular[3]}
+
+
+def test_hex_object_is_a_cell_soup_with_the_reports_figures(cyl):
+    reopen(cyl)
+    obj = output(hex_mesh.ROLE)
+    assert obj is not None and obj.name == hex_mesh.OBJECT_NAME and obj.type == "MESH"
+    assert obj.users_collection[0].get(storage.ROLE_KEY) == "results"
+    assert obj.show_wire  # the cells' outlines
+    me, hm = obj.data, cyl.hm
+    m = cyl.report.hexes
+    # 8 vertices and 6 quads per cell, 12 edges: every cell an island
+    assert (len(me.vertices), len(me.polygons), len(me.edges)) == (8 * m, 6 * m, 12 * m)
+    sizes = np.empty(6 * m, np.int32)
+    me.polygons.foreach_get("loop_total", sizes)
+    assert np.all(sizes == 4)
+    cell = attribute(me, hex_mesh.CELL_ATTRIBUTE, 6 * m, np.int32)
+    np.testing.assert_array_equal(cell, np.repeat(np.arange(m), 6))
+    # the corners in VTK order, copies of the hex mesh's vertices
+    ids = attribute(me, hex_mesh.VERTEX_ATTRIBUTE, 8 * m, np.int32).reshape(m, 8)
+    np.testing.assert_array_equal(ids, hm.hexes)
+    P = attribute(me, "position", 8 * m, width=3)
+    np.testing.assert_allclose(P, hm.vertices[hm.hexes].reshape(-1, 3), atol=1e-6)
+    # the scaled Jacobian: the report's figures
+    sj = attribute(me, hex_mesh.SJ_ATTRIBUTE, 6 * m)
+    assert sj.min() == pytest.approx(cyl.report.sj_min, abs=1e-6)
+    assert sj[::6].mean() == pytest.approx(cyl.report.sj_mean, abs=1e-6)
+    np.testing.assert_allclose(sj[::6], hm.scaled_jacobian, atol=1e-6)
+    centre = attribute(me, hex_mesh.CENTER_ATTRIBUTE, 6 * m, width=3)
+    np.testing.assert_allclose(centre[::6], hm.vertices[hm.hexes].mean(axis=1), atol=1e-6)
+    # every face outward: each cell's faces enclose its volume with a positive sign
+    corners = np.empty(24 * m, np.int32)
+    me.loops.foreach_get("vertex_index", corners)
+    Q = P[corners.reshape(-1, 4)]
+    tri = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]], axis=0)
+    signed = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6
+    per_cell = (signed[: 6 * m] + signed[6 * m:]).reshape(m, 6).sum(axis=1)
+    assert np.all(per_cell > 0)
+
+
+def test_quality_colors(cyl):
+    reopen(cyl)
+    me = output(hex_mesh.ROLE).data
+    m = cyl.report.hexes
+    assert me.color_attributes.active_color_name == hex_mesh.COLOR_ATTRIBUTE
+    col = np.empty(24 * m * 4, np.float32)
+    me.color_attributes[hex_mesh.COLOR_ATTRIBUTE].data.foreach_get("color", col)
+    col = col.reshape(m, 24, 4)
+    assert np.all(col == col[:, :1])  # one color per cell
+    np.testing.assert_allclose(col[:, 0], hex_mesh.sj_colors(cyl.hm.scaled_jacobian), atol=1e-6)
+    # red at and below 0.3, green at 1, yellow between
+    red, yellow, green = hex_mesh.sj_colors(np.array([0.1, hex_mesh.SJ_RED + 0.35, 1.0]))[:, :3]
+    assert red[0] > 0.8 > red[1] and green[1] > 0.6 > green[0] and yellow[0] > 0.9 and yellow[1] > 0.8
+    # the Solid view's default (Color: Material): each face the material of its step
+    idx = np.empty(6 * m, np.int32)
+    me.polygons.foreach_get("material_index", idx)
+    np.testing.assert_array_equal(idx, np.repeat(hex_mesh.sj_steps(cyl.hm.scaled_jacobian), 6))
+    viewport = [tuple(round(c, 4) for c in mat.diffuse_color) for mat in me.materials]
+    assert len(viewport) == hex_mesh.SJ_STEPS and len(set(viewport)) == hex_mesh.SJ_STEPS
+
+
+def test_irregular_edges_are_a_curve_per_edge_with_its_valence(cyl):
+    reopen(cyl)
+    obj = output(hex_mesh.EDGES_ROLE)
+    assert obj is not None and obj.type == "CURVE" and obj.name == hex_mesh.EDGES_NAME
+    hm = cyl.hm
+    splines = obj.data.splines
+    assert len(splines) == sum(cyl.report.irregular.values()) == len(hm.irregular_edges)
+    valence = list(obj.data[hex_mesh.VALENCE_KEY])
+    assert valence == hm.irregular_valence.tolist()
+    assert valence.count(3) == cyl.report.irregular[3]
+    mats = [sp.material_index for sp in splines]
+    assert mats == [hex_mesh.VALENCE_INDEX.get(v, 2) for v in valence]
+    co = np.array([[tuple(p.co)[:3] for p in sp.points] for sp in splines])
+    np.testing.assert_allclose(co, hm.vertices[hm.irregular_edges], atol=1e-6)
+    # valence 3 and 5 look different in the Solid view
+    v3, v5 = obj.data.materials[0], obj.data.materials[1]
+    assert tuple(v3.diffuse_color) != tuple(v5.diffuse_color)
+    assert obj.data.bevel_depth > 0
+
+
+def test_view_modifier_explodes_and_falls_away(cyl):
+    reopen(cyl)
+    obj = output(hex_mesh.ROLE)
+    s = scene().symframes
+    mod = obj.modifiers[hex_mesh.MODIFIER]
+    assert mod.node_group.name == hex_mesh.NODE_GROUP
+    inputs = [i.name for i in mod.node_group.interface.items_tree if getattr(i, "in_out", None) == "INPUT"]
+    assert inputs == ["Geometry", "Explode", "Fall Away", "Axis"]
+    m = cyl.report.hexes
+    n, f, P = evaluated_counts(obj)
+    assert (n, f) == (8 * m, 6 * m)  # 0, 0: the cells as written, a closed surface outside
+    # Explode: every cell shrunk about its centre
+    s.hex_explode = 0.5
+    n, f, P = evaluated_counts(obj)
+    assert (n, f) == (8 * m, 6 * m)
+    C = cyl.hm.vertices[cyl.hm.hexes]
+    np.testing.assert_allclose(P.reshape(m, 8, 3), C.mean(axis=1, keepdims=True) + 0.5 * (C - C.mean(axis=1,
+                               keepdims=True)), atol=1e-5)
+    s.hex_explode = 0.0
+    # Fall Away: the cells whose centre lies beyond the plane sweeping along the axis are hidden
+    centres = C.mean(axis=1)
+    for fall, axis in ((0.5, "Z"), (0.25, "X")):
+        s.hex_axis, s.hex_fall_away = axis, fall
+        d = centres[:, "XYZ".index(axis)]
+        plane = d.min() + (1 - fall) * (d.max() - d.min())
+        n, f, P = evaluated_counts(obj)
+        shown = P.reshape(-1, 8, 3).mean(axis=1)[:, "XYZ".index(axis)]
+        eps = 1e-5  # Geometry Nodes compares in single precision: a cell on the plane may go either way
+        assert np.sum(d < plane - eps) <= len(shown) <= np.sum(d < plane + eps) and 0 < len(shown) < m
+        assert (n, f) == (8 * len(shown), 6 * len(shown)) and shown.max() < plane + eps
+    s.hex_fall_away = 1.0
+    assert evaluated_counts(obj)[:2] == (0, 0)
+    s.hex_fall_away = 0.0
+    assert evaluated_counts(obj)[:2] == (8 * m, 6 * m)
+
+
+def test_panel_shows_the_verdict_and_figures(cyl):
+    reopen(cyl)
+    drawn = draw_hex_panel()
+    r = cyl.report
+    assert "symframes.hex_mesh" in drawn.operators and "symframes.export_hex_mesh" in drawn.operators
+    assert "symframes.apply_hex_preset" in drawn.operators
+    assert {"hex_cell_size", "hex_cells", "hex_smooth", "hex_explode", "hex_fall_away", "hex_axis"} <= set(drawn.props)
+    assert "Valid hex mesh" in drawn.texts
+    assert f"Hexahedra {r.hexes:,}   vertices {r.vertices:,}" in drawn.texts
+    assert f"Scaled Jacobian min {r.sj_min:.3f}   mean {r.sj_mean:.3f}" in drawn.texts
+    assert f"Irregular edges: {r.irregular[3]} of valence 3" in drawn.texts
+    assert "   exactly the prescribed curves" in drawn.texts
+    assert f"Hausdorff distance {100 * r.hausdorff_relative:.2f}% of the diagonal" in drawn.texts
+
+
+def test_panel_before_a_field_and_the_operators_polls():
+    drawn = draw_hex_panel()
+    assert "Compute a field first" in drawn.texts and "Valid hex mesh" not in drawn.texts
+    assert not bpy.ops.symframes.hex_mesh.poll()
+    assert not bpy.ops.symframes.export_hex_mesh.poll()
+    for preset, cells in properties.HEX_PRESETS.items():
+        scene().symframes.hex_cell_size = 0.5
+        assert bpy.ops.symframes.apply_hex_preset(preset=preset) == {"FINISHED"}
+        assert (scene().symframes.hex_cells, scene().symframes.hex_cell_size) == (cells, 0.0)
+    assert properties.HEX_PRESETS["MEDIUM"] == scene().symframes.bl_rna.properties["hex_cells"].default == 3000
+
+
+def test_menus_reach_the_hex_operators():
+    exports = [e[0] for e in menus.EXPORT_ENTRIES]
+    assert "symframes.export_hex_mesh" in exports
+    assert ("symframes.hex_mesh", "MESH_CUBE") in menus.OBJECT_ENTRIES
+    layout = Layout()
+    menus.SYMFRAMES_MT_object.draw(SimpleNamespace(layout=layout), bpy.context)
+    assert {"symframes.hex_mesh"} <= set(layout.operators)
+
+
+# ------------------------------------------------------ failure and cancel
+def _refused(op, pattern, **kw):
+    with pytest.raises(RuntimeError, match=pattern):
+        op(**kw)
+
+
+def test_a_refused_run_leaves_the_scene_unchanged(cyl):
+    reopen(cyl)
+    before = scene_state()
+    scene().symframes.hex_cell_size = 10.0  # larger than the solid
+    _refused(bpy.ops.symframes.hex_mesh, "cell size 10 is larger than half the solid's smallest extent")
+    assert scene_state() == before
+    # also on the stored field (a reopened file): the same refusal, nothing written
+    job.forget_results()
+    _refused(bpy.ops.symframes.hex_mesh, "cell size 10 is larger than half")
+    assert scene_state() == before
+
+
+def test_cancel_leaves_the_scene_unchanged(cyl):
+    reopen(cyl)
+    before = scene_state()
+    scene().symframes.hex_cell_size = 0.0
+    j = job.HexJob(source=operators.hex_source(bpy.context), target_hexes=cyl.report.hexes)
+    progress, seen = j._progress, []
+
+    def cancel_at_the_map(stage, fraction, message):
+        seen.append(stage)
+        progress(stage, fraction, message)
+        if stage == "seamless map":
+            j.cancel()  # cancelled while hexmesh runs: it stops at the next check
+
+    j._progress = cancel_at_the_map
+    j.start()
+    j.join(120)
+    assert j.done and j.cancelled and j.outcome is None and j.error is None
+    assert "seamless map" in seen and "extraction" not in seen
+    assert operators.finish_hex_job(scene(), j)[0] == "WARNING"
+    assert scene_state() == before
+
+
+def test_a_changed_network_is_refused_on_a_stored_field(cyl):
+    reopen(cyl, new_session=True)
+    before = scene_state()
+    curve = next(o for o in scene().symframes.network.all_objects if o.type == "CURVE")
+    curve.symframes.index = -1
+    _refused(bpy.ops.symframes.hex_mesh, "changed since the field was computed")
+    assert scene_state() == before
+
+
+# ------------------------------------------------------------ the stored field
+def test_hex_mesh_of_the_stored_field_in_a_thread(cyl):
+    """A reopened file has no Result in memory: the network is traced through
+    the stored field again, and gives the same hex mesh."""
+    reopen(cyl, new_session=True)
+    source = operators.hex_source(bpy.context)
+    assert isinstance(source, job.StoredField)
+    j = job.HexJob(source=source, target_hexes=scene().symframes.hex_cells)
+    j.start()
+    j.join(300)
+    assert j.done and j.error is None, j.error
+    r = j.outcome.hex_mesh.report
+    assert r.status == "valid" and r.hexes == cyl.report.hexes and r.irregular == cyl.report.irregular
+    assert r.sj_min == pytest.approx(cyl.report.sj_min, abs=1e-3)  # frames and omega kept in float32
+    output(hex_mesh.ROLE).show_wire = False  # the user's choice, kept when the mesh is replaced
+    level, msg = operators.finish_hex_job(scene(), j)
+    assert level == "INFO" and f"{r.hexes:,} hexahedra" in msg and "exactly the prescribed curves" in msg
+    obj = output(hex_mesh.ROLE)
+    assert not obj.show_wire
+    assert obj.data[hex_mesh.HEX_ID_KEY] == j.outcome.hex_id and obj.data.name == hex_mesh.OBJECT_NAME
+    assert len([o for o in bpy.data.objects if o.get(storage.ROLE_KEY) == hex_mesh.ROLE]) == 1  # replaced
+    # a defective mesh is written all the same, and said to be
+    r.status, r.reason = "defective", "the irregular edges are not exactly the prescribed curves"
+    level, msg = operators.finish_hex_job(scene(), j)
+    assert level == "WARNING" and msg.endswith("defective: the irregular edges are not exactly the prescribed curves")
+    assert "Defective hex mesh" in draw_hex_panel().texts
+
+
+# ------------------------------------------------------------------ export
+def test_export_writes_what_meshio_reads(cyl, tmp_path):
+    reopen(cyl)
+    hm = cyl.hm
+    path = tmp_path / "cyl.vtu"
+    assert bpy.ops.symframes.export_hex_mesh(filepath=str(path), file_format="VTU") == {"FINISHED"}
+    m = meshio.read(str(path))
+    assert m.cells_dict["hexahedron"].shape == (cyl.report.hexes, 8)
+    np.testing.assert_array_equal(m.cells_dict["hexahedron"], hm.hexes)
+    np.testing.assert_allclose(m.points, hm.vertices)
+    # the extension follows the format; in this session the integer-grid map is there
+    assert bpy.ops.symframes.export_hex_mesh(filepath=str(tmp_path / "cyl.vtu"), file_format="HEXEX") == {"FINISHED"}
+    assert (tmp_path / "cyl.hexex").exists()
+
+
+def test_reopened_file_exports_vtu_and_refuses_hexex(cyl, tmp_path):
+    reopen(cyl, new_session=True)
+    hm = cyl.hm
+    for fmt, ext, cell in (("VTU", ".vtu", "hexahedron"), ("MESH", ".mesh", "hexahedron")):
+        path = tmp_path / f"again{ext}"
+        assert bpy.ops.symframes.export_hex_mesh(filepath=str(path), file_format=fmt) == {"FINISHED"}
+        m = meshio.read(str(path))
+        np.testing.assert_array_equal(m.cells_dict[cell], hm.hexes)
+        np.testing.assert_allclose(m.points, hm.vertices, atol=1e-6)  # as Blender keeps them: single precision
+    sj = meshio.read(str(tmp_path / "again.vtu")).cell_data["scaled_jacobian"][0]
+    np.testing.assert_allclose(sj, hm.scaled_jacobian, atol=1e-6)
+    _refused(bpy.ops.symframes.export_hex_mesh, "make the hex mesh again to write its integer-grid map",
+             filepath=str(tmp_path / "map.hexex"), file_format="HEXEX")
+    assert not (tmp_path / "map.hexex").exists()
+
+
+def test_an_edited_hex_object_is_refused_for_export(cyl, tmp_path):
+    reopen(cyl, new_session=True)
+    me = output(hex_mesh.ROLE).data
+    me.attributes.remove(me.attributes[hex_mesh.VERTEX_ATTRIBUTE])
+    _refused(bpy.ops.symframes.export_hex_mesh, "make the hex mesh again", filepath=str(tmp_path / "x.vtu"),
+             file_format="VTU")
+    assert not (tmp_path / "x.vtu").exists()
+
+
+def test_export_formats_are_the_solvers():
+    from symframes.solver.io import HEX_FORMATS
+
+    assert sorted(exchange.HEX_EXTENSION.values()) == sorted(HEX_FORMATS)
+
+
+# ------------------------------------------------------------------- clear
+def test_clear_removes_the_hex_mesh_and_its_helpers(cyl):
+    reopen(cyl)
+    assert output(hex_mesh.ROLE) is not None and output(hex_mesh.EDGES_ROLE) is not None
+    assert bpy.ops.symframes.clear() == {"FINISHED"}
+    assert output(hex_mesh.ROLE) is None and output(hex_mesh.EDGES_ROLE) is None
+    assert hex_mesh.NODE_GROUP not in bpy.data.node_groups
+    left = [m.name for m in bpy.data.materials if m.name.startswith((hex_mesh.SJ_MATERIAL, "SymFrames Valence"))]
+    assert left == []
+    assert scene_state()["hex"] is None
+
+
+def test_a_stored_field_failure_says_what_else_to_try():
+    from symframes.solver import HexMeshError, HexReport
+
+    stored = job.StoredField(field=None, inputs=None, node_radius=1.0, status="converged")
+    for source, error, noted in ((stored, HexMeshError("transitions do not close", HexReport()), True),
+                                 (stored, HexMeshError("cell size 10 is too large"), False),  # the settings
+                                 (object(), HexMeshError("transitions do not close", HexReport()), False)):
+        j = job.HexJob(source=source)
+        j.error = error
+        level, msg = operators.finish_hex_job(scene(), j)
+        assert level == "ERROR" and msg.startswith(str(error))
+        assert ("Compute Field again and make the hex mesh in the same session" in msg) == noted
