@@ -22,8 +22,9 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
   ``sample_glyphs``, ``seed_points``, ``trace_streamlines``.
 * Hex meshing (docs/hexmesh.md): ``hexmesh`` makes a pure hex mesh of a
   solved field (``HexMesh``, its ``HexReport``); ``HexInput`` is what it
-  needs of the field (``HexInput.from_result``, or ``input_from_check`` for a
-  field stored without its network); ``default_cell_size``.
+  needs of the field (``HexInput.from_result``; ``hex_source_arrays`` /
+  ``input_from_arrays`` keep it beside a stored field; ``input_from_check``
+  traces the network again through a stored mesh); ``default_cell_size``.
 * Errors: ``SymFramesError`` and its subclasses (``HexMeshError`` when no
   valid hex mesh exists at the settings); ``Cancelled``.
 
@@ -48,7 +49,16 @@ from .errors import (
     SymFramesError,
     TopologyError,
 )
-from .hexmesh import HexInput, HexMesh, HexReport, default_cell_size, hexmesh, input_from_check
+from .hexmesh import (
+    HexInput,
+    HexMesh,
+    HexReport,
+    default_cell_size,
+    hex_source_arrays,
+    hexmesh,
+    input_from_arrays,
+    input_from_check,
+)
 from .network.network import Curve, Network, Role, Torsion
 from .pipeline import FieldProblem, Options, Result, solve
 from .precheck import CheckResult, check
@@ -79,7 +89,9 @@ __all__ = [
     "Torsion",
     "check",
     "default_cell_size",
+    "hex_source_arrays",
     "hexmesh",
+    "input_from_arrays",
     "input_from_check",
     "monodromy_angles",
     "regular_face_mask",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 VALID = "valid"
@@ -25,6 +26,19 @@ class CurveMatch:
     edges: int
     covered: float
     distance: float
+
+
+def _plain(x):
+    """numpy scalars and arrays, and dict keys, as plain JSON types."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if hasattr(x, "tolist"):
+        return _plain(x.tolist())
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else (1e308 if x > 0 else -1e308)
+    return x
 
 
 @dataclass
@@ -76,10 +90,20 @@ class HexReport:
     def valid(self) -> bool:
         return self.status == VALID
 
-    def as_dict(self) -> dict:
-        d = asdict(self)
-        d["irregular"] = {str(k): v for k, v in self.irregular.items()}
-        return d
+    def to_dict(self) -> dict:
+        """The report as JSON types (numbers, strings, lists, dicts)."""
+        return _plain(asdict(self))
+
+    as_dict = to_dict
+
+    @classmethod
+    def from_dict(cls, d: dict) -> HexReport:
+        """A HexReport from to_dict's output."""
+        d = dict(d)
+        d["irregular"] = {int(k): int(v) for k, v in d.get("irregular", {}).items()}
+        d["curves"] = [CurveMatch(**c) for c in d.get("curves", [])]
+        known = set(cls.__dataclass_fields__)
+        return cls(**{k: v for k, v in d.items() if k in known})
 
     def summary(self) -> str:
         lines = [f"hex mesh: {self.status}" + (f" ({self.reason})" if self.reason else ""),

@@ -122,7 +122,11 @@ def input_from_check(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, check
     solve's options) traced through the stored mesh again.
 
     node_radius : radius of the node regions (model units); the hex stage
-        grows them into star-shaped balls, so an upper bound is fine
+        grows them into star-shaped balls
+    The mesh must have the solve's exact vertex positions (a float32 copy
+    can trace a curve through other faces than the solve did); where the
+    solve's embedding can be kept, hex_source_arrays / input_from_arrays
+    give exactly the solve's network instead.
     """
     net = checked.network
     emb = embed_network(mesh, net, node_radius)
