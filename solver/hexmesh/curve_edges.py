@@ -267,15 +267,77 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
         where two curves share a tet or a face, or a node's ball cannot be
         coned, naming the curves or the node and where.
     """
-    X = mesh.vertices
     labels = [f"{network.source[i]}" + (f" '{c.name}'" if c.name else "") for i, c in enumerate(network.curves)]
     b = _Builder(mesh, labels)
+    node_vertex, ball_of, balls = _node_balls(mesh, embedding, network, b)
+    end_node = {e: k for k, nd in enumerate(network.nodes) for e in nd.ends}
+    chains = []
+    routed: set[int] = set()  # field-mesh vertices a chain passes through
+    for ci, (c, tr) in enumerate(zip(network.curves, embedding.traces)):
+        tets, faces, pts = np.asarray(tr.tets), np.asarray(tr.faces), np.asarray(tr.points)
+        n = len(tets)
+        lo, hi = 0, n - 1  # crossed tets tets[lo..hi] lie outside the node balls
+        start_v = end_v = -1
+        if network.start_kind[ci] == "node":
+            k = end_node[(ci, 0)]
+            while lo < n and ball_of[tets[lo]] == k:
+                lo += 1
+            start_v = int(node_vertex[k])
+        if network.end_kind[ci] == "node":
+            k = end_node[(ci, 1)]
+            while hi >= 0 and ball_of[tets[hi]] == k:
+                hi -= 1
+            end_v = int(node_vertex[k])
+        polyline = np.asarray(tr.polyline, float)
+        if lo == hi + 1 and start_v >= 0 and end_v >= 0 and 0 < lo < n:
+            # a node-to-node curve that passes from one node's ball straight
+            # into the other's: the face between them is split, both cones
+            # reach the pierce point
+            p = b.split_face(int(faces[lo - 1]), pts[lo - 1], ci)
+            chains.append(Chain(np.array([start_v, p, end_v], dtype=np.int64), ci, float(c.sigma), False, polyline))
+            continue
+        if lo > hi:
+            raise CurveEdgeError(
+                f"curve {labels[ci]} lies inside its nodes' balls of tets (it is shorter than about two tets of "
+                "the field's mesh); solve the field on a finer mesh (a smaller edge length)")
+        inner = tets[lo:hi + 1]
+        if np.any(ball_of[inner] >= 0):
+            k = int(ball_of[inner][ball_of[inner] >= 0][0])
+            raise CurveEdgeError(
+                f"curve {labels[ci]} passes through the ball of tets around node {k}, which it does not end at; "
+                "solve the field on a finer mesh (a smaller edge length) so that it passes further from the node")
+        if network.start_kind[ci] == "loop":
+            # the loop starts inside tets[0] == tets[-1]: that tet is entered
+            # through the last face and left through the first
+            seq_faces = np.r_[faces, faces[:1]]
+            verts = [b.split_face(int(f), x, ci) for f, x in zip(faces, pts)]
+            for j in range(len(faces)):
+                b.cross(tets[j + 1] if j + 1 < n else tets[0], seq_faces[j], seq_faces[j + 1], ci)
+            chains.append(Chain(np.array(verts + verts[:1], dtype=np.int64), ci, float(c.sigma), True, polyline))
+            continue
+        # entry face of tets[lo] and exit face of tets[hi]; the start and end
+        # points (a node, or where the curve meets the surface)
+        start_node, end_node_ = network.start_kind[ci] == "node", network.end_kind[ci] == "node"
+        f0 = int(faces[lo - 1]) if start_node else int(tr.start_face)
+        f1 = int(faces[hi]) if end_node_ else int(tr.end_face)
+        x0 = pts[lo - 1] if start_node else polyline[0]
+        x1 = pts[hi] if end_node_ else _end_point(mesh, f1, polyline)
+        seq = [f0, *faces[lo:hi].tolist(), f1]  # entry face of inner[j] is seq[j], its exit seq[j + 1]
+        xs = [x0, *pts[lo:hi], x1]
+        runs = _vertex_runs(mesh, inner, seq, polyline, routed, boundary_ok=(not start_node, not end_node_))
+        chain = _open_chain(mesh, b, ci, inner, seq, xs, runs, routed)
+        chain = ([start_v] if start_node else []) + chain + ([end_v] if end_node_ else [])
+        chains.append(Chain(np.array(chain, dtype=np.int64), ci, float(c.sigma), False, polyline))
+    return _build(mesh, b, balls, node_vertex, chains, mesh.vertices, routed)
 
-    # ------------------------------------------------------------ node balls
+
+def _node_balls(mesh: TetMesh, embedding, network, b: _Builder):
+    """Per node: its inserted vertex, and its ball of tets (the node region,
+    the curves' first tets, grown to star-shaped: _node_ball); (node
+    vertices, ball id per tet or -1, balls)."""
     node_vertex = np.array([b.new_point(np.asarray(nd.position, float)) for nd in network.nodes], dtype=np.int64)
     ball_of = np.full(mesh.n_tets, -1, dtype=np.int64)
     balls = []
-    end_node = {e: k for k, nd in enumerate(network.nodes) for e in nd.ends}
     for k, nd in enumerate(network.nodes):
         seed = [np.asarray(embedding.node_region[k], dtype=np.int64), [int(embedding.node_tets[k])]]
         # the curves' first tets, up to their last one in the region: a curve
@@ -295,100 +357,44 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
                 "tets overlap); solve the field on a finer mesh (a smaller edge length)")
         ball_of[ball] = k
         balls.append(ball)
+    return node_vertex, ball_of, balls
 
-    # ------------------------------------------------------- curve crossings
-    chains = []
-    routed: set[int] = set()  # field-mesh vertices a chain passes through
-    for ci, (c, tr) in enumerate(zip(network.curves, embedding.traces)):
-        tets, faces, pts = np.asarray(tr.tets), np.asarray(tr.faces), np.asarray(tr.points)
-        closed = network.start_kind[ci] == "loop"
-        n = len(tets)
-        lo, hi = 0, n - 1  # crossed tets tets[lo..hi] lie outside the node balls
-        start_v = end_v = -1
-        if network.start_kind[ci] == "node":
-            k = end_node[(ci, 0)]
-            while lo < n and ball_of[tets[lo]] == k:
-                lo += 1
-            start_v = int(node_vertex[k])
-        if network.end_kind[ci] == "node":
-            k = end_node[(ci, 1)]
-            while hi >= 0 and ball_of[tets[hi]] == k:
-                hi -= 1
-            end_v = int(node_vertex[k])
-        if lo == hi + 1 and start_v >= 0 and end_v >= 0 and 0 < lo < n:
-            # a node-to-node curve that passes from one node's ball straight
-            # into the other's: the face between them is split, both cones
-            # reach the pierce point
-            p = b.split_face(int(faces[lo - 1]), pts[lo - 1], ci)
-            chains.append(Chain(np.array([start_v, p, end_v], dtype=np.int64), ci, float(c.sigma), False,
-                                np.asarray(tr.polyline, float)))
-            continue
-        if lo > hi:
-            raise CurveEdgeError(
-                f"curve {labels[ci]} lies inside its nodes' balls of tets (it is shorter than about two tets of "
-                "the field's mesh); solve the field on a finer mesh (a smaller edge length)")
-        inner = tets[lo:hi + 1]
-        if np.any(ball_of[inner] >= 0):
-            k = int(ball_of[inner][ball_of[inner] >= 0][0])
-            raise CurveEdgeError(
-                f"curve {labels[ci]} passes through the ball of tets around node {k}, which it does not end at; "
-                "solve the field on a finer mesh (a smaller edge length) so that it passes further from the node")
-        if closed:
-            # the loop starts inside tets[0] == tets[-1]: that tet is entered
-            # through the last face and left through the first
-            seq_faces = np.r_[faces, faces[:1]]
-            verts = [b.split_face(int(f), x, ci) for f, x in zip(faces, pts)]
-            for j in range(len(faces)):
-                b.cross(tets[j + 1] if j + 1 < n else tets[0], seq_faces[j], seq_faces[j + 1], ci)
-            chains.append(Chain(np.array(verts + verts[:1], dtype=np.int64), ci, float(c.sigma), True,
-                                np.asarray(tr.polyline, float)))
-            continue
-        # entry face of tets[lo] and exit face of tets[hi]; the start and end
-        # points (a node, or where the curve meets the surface)
-        start_node, end_node_ = network.start_kind[ci] == "node", network.end_kind[ci] == "node"
-        f0 = int(faces[lo - 1]) if start_node else int(tr.start_face)
-        f1 = int(faces[hi]) if end_node_ else int(tr.end_face)
-        x0 = pts[lo - 1] if start_node else tr.polyline[0]
-        x1 = pts[hi] if end_node_ else _end_point(mesh, f1, tr.polyline)
-        inner = tets[lo:hi + 1]
-        seq = [f0, *faces[lo:hi].tolist(), f1]  # entry face of inner[j] is seq[j], its exit seq[j + 1]
-        xs = [x0, *pts[lo:hi], x1]
-        runs = _vertex_runs(mesh, inner, seq, tr.polyline, routed, boundary_ok=(not start_node, not end_node_))
-        chain = [start_v] if start_node else []
-        j = 0
-        while j < len(inner):
-            run = runs.get(j)
-            if run is None:
-                # a plain crossing: the entry face split (the start's is split below)
-                if j == 0:
-                    chain.append(b.split_face(seq[0], xs[0], ci))
-                b.cross(int(inner[j]), seq[j], seq[j + 1], ci)
-                chain.append(b.split_face(seq[j + 1], xs[j + 1], ci))
-                j += 1
-                continue
-            v, k = run  # inner[j..k] all hold v: the chain goes through v
-            Fv = mesh.faces
-            entry_has_v = v in Fv[seq[j]]
-            exit_has_v = v in Fv[seq[k + 1]]
-            if not entry_has_v:
-                if j == 0:
-                    chain.append(b.split_face(seq[0], xs[0], ci))
-                b.cross(int(inner[j]), seq[j], None, ci)
-            chain.append(int(v))
-            routed.add(int(v))
-            if not exit_has_v:
-                b.cross(int(inner[k]), None, seq[k + 1], ci)
-                chain.append(b.split_face(seq[k + 1], xs[k + 1], ci))
-            for m in range(j, k + 1):
-                if (m != j or entry_has_v) and (m != k or exit_has_v):
-                    b.keep(int(inner[m]))  # crossed inside the star of v: left whole
-            j = k + 1
-        if end_node_:
-            chain.append(end_v)
-        chains.append(Chain(np.array(chain, dtype=np.int64), ci, float(c.sigma), False,
-                            np.asarray(tr.polyline, float)))
 
-    return _build(mesh, b, balls, node_vertex, chains, X, routed)
+def _open_chain(mesh: TetMesh, b: _Builder, ci: int, inner, seq: list, xs: list, runs: dict, routed: set) -> list:
+    """The chain of a curve crossing the tets inner (entry face of inner[j]
+    seq[j], exit seq[j + 1], pierce points xs), through the vertices of
+    runs; records the splits in b.  Returns the vertex ids, start to end
+    (without the nodes)."""
+    Fv = mesh.faces
+    chain = []
+    j = 0
+    while j < len(inner):
+        run = runs.get(j)
+        if run is None:
+            # a plain crossing: the entry face split (the start's is split here)
+            if j == 0:
+                chain.append(b.split_face(seq[0], xs[0], ci))
+            b.cross(int(inner[j]), seq[j], seq[j + 1], ci)
+            chain.append(b.split_face(seq[j + 1], xs[j + 1], ci))
+            j += 1
+            continue
+        v, k = run  # inner[j..k] all hold v: the chain goes through v
+        entry_has_v = v in Fv[seq[j]]
+        exit_has_v = v in Fv[seq[k + 1]]
+        if not entry_has_v:
+            if j == 0:
+                chain.append(b.split_face(seq[0], xs[0], ci))
+            b.cross(int(inner[j]), seq[j], None, ci)
+        chain.append(int(v))
+        routed.add(int(v))
+        if not exit_has_v:
+            b.cross(int(inner[k]), None, seq[k + 1], ci)
+            chain.append(b.split_face(seq[k + 1], xs[k + 1], ci))
+        for m in range(j, k + 1):
+            if (m != j or entry_has_v) and (m != k or exit_has_v):
+                b.keep(int(inner[m]))  # crossed inside the star of v: left whole
+        j = k + 1
+    return chain
 
 
 def _polyline_distance(P: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -454,128 +460,19 @@ def _end_point(mesh: TetMesh, f: int, polyline: np.ndarray) -> np.ndarray:
 
 
 def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X, routed: set) -> CurveEdgeMesh:
+    """The split mesh from the splits b recorded (module docs)."""
     T, tf, ft = mesh.tets, mesh.tet_faces, mesh.face_tets
     nV = mesh.n_vertices
     P = np.vstack([X, np.array(b.points).reshape(-1, 3)])
     in_ball = np.zeros(mesh.n_tets, bool)
     for ball in balls:
         in_ball[ball] = True
-    new_tets, parent = [], []
-
-    # crossed tets: five children each (entry and exit faces split), three
-    # where the chain enters or leaves through a vertex, none between two
-    for t, splits in b.tet_splits.items():
-        if len(splits) != 1:
-            curves = sorted({b.labels[c] for *_, c in splits if c >= 0})
-            x = X[T[t]].mean(axis=0)
-            raise CurveEdgeError(
-                f"curve(s) {', '.join(curves)} cross one tet of the field's mesh {len(splits)} times near "
-                f"({x[0]:.4g}, {x[1]:.4g}, {x[2]:.4g}); solve the field on a finer mesh (a smaller edge length)")
-        f_in, f_out, _ = splits[0]
-        if f_in is None and f_out is None:
-            new_tets.append(T[t].copy())
-            parent.append(t)
-            continue
-        if f_in is None or f_out is None:
-            f = f_in if f_out is None else f_out
-            l1 = _tet_face_local(T, tf, t, int(f))
-            p = b.face_point[int(f)]
-            for i in range(4):
-                if i == l1:
-                    continue
-                child = T[t].copy()
-                child[i] = p
-                new_tets.append(child)
-                parent.append(t)
-            continue
-        l1, l2 = _tet_face_local(T, tf, t, int(f_in)), _tet_face_local(T, tf, t, int(f_out))
-        p, q = b.face_point[int(f_in)], b.face_point[int(f_out)]
-        for i in range(4):
-            if i in (l1, l2):
-                continue
-            child = T[t].copy()
-            child[i] = p
-            new_tets.append(child)
-        half = T[t].copy()
-        half[l2] = p
-        for i in range(4):
-            if i == l2:
-                continue
-            child = half.copy()
-            child[i] = q
-            new_tets.append(child)
-        parent += [t] * 5
+    new_tets, parent = _split_crossed(mesh, b)
     crossed = np.zeros(mesh.n_tets, bool)
     crossed[list(b.tet_splits)] = True
     if np.any(crossed & in_ball):
         raise CurveEdgeError("internal: a crossed tet lies in a node ball")
-
-    # node balls: a cone from the node over the skin (split skin faces in
-    # three), in shells so that the map has vertices inside the ball
-    nV0 = nV
-    shell_points: list[np.ndarray] = []
-    cone_src = []
-    for k, ball in enumerate(balls):
-        inside = np.zeros(mesh.n_tets, bool)
-        inside[ball] = True
-        tets, local, faces, _ = _skin(T, tf, ft, ball, inside)
-        hit = [int(f) for f in faces if int(f) in b.face_point]
-        if len(set(hit)) != len(hit):
-            raise CurveEdgeError(f"internal: a skin face of node {k} is split twice")
-        tris, owner = [], []
-        for t, l, f in zip(tets, local, faces):
-            tri = T[t][TET_FACES[l]]
-            if int(f) in b.face_point:
-                p = b.face_point[int(f)]
-                for i in range(3):
-                    sub = tri.copy()
-                    sub[i] = p
-                    tris.append(sub)
-                    owner.append(t)
-            else:
-                tris.append(tri)
-                owner.append(t)
-        tris = np.array(tris, dtype=np.int64)
-        apex = int(node_vertex[k])
-        skin_v = np.unique(tris)
-        Xs = P[skin_v]
-        R = float(np.mean(np.linalg.norm(Xs - P[apex], axis=1)))
-        e = np.r_[tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]
-        hs = float(np.mean(np.linalg.norm(P[e[:, 0]] - P[e[:, 1]], axis=1)))
-        n_sh = int(max(1, min(6, round(R / max(hs, 1e-300)))))
-        # shell j (1..n_sh-1) of skin vertex v at N + (v - N) j / n_sh
-        layer = {n_sh: {int(v): int(v) for v in skin_v}}
-        for j in range(1, n_sh):
-            ids = {}
-            for v in skin_v.tolist():
-                ids[v] = len(P) + len(shell_points)
-                shell_points.append(P[apex] + (P[v] - P[apex]) * (j / n_sh))
-            layer[j] = ids
-        src = np.where(tris < nV0, tris, -1)
-        for tri, t, sv in zip(tris, owner, src):
-            a, bb, c = (int(x) for x in tri)
-            inner = [layer[1][a], layer[1][bb], layer[1][c]] if n_sh > 1 else [a, bb, c]
-            new_tets.append(np.array([apex, *inner]))
-            parent.append(t)
-            cone_src.append((len(new_tets) - 1, sv))
-            for j in range(1, n_sh):
-                lo = [layer[j][a], layer[j][bb], layer[j][c]]
-                hi = [layer[j + 1][a], layer[j + 1][bb], layer[j + 1][c]]
-                for tet in _prism_tets(lo, hi):
-                    new_tets.append(np.array(tet))
-                    parent.append(t)
-                    cone_src.append((len(new_tets) - 1, sv))
-        # the curves from this node: through the shells to their skin points
-        for ch in chains:
-            for end in (0, -1):
-                if ch.vertices[end] != apex or len(ch.vertices) < 2:
-                    continue
-                q = int(ch.vertices[1 if end == 0 else -2])
-                mids = [layer[j][q] for j in range(1, n_sh)]
-                v = ch.vertices.tolist()
-                v = [apex, *mids, *v[1:]] if end == 0 else [*v[:-1], *mids[::-1], apex]
-                ch.vertices = np.array(v, dtype=np.int64)
-
+    shell_points, cone_src = _cone_balls(mesh, b, balls, node_vertex, chains, P, new_tets, parent)
     # the rest: unchanged; split faces must belong to crossed tets or node skins
     kept = [t for t, sp in b.tet_splits.items() if sp[0][0] is None and sp[0][1] is None]
     if kept and np.isin(tf[kept], list(b.face_point)).any():
@@ -598,7 +495,7 @@ def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X, routed: se
     par = np.r_[keep, np.array(parent, dtype=np.int64)]
     # the field-mesh vertices each tet takes its frame from: its own, or for
     # a node ball's tets those of the skin triangle it stands on
-    fsrc = np.where(Tn < nV0, Tn, -1)
+    fsrc = np.where(Tn < nV, Tn, -1)
     for i, sv in cone_src:
         fsrc[len(keep) + i] = np.r_[sv, -1]
     # a vertex a chain goes through has no frame of its own (the field turns
@@ -607,13 +504,11 @@ def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X, routed: se
         fsrc[np.isin(fsrc, list(routed))] = -1
         if np.any((fsrc < 0).all(axis=1)):
             raise CurveEdgeError("internal: a tet around a curve's vertex has no other vertex to take a frame from")
-
     # drop the vertices the cones removed and renumber
     used = np.zeros(len(P), bool)
     used[Tn.reshape(-1)] = True
     new_id = np.cumsum(used) - 1
     source = np.r_[np.arange(nV), np.full(len(P) - nV, -1)][used]
-    fsrc = np.where(fsrc >= 0, fsrc, -1)
     vol = TetMesh._signed_volumes(P, Tn)
     if np.any(vol <= 0):
         raise CurveEdgeError(f"internal: {int(np.sum(vol <= 0))} split tets are not positive")
@@ -622,9 +517,124 @@ def _build(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, X, routed: se
         ch.vertices = new_id[ch.vertices]
     stats = {"split_faces": len(b.face_point), "crossed_tets": int(crossed.sum()),
              "cone_tets": int(sum(len(x) for x in balls)), "removed_vertices": int(nV - used[:nV].sum()),
-             "tets": out_mesh.n_tets, "routed_vertices": len(routed)}
-    stats["min_volume_ratio"] = float(np.min(vol / TetMesh._signed_volumes(X, T)[par]))
+             "tets": out_mesh.n_tets, "routed_vertices": len(routed),
+             "min_volume_ratio": float(np.min(vol / TetMesh._signed_volumes(X, T)[par]))}
     return CurveEdgeMesh(out_mesh, source, par, chains, new_id[node_vertex], stats, fsrc)
+
+
+def _split_crossed(mesh: TetMesh, b: _Builder):
+    """The children of every crossed tet: five (entry and exit faces split),
+    three where the chain enters or leaves through a vertex, the tet itself
+    between two; (tets, parents)."""
+    T, tf, X = mesh.tets, mesh.tet_faces, mesh.vertices
+    new_tets, parent = [], []
+    for t, splits in b.tet_splits.items():
+        if len(splits) != 1:
+            curves = sorted({b.labels[c] for *_, c in splits if c >= 0})
+            x = X[T[t]].mean(axis=0)
+            raise CurveEdgeError(
+                f"curve(s) {', '.join(curves)} cross one tet of the field's mesh {len(splits)} times near "
+                f"({x[0]:.4g}, {x[1]:.4g}, {x[2]:.4g}); solve the field on a finer mesh (a smaller edge length)")
+        f_in, f_out, _ = splits[0]
+        if f_in is None and f_out is None:
+            new_tets.append(T[t].copy())
+            parent.append(t)
+            continue
+        if f_in is None or f_out is None:
+            f = f_in if f_out is None else f_out
+            l1 = _tet_face_local(T, tf, t, int(f))
+            p = b.face_point[int(f)]
+            for i in range(4):
+                if i != l1:
+                    child = T[t].copy()
+                    child[i] = p
+                    new_tets.append(child)
+                    parent.append(t)
+            continue
+        l1, l2 = _tet_face_local(T, tf, t, int(f_in)), _tet_face_local(T, tf, t, int(f_out))
+        p, q = b.face_point[int(f_in)], b.face_point[int(f_out)]
+        for i in range(4):
+            if i not in (l1, l2):
+                child = T[t].copy()
+                child[i] = p
+                new_tets.append(child)
+        half = T[t].copy()
+        half[l2] = p
+        for i in range(4):
+            if i != l2:
+                child = half.copy()
+                child[i] = q
+                new_tets.append(child)
+        parent += [t] * 5
+    return new_tets, parent
+
+
+def _cone_balls(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, P, new_tets: list, parent: list):
+    """Each node's ball as a cone from the node over its skin (split skin
+    faces in three), in shells so that the map has vertices inside the ball;
+    appends to new_tets / parent, extends the chains from the node through
+    the shells.  Returns (the shells' points, (new tet index, the skin
+    triangle's field-mesh vertices) per cone tet)."""
+    T, tf, ft = mesh.tets, mesh.tet_faces, mesh.face_tets
+    nV = mesh.n_vertices
+    shell_points: list[np.ndarray] = []
+    cone_src = []
+    for k, ball in enumerate(balls):
+        inside = np.zeros(mesh.n_tets, bool)
+        inside[ball] = True
+        tets, local, faces, _ = _skin(T, tf, ft, ball, inside)
+        hit = [int(f) for f in faces if int(f) in b.face_point]
+        if len(set(hit)) != len(hit):
+            raise CurveEdgeError(f"internal: a skin face of node {k} is split twice")
+        tris, owner = [], []
+        for t, l, f in zip(tets, local, faces):
+            tri = T[t][TET_FACES[l]]
+            if int(f) in b.face_point:
+                for i in range(3):
+                    sub = tri.copy()
+                    sub[i] = b.face_point[int(f)]
+                    tris.append(sub)
+                    owner.append(t)
+            else:
+                tris.append(tri)
+                owner.append(t)
+        tris = np.array(tris, dtype=np.int64)
+        apex = int(node_vertex[k])
+        skin_v = np.unique(tris)
+        R = float(np.mean(np.linalg.norm(P[skin_v] - P[apex], axis=1)))
+        e = np.r_[tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]
+        hs = float(np.mean(np.linalg.norm(P[e[:, 0]] - P[e[:, 1]], axis=1)))
+        n_sh = int(max(1, min(6, round(R / max(hs, 1e-300)))))
+        # shell j (1..n_sh-1) of skin vertex v at N + (v - N) j / n_sh
+        base = len(P) + len(shell_points)
+        layer = {n_sh: {int(v): int(v) for v in skin_v}}
+        for j in range(1, n_sh):
+            layer[j] = {int(v): base + (j - 1) * len(skin_v) + i for i, v in enumerate(skin_v.tolist())}
+            shell_points.extend(P[apex] + (P[skin_v] - P[apex]) * (j / n_sh))
+        for tri, t, sv in zip(tris, owner, np.where(tris < nV, tris, -1)):
+            a, bb, c = (int(x) for x in tri)
+            inner = [layer[1][a], layer[1][bb], layer[1][c]] if n_sh > 1 else [a, bb, c]
+            new_tets.append(np.array([apex, *inner]))
+            parent.append(t)
+            cone_src.append((len(new_tets) - 1, sv))
+            for j in range(1, n_sh):
+                lo = [layer[j][a], layer[j][bb], layer[j][c]]
+                hi = [layer[j + 1][a], layer[j + 1][bb], layer[j + 1][c]]
+                for tet in _prism_tets(lo, hi):
+                    new_tets.append(np.array(tet))
+                    parent.append(t)
+                    cone_src.append((len(new_tets) - 1, sv))
+        # the curves from this node: through the shells to their skin points
+        for ch in chains:
+            for end in (0, -1):
+                if ch.vertices[end] != apex or len(ch.vertices) < 2:
+                    continue
+                q = int(ch.vertices[1 if end == 0 else -2])
+                mids = [layer[j][q] for j in range(1, n_sh)]
+                v = ch.vertices.tolist()
+                v = [apex, *mids, *v[1:]] if end == 0 else [*v[:-1], *mids[::-1], apex]
+                ch.vertices = np.array(v, dtype=np.int64)
+    return shell_points, cone_src
 
 
 def split_edges(cem: CurveEdgeMesh, edges: np.ndarray) -> CurveEdgeMesh:

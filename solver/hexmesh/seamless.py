@@ -405,32 +405,80 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
     MapSystem
     """
     mesh = cem.mesh
-    T, X = mesh.tets, mesh.vertices
-    nT, nV = len(T), mesh.n_vertices
-    F = tr.frames
+    nV = mesh.n_vertices
     patch, orient, patch_M = cut_patches(mesh, tr)
-    P = len(patch_M)
-    ntau = 3 * P
+    ntau = 3 * len(patch_M)
     wedge, wv = corner_wedges(mesh, tr)
     A, Bd, cycle_rows = _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau)
+    coords = _CornerCoordinates(mesh.tets, wedge, A, Bd, ntau)
+    rows, angle = _equal_coordinates(cem, tr, coords)
+    uf, integer_scalar = _union_find(nV, ntau, rows, cycle_rows, coords)
+    # the gauge (a global translation): the coordinates of one vertex that
+    # lies on the integer grid anyway (a node, a curve's end, a corner) are
+    # 0 -- the vertex's own coordinates, which differ from their class's
+    # root by a sign and a translation
+    pin = _pin_vertex(cem, integer_scalar)
+    for j in range(3):
+        uf.add([(3 * pin + j, 1.0)], None)
+    roots, sgn, Off = uf.flatten()
+    offs = {int(i): Off[i].toarray().ravel() for i in np.unique(Off.nonzero()[0])}
+    root_int = np.zeros(3 * nV, bool)
+    np.logical_or.at(root_int, roots, integer_scalar)
+    isp, fixed_int = _integer_space(uf, root_int, ntau)
+    N = isp.N
+    Ntau, Nline = N[:ntau], N[ntau:]
+    nk = N.shape[1]
+    is_root = roots == np.arange(3 * nV)
+    free = is_root & ~np.isin(np.arange(3 * nV), list(uf.fixed))
+    col = np.full(3 * nV, -1, dtype=np.int64)
+    col[free] = np.arange(int(free.sum()))
+    nr = int(free.sum())
+    # a fixed root's value: its line's integer unknown, or its translations
+    fixed_val = {r: Nline[i] for i, r in enumerate(fixed_int)}
+    for r, val in uf.fixed.items():
+        fixed_val.setdefault(r, val @ Ntau)
+    Xm = _corner_matrix(mesh.tets, wedge, A, Bd, roots, sgn, offs, col, fixed_val, Ntau, nr, nk)
+    LX, Q, bvec, coef, vol = _fitting_energy(mesh, tr.frames, cell, Xm)
+    integer = np.zeros(nr + nk, bool)
+    integer[col[free & root_int]] = True
+    integer[nr:] = True
+    stats = {"patches": len(patch_M), "cut_faces": int(tr.cut.sum()), "wedges": len(wv), "unknowns": nr + nk,
+             "integer_unknowns": int(integer.sum()), "translations": nk, "tau_relations": len(uf.tau_rows),
+             "fixed_scalars": len(uf.fixed), "nonunimodular_pivots": isp.nonunimodular,
+             "boundary_angle_max": float(angle.max()) if len(angle) else 0.0}
+    return MapSystem(mesh, tr.frames, cell, wedge, wv, Xm, Q, bvec, integer, vol, coef, angle, LX, stats)
 
-    integer_scalar = np.zeros(3 * nV, bool)
-    Ga_all = G[A]  # (nW, 3, 3)
-    jmax = np.argmax(np.abs(Ga_all), axis=2)  # (nW, 3): the scalar each coordinate reads
-    gsign = np.take_along_axis(Ga_all, jmax[..., None], axis=2)[..., 0]  # (nW, 3)
-    bw = np.array(sorted(Bd), dtype=np.int64)
-    Bstack = np.array([Bd[int(w)] for w in bw]) if len(bw) else np.zeros((0, 3, ntau))
-    brow = np.full(len(wv), -1, dtype=np.int64)
-    brow[bw] = np.arange(len(bw))
 
-    def coords(t, c, a):
-        """(scalar, sign, tau row index into Bstack or -1) of coordinate a of
-        corner c of tets t (arrays)."""
-        w = wedge[t, c]
-        return 3 * T[t, c] + jmax[w, a], gsign[w, a], brow[w]
+class _CornerCoordinates:
+    """Which scalar unknown (vertex v, component j), with which sign and which
+    translation row, coordinate a of a tet corner reads: u_w = G[A_w] r_v +
+    B_w tau for the corner's wedge w."""
 
-    rows0, rows1 = [], []  # pairs of (scalar, sign, B row, coordinate) that must be equal
-    # boundary faces: the coordinate along the normal's axis is constant
+    def __init__(self, T, wedge, A, Bd, ntau):
+        Ga = G[A]  # (nW, 3, 3)
+        self.T, self.wedge = T, wedge
+        self.jmax = np.argmax(np.abs(Ga), axis=2)  # (nW, 3)
+        self.gsign = np.take_along_axis(Ga, self.jmax[..., None], axis=2)[..., 0]
+        bw = np.array(sorted(Bd), dtype=np.int64)
+        self.B = np.array([Bd[int(w)] for w in bw]) if len(bw) else np.zeros((0, 3, ntau))
+        self.brow = np.full(len(A), -1, dtype=np.int64)
+        self.brow[bw] = np.arange(len(bw))
+
+    def __call__(self, t, c, a):
+        """(scalar, sign, row into self.B or -1) of coordinate a of corner c
+        of tets t (arrays)."""
+        w = self.wedge[t, c]
+        return 3 * self.T[t, c] + self.jmax[w, a], self.gsign[w, a], self.brow[w]
+
+
+def _equal_coordinates(cem: CurveEdgeMesh, tr: Transitions, coords: _CornerCoordinates):
+    """The coordinate equalities: on a boundary face the coordinate along its
+    normal's axis, along a curve edge the two across the curve's axis.
+    Returns ((S0, G0, B0, S1, G1, B1, AX) arrays of the row pairs, the
+    boundary faces' angles to their axis in degrees)."""
+    mesh = cem.mesh
+    T, X, F = mesh.tets, mesh.vertices, tr.frames
+    rows0, rows1 = [], []  # (tets, corners, coordinate) that must be equal
     bf = mesh.boundary_faces
     bt = mesh.face_tets[bf, 0]
     on_face = (T[bt][:, :, None] == mesh.faces[bf][:, None, :]).any(axis=2)
@@ -445,60 +493,56 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
     for m in (1, 2):
         rows0.append((bt, cs[:, 0], axis))
         rows1.append((bt, cs[:, m], axis))
-    # curve edges: the coordinates across the curve's axis are constant
+    te = mesh.tet_edges
     for ch in cem.chains:
         e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
-        te = mesh.tet_edges
-        # one tet per chain edge
-        hit = np.isin(te, e)
-        r, c = np.nonzero(hit)
+        r, c = np.nonzero(np.isin(te, e))
         first = {}
         for t, k in zip(r.tolist(), c.tolist()):
             first.setdefault(int(te[t, k]), t)
-        tt = np.array([first[int(x)] for x in e], dtype=np.int64)
+        tt = np.array([first[int(x)] for x in e], dtype=np.int64)  # one tet per chain edge
         cx = np.argmax(T[tt] == ch.vertices[:-1, None], axis=1)
         cy = np.argmax(T[tt] == ch.vertices[1:, None], axis=1)
         k = np.argmax(np.abs(np.einsum("tji,tj->ti", F[tt], ch.tangents(X))), axis=1)
         for d in (1, 2):
-            a = (k + d) % 3
-            rows0.append((tt, cx, a))
-            rows1.append((tt, cy, a))
+            rows0.append((tt, cx, (k + d) % 3))
+            rows1.append((tt, cy, (k + d) % 3))
     S0, G0, B0 = (np.concatenate(x) for x in zip(*[coords(*r) for r in rows0]))
     S1, G1, B1 = (np.concatenate(x) for x in zip(*[coords(*r) for r in rows1]))
     AX = np.concatenate([r[2] for r in rows0])
+    return (S0, G0, B0, S1, G1, B1, AX), angle
+
+
+def _union_find(nV: int, ntau: int, rows, cycle_rows, coords: _CornerCoordinates):
+    """The affine union-find of every constraint (module docs), and which
+    scalars must be integers."""
+    S0, G0, B0, S1, G1, B1, AX = rows
+    integer_scalar = np.zeros(3 * nV, bool)
     integer_scalar[S0] = integer_scalar[S1] = True
+    uf = AffineUnionFind(3 * nV, ntau)
     # equal scalars with no translation between them: merged at once
     plain = (B0 < 0) & (B1 < 0) & (G0 == G1)
-    uf = AffineUnionFind(3 * nV, ntau)
     if plain.any():
         g = sp.coo_matrix((np.ones(int(plain.sum())), (S0[plain], S1[plain])), shape=(3 * nV, 3 * nV))
         _, lab = connected_components(g, directed=False)
         rep = np.full(lab.max() + 1, 3 * nV)
         np.minimum.at(rep, lab, np.arange(3 * nV))
         uf.parent = rep[lab]
-    zero_row = np.zeros(ntau)
     for terms, e in cycle_rows:
         uf.add(terms, e)
+    zero = np.zeros(ntau)
     for i in np.nonzero(~plain)[0].tolist():
-        e0 = Bstack[B0[i], AX[i]] if B0[i] >= 0 else zero_row
-        e1 = Bstack[B1[i], AX[i]] if B1[i] >= 0 else zero_row
+        e0 = coords.B[B0[i], AX[i]] if B0[i] >= 0 else zero
+        e1 = coords.B[B1[i], AX[i]] if B1[i] >= 0 else zero
         uf.add([(int(S0[i]), float(G0[i])), (int(S1[i]), -float(G1[i]))], e0 - e1)
+    return uf, integer_scalar
 
-    # the gauge (a global translation): the coordinates of one vertex that
-    # lies on the integer grid anyway (a node, a curve's end, a boundary
-    # vertex) are 0 -- the vertex's own coordinates, which differ from their
-    # class's root by a sign and a translation
-    pin = _pin_vertex(cem, integer_scalar)
-    for j in range(3):
-        uf.add([(3 * pin + j, 1.0)], None)
 
-    # ------------------------------------------------ reduce to z
-    roots, sgn, Off = uf.flatten()
-    offs = {int(i): Off[i].toarray().ravel() for i in np.unique(Off.nonzero()[0])}
-    root_int = np.zeros(3 * nV, bool)
-    np.logical_or.at(root_int, roots, integer_scalar)
+def _integer_space(uf: AffineUnionFind, root_int: np.ndarray, ntau: int):
+    """The integer unknowns: the translations and one line value per fixed
+    root that must be an integer, reduced by their relations (IntegerSpace).
+    Returns (IntegerSpace, the fixed integer roots in line order)."""
     fixed_int = [r for r in uf.fixed if root_int[r]]
-    # integer space over [tau; one line value per fixed integer root]
     q = ntau + len(fixed_int)
     isp = IntegerSpace(q)
     prefer = np.zeros(q, bool)
@@ -515,27 +559,18 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
         if np.all(np.isclose(np.rint(rk) % 2, 0)) and np.allclose(rk, np.rint(rk)):
             row = 0.5 * row  # integer already: the line value follows from the tau
         isp.add(row, prefer)
-    is_root = roots == np.arange(3 * nV)
-    free = is_root & ~np.isin(np.arange(3 * nV), list(uf.fixed))
-    N = isp.N
-    Ntau, Nline = N[:ntau], N[ntau:]
-    nk = N.shape[1]
-    col = np.full(3 * nV, -1, dtype=np.int64)
-    col[free] = np.arange(int(free.sum()))
-    nr = int(free.sum())
-    nz = nr + nk
-    # scalar s = sgn s * x_root + off . tau; x_root free, fixed or pinned
-    fixed_val = {}
-    for i, r in enumerate(fixed_int):
-        fixed_val[r] = Nline[i]  # in k
-    for r, val in uf.fixed.items():
-        if r not in fixed_val:
-            fixed_val[r] = val @ Ntau
-    # corner coordinate rows
+    return isp, fixed_int
+
+
+def _corner_matrix(T, wedge, A, Bd, roots, sgn, offs, col, fixed_val, Ntau, nr, nk) -> sp.csr_matrix:
+    """X (12 #T, nz): corner coordinates from z = [free roots; integer k].
+    Scalar s = sgn_s x_root + offs_s . tau, x_root free (a column), fixed
+    (fixed_val, in k) or pinned (0); tau = Ntau k."""
+    nT = len(T)
     rows_i, cols_i, vals = [], [], []
     dense_rows, dense_vals = [], []
-    Tf = T.reshape(-1)
-    Wf = wedge.reshape(-1)
+    Tf, Wf = T.reshape(-1), wedge.reshape(-1)
+    bset, oset, fset = list(Bd), list(offs), list(fixed_val)
     for a in range(3):
         Ga = G[A[Wf]][:, a, :]  # (4nT, 3) one nonzero per row
         j = np.argmax(np.abs(Ga), axis=1)
@@ -547,17 +582,15 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
         rows_i.append(rid[ok])
         cols_i.append(col[r[ok]])
         vals.append((g * sgn[s])[ok])
-        # tau parts: the wedge's B, the scalar's offset, a fixed root's value
-        need = np.nonzero(np.isin(Wf, list(Bd)) | np.isin(s, list(offs)) | np.isin(r, list(fixed_val)))[0]
+        # translation parts: the wedge's B, the scalar's offset, a fixed root's value
+        need = np.nonzero(np.isin(Wf, bset) | np.isin(s, oset) | np.isin(r, fset))[0]
         for i in need.tolist():
             vec = np.zeros(nk)
-            w = int(Wf[i])
+            w, si, ri = int(Wf[i]), int(s[i]), int(r[i])
             if w in Bd:
                 vec += Bd[w][a] @ Ntau
-            si = int(s[i])
             if si in offs:
                 vec += g[i] * (offs[si] @ Ntau)
-            ri = int(r[i])
             if ri in fixed_val:
                 vec += g[i] * sgn[si] * fixed_val[ri]
             if np.any(vec):
@@ -569,15 +602,20 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
         rows_i.append(np.array(dense_rows)[nzr])
         cols_i.append(nr + nzc)
         vals.append(D[nzr, nzc])
-    Xm = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows_i), np.concatenate(cols_i))),
-                       shape=(12 * nT, nz))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows_i), np.concatenate(cols_i))),
+                         shape=(12 * nT, nr + nk))
 
-    # energy: cell * grad(u) F per tet is linear in the corners
+
+def _fitting_energy(mesh: TetMesh, F: np.ndarray, cell: float, Xm: sp.csr_matrix):
+    """The frame-fitting energy (module docs) in z: (LX, Q, b, coef, volumes)
+    with residuals LX z - vec(I) per tet, weights the volumes, and coef the
+    (#T, 4, 3) coefficients of cell * grad(u) F in the corners."""
+    T, X = mesh.tets, mesh.vertices
+    nT = len(T)
     Xt = X[T]
     Mb = Xt[:, 1:] - Xt[:, :1]  # (nT, 3, 3) rows: edge vectors
-    Minv = np.linalg.inv(np.transpose(Mb, (0, 2, 1)))  # columns edges -> gradients of lambda_1..3
     gl = np.zeros((nT, 4, 3))
-    gl[:, 1:] = Minv  # rows: grad lambda_1..3
+    gl[:, 1:] = np.linalg.inv(np.transpose(Mb, (0, 2, 1)))  # rows: grad lambda_1..3
     gl[:, 0] = -gl[:, 1:].sum(axis=1)
     coef = cell * np.einsum("tck,tkj->tcj", gl, F)  # (nT, 4, 3): corner c, frame axis j
     vol = mesh.tet_volumes
@@ -592,18 +630,9 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
     L = sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(9 * nT, 12 * nT))
     LX = (L @ Xm).tocsr()
     w = np.repeat(vol, 9)
-    target = np.tile(np.eye(3).reshape(-1), nT)
     Q = (LX.T @ sp.diags(w) @ LX).tocsr()
-    bvec = LX.T @ (w * target)
-    integer = np.zeros(nz, bool)
-    integer[col[free & root_int]] = True
-    integer[nr:] = True
-    stats = {"patches": P, "cut_faces": int(tr.cut.sum()), "wedges": len(wv), "unknowns": nz,
-             "integer_unknowns": int(integer.sum()), "translations": nk, "tau_relations": len(uf.tau_rows),
-             "fixed_scalars": len(uf.fixed), "nonunimodular_pivots": isp.nonunimodular,
-             "boundary_angle_max": float(angle.max()) if len(angle) else 0.0}
-    return MapSystem(mesh, F, cell, wedge, wv, Xm, Q, np.asarray(bvec).ravel(), integer, vol, coef,
-                     angle, LX, stats)
+    b = np.asarray(LX.T @ (w * np.tile(np.eye(3).reshape(-1), nT))).ravel()
+    return LX, Q, b, coef, vol
 
 
 def _pin_vertex(cem: CurveEdgeMesh, integer_scalar: np.ndarray) -> int:
