@@ -492,6 +492,7 @@ def test_save_and_reload_keep_the_result(cube):
     np.testing.assert_array_equal(P, cube.glyph_points)
     np.testing.assert_array_equal(Q, cube.glyph_quats)
     lines = polylines(output("streamlines"))
+    assert len(cube.lines) > 0
     assert len(lines) == len(cube.lines) and all(np.array_equal(a, b) for a, b in zip(lines, cube.lines))
     # the stored field alone drives the display operators: no solve needed
     assert bpy.ops.symframes.show_glyphs() == {"FINISHED"}
