@@ -23,6 +23,11 @@ a name of solver.examples.EXAMPLES, ``l_prism``
 interior curves routed along the edges of an independent fTetWild mesh, as
 other tools export networks (solver/tetedge.py; drawn once per session).
 
+./dev.sh test runs the suite on two pytest-xdist workers; they share the
+cache through files in the run's common temporary folder (one worker makes
+an entry, the other waits for it and reads it), so an example is meshed
+once per run on either.
+
 fTetWild is not deterministic: a shared mesh is one of the meshes it may
 make, and what a test checks on it must hold on any of them.  A test that
 needs a mesh made afresh (meshing is what it checks, or its input is its

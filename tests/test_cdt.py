@@ -53,7 +53,7 @@ def test_where_tetgen_fails_ftetwild_meshes(monkeypatch):
 
     monkeypatch.setattr(cdt, "tetrahedralize_cdt", fail)
     V, F, net = load_example("cube")
-    p = FieldProblem(V, F, net, Options(mesher="TetGen", edge_length=0.3))
+    p = FieldProblem(V, F, net, Options(mesher="TetGen", edge_length=0.3))  # meshed here: the fallback is the point
     assert p.report.mesher.startswith("fTetWild (TetGen failed") and p.mesh.n_tets > 0
     assert "meshed by fTetWild (TetGen failed" in p.report.summary()
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import Curve, Network, NetworkError, Options, solve
+from solver import Curve, Network, NetworkError, solve
 from solver.analysis.measures import normal_adaptation, tangent_adaptation
 from solver.examples import load_example
 from solver.network.intake import repairs_text
@@ -440,14 +440,13 @@ def test_tet_edge_network_solves_with_defaults(tet_edge_solves, name):
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
-def test_tet_edge_penalty_is_near_the_clean_networks(tet_edge_solves, name):
+def test_tet_edge_penalty_is_near_the_clean_networks(tet_edge_solves, solved, name):
     """Issue 27's bar: the structure penalty of the repaired tet-edge
     network within 10x of the clean network's at the same edge length.
     Measured after least bending: cylinder 0.0015-0.0018 against 0.0018,
     ball 0.18 against 0.09-0.18 (before it the cylinder scored up to 25x)."""
     tn, r = tet_edge_solves(name)
-    V, F, net = load_example(name)
-    clean = solve(V, F, net, Options(edge_length=r.problem.edge_length))
+    clean = solved(name, edge_length=r.problem.edge_length)
     assert clean.report.converged, clean.report.status_reason
     assert r.report.lm.final.penalty <= 10.0 * clean.report.lm.final.penalty, (
         r.report.lm.final.penalty, clean.report.lm.final.penalty)
@@ -559,13 +558,13 @@ def test_genus2_example_ends_are_turned():
         assert end_normal_angle(checked.surface, Q[::-1]) < 1.0
 
 
-def test_feature_curves_leave_no_missing_singular_faces():
+def test_feature_curves_leave_no_missing_singular_faces(solved):
     """A feature curve (sigma = 0) pierces faces where the field is regular:
     they are not missing singular faces (the genus-2 example, whose two
     curves are features, reported 34-37 of them on perfect solves)."""
-    V, F, net = load_example("genus2")
+    _, _, net = load_example("genus2")
     assert net.curves and all(c.sigma == 0 for c in net.curves)
-    r = solve(V, F, net)
+    r = solved("genus2")
     assert r.report.converged, r.report.status_reason
     assert np.any(r.embedding.pierce_count > 0) and not r.embedding.prescribed_singular().any()
     m = r.report.metrics

@@ -155,7 +155,7 @@ def test_short_curve_within_budget():
     for the ball); now the mesh is graded and stays within 1.5x the budget.
     Meshing only: LM on such a mesh converges slowly (README, limitations),
     too slowly for a test."""
-    V, F, net = ball_example(inner=0.015)
+    V, F, net = ball_example(inner=0.015)  # meshed here: its own network, and the budget retries are the point
     budget = 6000
     problem = FieldProblem(V, F, net, Options(target_tets=budget))
     sizes = problem.report.sizes
@@ -193,7 +193,7 @@ def test_short_curves_solve_within_budget():
     tube edge between its node regions (each 0.04 across, plus the ring of
     tets around it), with its vertices one edge length (0.034-0.051) from
     the curve, where the field is off by 3-6 deg (4 of ~200 vertices)."""
-    V, F, net = ball_example(inner=0.05)
+    V, F, net = ball_example(inner=0.05)  # its own network: meshed here
     budget = 8000
     r = solve(V, F, net, target_tets=budget)
     sizes = r.report.sizes
