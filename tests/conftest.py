@@ -40,6 +40,7 @@ import copy
 import hashlib
 import os
 import pickle
+import shutil
 from dataclasses import asdict
 
 import pytest
@@ -154,14 +155,26 @@ class _Session:
 _SESSION = _Session()
 
 
+CACHE_FOLDER = "symframes-cache"
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _shared_cache(tmp_path_factory):
     """Under pytest-xdist: a folder of this run that every worker sees
     (the parent of the workers' own temporary folders)."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
-        _SESSION.shared = tmp_path_factory.getbasetemp().parent / "symframes-cache"
+        _SESSION.shared = tmp_path_factory.getbasetemp().parent / CACHE_FOLDER
         _SESSION.shared.mkdir(exist_ok=True)
     yield
+
+
+def pytest_sessionfinish(session):
+    """The controller of a pytest-xdist run removes the workers' shared
+    cache (a few hundred MB of pickles) once they are done."""
+    factory = getattr(session.config, "_tmp_path_factory", None)
+    if os.environ.get("PYTEST_XDIST_WORKER") or factory is None or not session.config.getoption("numprocesses", None):
+        return
+    shutil.rmtree(factory.getbasetemp() / CACHE_FOLDER, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
