@@ -2,7 +2,7 @@
 # SymFrames developer entry point.  Creates .venv with the pinned
 # requirements on first use (Python 3.11), then:
 #   ./dev.sh demo [ARGS]   build the default example, compute it, write out/*.blend and a PNG
-#   ./dev.sh test [ARGS]   lint (ruff), then run the test suite (pytest ARGS)
+#   ./dev.sh test [ARGS]   lint (ruff), then run the test suite on two processes (pytest ARGS; -n 0: one)
 #   ./dev.sh lint [ARGS]   ruff check (ARGS e.g. --fix)
 #   ./dev.sh bench [ARGS]  run the benchmarks
 #   ./dev.sh matrix [ARGS] install and run the built extension in every supported Blender (bpy module) release
@@ -25,7 +25,7 @@ cd "$ROOT"
 case "$cmd" in
     demo)   exec "$VENV/bin/python" scripts/symframes_run.py "$@" ;;
     test)   "$VENV/bin/ruff" check --quiet "$ROOT"
-            exec "$VENV/bin/python" -m pytest -q "$@" ;;
+            exec "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile "$@" ;;
     lint)   exec "$VENV/bin/ruff" check "$ROOT" "$@" ;;
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
     matrix) exec "$VENV/bin/python" scripts/matrix.py "$@" ;;

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import FieldProblem, MeshingError, Network, Options, OptionsError, solve
+from solver import FieldProblem, MeshingError, Network, Options, OptionsError
 from solver.examples import box, l_prism_example, load_example
 from solver.mesh.cdt import tetrahedralize_cdt, wants_tetgen
 from solver.surface.trisurface import TriSurface
@@ -38,9 +38,8 @@ def test_tetgen_failure_is_an_error_not_a_crash():
         tetrahedralize_cdt(S, 0.3)
 
 
-def test_auto_takes_tetgen_for_a_clean_part_and_it_solves():
-    V, F, net = load_example("prism")
-    r = solve(V, F, net)
+def test_auto_takes_tetgen_for_a_clean_part_and_it_solves(solved):
+    r = solved("prism")
     assert r.report.mesher == "TetGen" and "meshed by TetGen" in r.report.summary()
     assert r.report.converged, r.report.status_reason
     assert r.report.metrics["normal_adaptation_mean_deg"] < 0.5
@@ -54,7 +53,7 @@ def test_where_tetgen_fails_ftetwild_meshes(monkeypatch):
 
     monkeypatch.setattr(cdt, "tetrahedralize_cdt", fail)
     V, F, net = load_example("cube")
-    p = FieldProblem(V, F, net, Options(mesher="TetGen", edge_length=0.3))
+    p = FieldProblem(V, F, net, Options(mesher="TetGen", edge_length=0.3))  # meshed here: the fallback is the point
     assert p.report.mesher.startswith("fTetWild (TetGen failed") and p.mesh.n_tets > 0
     assert "meshed by fTetWild (TetGen failed" in p.report.summary()
 

@@ -1,7 +1,9 @@
 """End-to-end solves of the built-in domains (issue 2's acceptance checks).
 
-Each domain is meshed and solved once per module; the tests then judge the
-field: alignment, singular structure, adaptation, integrability and its
+Each domain is meshed and solved once per session (tests/conftest.py:
+``solved`` shares the result, ``meshed`` gives a test a problem of its own
+on the same mesh to solve again); the tests then judge the field:
+alignment, singular structure, adaptation, integrability and its
 refinement, independence of the initial guess and of the development root.
 fTetWild's meshes vary slightly from run to run, so the checks are about
 properties every mesh of the given resolution must have.
@@ -13,7 +15,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from solver import FieldProblem, Options, solve
+from solver import FieldProblem, Options
 from solver.analysis.measures import (
     loglog_slope,
     matched_singular_faces,
@@ -32,17 +34,10 @@ H = {"cube": 0.3, "cylinder": 0.2, "ball": 0.18, "torus": 0.15}
 
 
 @pytest.fixture(scope="module")
-def solved():
-    cache = {}
-
-    def get(name, h=None):
-        key = (name, h or H[name])
-        if key not in cache:
-            V, F, net = load_example(name)
-            cache[key] = solve(V, F, net, edge_length=key[1])
-        return cache[key]
-
-    return get
+def at(solved):
+    """at(name, h=None): the session's solve of an example at edge length h
+    (default: H)."""
+    return lambda name, h=None: solved(name, edge_length=h or H[name])
 
 
 # ------------------------------------------------------------------ helpers
@@ -134,20 +129,19 @@ def check_axis_aligned(result):
 
 
 # -------------------------------------------------------------------- cube
-def test_cube_frames_are_axis_aligned(solved):
-    r = solved("cube")
+def test_cube_frames_are_axis_aligned(at):
+    r = at("cube")
     check_axis_aligned(r)
     sing, _ = matched_singular_faces(r.mesh, r.frames)
     assert not sing.any()
     assert r.report.lm.converged
 
 
-def test_lm_converges_on_a_field_without_turning():
+def test_lm_converges_on_a_field_without_turning(meshed):
     """The cube's field does not turn (omega = 0): steps measured relative
     to omega alone stay at a fixed fraction of round-off there, and LM ran
     into its iteration cap from the linear start."""
-    V, F, net = load_example("cube")
-    p = FieldProblem(V, F, net, Options(edge_length=H["cube"]))
+    p = meshed("cube", edge_length=H["cube"])
     for init in ("zero", "linear", "random"):
         r = p.solve(init=init)
         lm = r.report.lm
@@ -160,7 +154,7 @@ def test_lm_converges_on_a_field_without_turning():
 
 
 # ------------------------------------------------------------------- torus
-def test_torus_has_no_singularity_and_is_adapted(solved):
+def test_torus_has_no_singularity_and_is_adapted(at):
     """A smooth solid torus: the frames must twist once around each meridian
     (SO(3) loop parity), and then need no singularity.  The twist turns the
     frames by ~3 rad per unit length, 20-55 degrees per edge at this
@@ -171,7 +165,7 @@ def test_torus_has_no_singularity_and_is_adapted(solved):
     (the monodromy off the development tree, a few degrees) reaches 45
     degrees.  (|omega| alone is not enough: an edge with |omega| = 44.99
     degrees, frames 45.04 apart, was flagged on 1 of 40 fresh meshes.)"""
-    r = solved("torus")
+    r = at("torus")
     mesh = r.mesh
     assert not omega_singular_faces(mesh, r.omega, r.frames).any()
     mismatch = omega_frame_mismatch(mesh, r.omega, r.frames)
@@ -189,22 +183,22 @@ def test_torus_has_no_singularity_and_is_adapted(solved):
 
 # --------------------------------------------------- cylinder and the ball
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
-def test_singular_structure_matches_the_network(solved, name):
-    check_singular_structure(solved(name))
+def test_singular_structure_matches_the_network(at, name):
+    check_singular_structure(at(name))
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
-def test_omega_matched_singular_faces_are_exactly_the_network(solved, name):
+def test_omega_matched_singular_faces_are_exactly_the_network(at, name):
     """Matched against the frame omega carries across each edge (not fooled
     by edges turning ~45 degrees), the singular faces are the network's:
     every pierced face, and nothing outside the network's faces (pierced,
     node regions, curve ends)."""
-    check_omega_singular_set(solved(name))
+    check_omega_singular_set(at(name))
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
-def test_frames_are_adapted_to_curves_and_boundary(solved, name):
-    r = solved(name)
+def test_frames_are_adapted_to_curves_and_boundary(at, name):
+    r = at(name)
     _, ta = tangent_adaptation(r)
     assert len(ta) > 0
     assert np.degrees(ta).mean() <= 2.0, np.degrees(ta).mean()
@@ -213,37 +207,35 @@ def test_frames_are_adapted_to_curves_and_boundary(solved, name):
     assert na.mean() <= 1.7, na.mean()
 
 
-def test_frames_do_not_depend_on_the_turn_of_the_2d_field(solved):
+def test_frames_do_not_depend_on_the_turn_of_the_2d_field(at, meshed):
     """The 2D field is defined up to one turn about the normals (§3.4) and a
     common shift of the alphas of Eq. 20 leaves omega unchanged; the 3D field
     must not turn with it: the quarter turns around the interior curves fix
-    that turn (§4.2.3)."""
-    r = solved("ball")
-    p, bf = r.problem, r.problem.boundary
-    E0 = bf.E0.copy()
-    try:
-        bf.E0 = exp_so3(0.5 * bf.normals) @ E0
-        turned = p.solve()
-    finally:
-        bf.E0 = E0
+    that turn (§4.2.3).  (The turned field is solved on a copy of the solved
+    problem: the same mesh, embedding and boundary field.)"""
+    r = at("ball")
+    p = meshed("ball", edge_length=H["ball"])
+    bf = p.boundary
+    bf.E0 = exp_so3(0.5 * bf.normals) @ bf.E0
+    turned = p.solve()
     assert np.degrees(cross_distance(r.frames, turned.frames)).max() <= 0.01
     _, ta = tangent_adaptation(turned)
     assert np.degrees(ta).mean() <= 2.0
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
-def test_monodromy_is_small(solved, name):
-    ang = regular_monodromy_deg(solved(name))
+def test_monodromy_is_small(at, name):
+    ang = regular_monodromy_deg(at(name))
     assert ang.mean() <= 0.1, ang.mean()
 
 
-def test_monodromy_falls_under_refinement(solved):
+def test_monodromy_falls_under_refinement(at):
     """Eq. 9 on a fixed subdomain a quarter unit away from the curves and the
     boundary (the paper's Fig. 15 measures away from the singular curves)."""
     hs = [0.3, 0.2, 0.14]
     means, lengths = [], []
     for h in hs:
-        r = solved("cylinder", h)
+        r = at("cylinder", h)
         faces = subdomain_faces(r, 0.25)
         d, _, _ = r.problem.checked.surface.closest_points(r.mesh.vertices)
         faces = faces[(d[r.mesh.faces[faces]] >= 0.25).all(axis=1)]
@@ -255,10 +247,9 @@ def test_monodromy_falls_under_refinement(solved):
 
 
 # ---------------------------------------------------------- independence
-@pytest.fixture(scope="module")
-def cylinder_problem():
-    V, F, net = load_example("cylinder")
-    return FieldProblem(V, F, net, Options(edge_length=0.3))
+@pytest.fixture
+def cylinder_problem(meshed):
+    return meshed("cylinder", edge_length=0.3)
 
 
 def test_initialisations_reach_the_same_field(cylinder_problem):
@@ -301,7 +292,7 @@ def test_lm_stops_within_its_tolerance_of_the_minimiser(cylinder_problem):
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
-def test_the_field_does_not_depend_on_the_model_units(cylinder_problem, scale):
+def test_the_field_does_not_depend_on_the_model_units(solved, scale):
     """The same solid, network and tet mesh in other units (millimetres
     drawn as metres, say): the same field.  The smoothness weights of Eq. 16
     scale like a length and the structure residuals of Eq. 19 do not, so
@@ -310,11 +301,10 @@ def test_the_field_does_not_depend_on_the_model_units(cylinder_problem, scale):
 
     from solver.mesh.tetmesh import TetMesh
 
-    p = cylinder_problem
-    ref = p.solve()
+    ref = solved("cylinder", edge_length=0.3)
     V, F, net = load_example("cylinder")
     net = replace(net, curves=[replace(c, points=scale * c.points) for c in net.curves])
-    mesh = TetMesh(scale * p.mesh.vertices, p.mesh.tets)
+    mesh = TetMesh(scale * ref.mesh.vertices, ref.mesh.tets.copy())
     q = FieldProblem(scale * V, F, net, Options(edge_length=0.3 * scale), mesh=mesh)
     r = q.solve()
     assert r.report.lm.converged
@@ -324,8 +314,8 @@ def test_the_field_does_not_depend_on_the_model_units(cylinder_problem, scale):
     assert np.degrees(cross_distance(r.frames, ref.frames)).max() <= 1e-3
 
 
-def test_development_root_does_not_matter(solved):
-    r = solved("cylinder")
+def test_development_root_does_not_matter(at):
+    r = at("cylinder")
     mesh = r.mesh
     rng = np.random.default_rng(0)
     interior = np.nonzero(~mesh.is_boundary_vertex)[0]
@@ -336,13 +326,13 @@ def test_development_root_does_not_matter(solved):
         assert dev.max() <= 1.0, (root, dev.max())
 
 
-def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(solved, monkeypatch):
+def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(meshed, monkeypatch):
     """Far from the minimum the full Hessian is indefinite: PCG stops on
     negative curvature and LM re-solves with Gauss-Newton.  Both solves'
     steps belong in the report."""
     import solver.field.volume3d as v3
 
-    p = solved("ball").problem
+    p = meshed("ball", edge_length=H["ball"])
     calls = []
     real_pcg = v3.pcg
 
@@ -359,7 +349,7 @@ def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(solved, monk
     assert rep.final.energy < rep.iterations[0].energy
 
 
-def test_a_direction_of_negative_curvature_lowers_the_energy_past_gauss_newton(solved):
+def test_a_direction_of_negative_curvature_lowers_the_energy_past_gauss_newton(meshed):
     """From omega = c the full Hessian of Eq. 23 is indefinite, and PCG on
     it stops on a direction of negative curvature.  Moving on from the
     Gauss-Newton trial point to the energy's minimum along that direction
@@ -367,16 +357,16 @@ def test_a_direction_of_negative_curvature_lowers_the_energy_past_gauss_newton(s
     returns."""
     from solver.linalg.pcg import pcg
 
-    vp = solved("ball").problem.volume
+    vp = meshed("ball", edge_length=H["ball"]).volume
     x = np.zeros(vp.P.shape[1])
-    g, H, blocks = vp.linearise(x)
-    full = vp.assembly.matrix(H + vp.second_order(x))
-    pc = vp.make_preconditioner(blocks, 0.0, H, vp.omega(x))
+    g, Hgn, blocks = vp.linearise(x)
+    full = vp.assembly.matrix(Hgn + vp.second_order(x))
+    pc = vp.make_preconditioner(blocks, 0.0, Hgn, vp.omega(x))
     res = pcg(full.__matmul__, -g, pc, rtol=1e-8)
     assert res.negative_curvature
     p = res.direction
     assert p @ (full @ p) < 0
-    dx = pcg(vp.assembly.matrix(H).__matmul__, -g, pc, rtol=1e-3).x
+    dx = pcg(vp.assembly.matrix(Hgn).__matmul__, -g, pc, rtol=1e-3).x
     es, ep = vp.energy_terms(x + dx)
     dx2, xn, es2, ep2, F2 = vp._curvature_move(x, dx, (es, ep), p, 4.0)
     assert F2 < (es + ep) * (1.0 - 1e-9)
@@ -386,7 +376,7 @@ def test_a_direction_of_negative_curvature_lowers_the_energy_past_gauss_newton(s
     assert np.linalg.norm(move - (move @ p) / (p @ p) * p) <= 1e-9 * np.linalg.norm(move)
 
 
-def test_lm_converges_on_a_coarse_torus():
+def test_lm_converges_on_a_coarse_torus(solved):
     """At h = 0.3 the torus's full Hessian stays indefinite over a dozen LM
     iterations near the minimum: Newton's attempts stopped on negative
     curvature and the Gauss-Newton steps taken instead crawled, and Newton
@@ -396,15 +386,14 @@ def test_lm_converges_on_a_coarse_torus():
     direction of negative curvature no step is rejected, and LM converged
     in 17-29 iterations on 26 fresh meshes (cap raised here so the test
     checks convergence, not the tail of that spread)."""
-    V, F, net = load_example("torus")
-    lm = solve(V, F, net, edge_length=0.3, max_iterations=40).report.lm
+    lm = solved("torus", edge_length=0.3, max_iterations=40).report.lm
     assert lm.converged, lm.reason
     assert lm.n_iterations <= 32, lm.n_iterations
     # only the last step may be rejected, at round-off
     assert all(it.accepted for it in lm.iterations[:-1]), [it.iteration for it in lm.iterations if not it.accepted]
 
 
-def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(solved):
+def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(at):
     """Folded boundary triangles made the lift of the boundary field pick a
     wrong cross representative: a quarter turn no volume field can undo.
     The pipeline refuses such data with a MeshingError naming where."""
@@ -414,7 +403,7 @@ def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(solved)
     from solver.field.boundary2d import lift_mismatch
     from solver.field.meshed_boundary import check_lift
 
-    p = solved("ball").problem
+    p = at("ball").problem
     B, bf = p.mesh.boundary, p.boundary
     assert lift_mismatch(B, bf).max() < 0.2
     # an extra quarter turn about the normal on one edge of an ordinary triangle

@@ -11,14 +11,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import Curve, Network, NetworkError, Options, solve
+from solver import Curve, Network, NetworkError, solve
 from solver.analysis.measures import normal_adaptation, tangent_adaptation
 from solver.examples import load_example
 from solver.network.intake import repairs_text
 from solver.network.polyline import turning
 from solver.network.validation import check_input
 from solver.surface.trisurface import TriSurface
-from testkit.tetedge import end_angles, tet_edge_network
+from testkit.tetedge import end_angles
 
 
 @pytest.fixture(scope="module")
@@ -388,29 +388,12 @@ def test_a_real_crossing_is_still_refused(cylinder):
 
 
 # ------------------------------------------------- tet-edge networks, solved
-TET_EDGE_H = {"cylinder": 0.25, "ball": 0.2}  # the source mesh; the solve's default h is 0.15-0.16
-
-
 @pytest.fixture(scope="module")
-def tet_edge_solves():
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            V, F, net = load_example(name)
-            mesh = None
-            if name == "cylinder":
-                # fTetWild takes 3x longer on the example's 64-gon with its
-                # thin wall triangles; a 32-gon of the same solid routes as well
-                from solver.examples import cylinder_surface
-                from solver.mesh.tetwild import tetrahedralize
-
-                mesh = tetrahedralize(TriSurface(*cylinder_surface(1.0, 2.0, n=32, rings=4)), TET_EDGE_H[name])
-            tn, _ = tet_edge_network(V, F, net, TET_EDGE_H[name], mesh=mesh, seed=1)
-            cache[name] = (tn, solve(V, F, tn))
-        return cache[name]
-
-    return get
+def tet_edge_solves(example_input, solved):
+    """(the tet-edge network, its solve with default options): the session's
+    (tests/conftest.py; the source mesh is at edge length 0.25 for the
+    cylinder and 0.2 for the ball, where the solve's default h is 0.15-0.16)."""
+    return lambda name: (example_input(f"{name}:tet-edge")[2], solved(f"{name}:tet-edge"))
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
@@ -423,7 +406,7 @@ def test_tet_edge_network_is_what_exports_look_like(tet_edge_solves, name):
     assert end_angles(S, tn).max() > 10.0
     seg = np.concatenate([np.linalg.norm(np.diff(c.points, axis=0), axis=1) for c in tn.curves])
     assert seg.min() < 1e-5 * S.bbox_diagonal
-    assert all(rep.changed for rep in r.report.repairs)
+    assert len(r.report.repairs) == len(tn.curves) and all(rep.changed for rep in r.report.repairs)
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
@@ -457,14 +440,13 @@ def test_tet_edge_network_solves_with_defaults(tet_edge_solves, name):
 
 
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
-def test_tet_edge_penalty_is_near_the_clean_networks(tet_edge_solves, name):
+def test_tet_edge_penalty_is_near_the_clean_networks(tet_edge_solves, solved, name):
     """Issue 27's bar: the structure penalty of the repaired tet-edge
     network within 10x of the clean network's at the same edge length.
     Measured after least bending: cylinder 0.0015-0.0018 against 0.0018,
     ball 0.18 against 0.09-0.18 (before it the cylinder scored up to 25x)."""
     tn, r = tet_edge_solves(name)
-    V, F, net = load_example(name)
-    clean = solve(V, F, net, Options(edge_length=r.problem.edge_length))
+    clean = solved(name, edge_length=r.problem.edge_length)
     assert clean.report.converged, clean.report.status_reason
     assert r.report.lm.final.penalty <= 10.0 * clean.report.lm.final.penalty, (
         r.report.lm.final.penalty, clean.report.lm.final.penalty)
@@ -544,13 +526,12 @@ def test_corner_turns_in_the_network_file(tmp_path):
         io.network_from_dict({"curves": [], "corner_turns": [{"turns": 1}]})
 
 
-def test_prism_with_obtuse_corners_solves_with_defaults(prism):
+def test_prism_with_obtuse_corners_solves_with_defaults(solved):
     """No singular curves; the chosen quantisation is carried onto the tet
     mesh's boundary and the field is smooth: LM converges with a residual
     penalty of a few thousandths (0.003 seen at h = 0.2), no omega-matched
     singular face anywhere."""
-    V, F, net = prism
-    r = solve(V, F, net)
+    r = solved("prism")
     m = r.report.metrics
     print(r.report.summary())
     assert r.report.lm.converged, r.report.lm.reason
@@ -568,6 +549,7 @@ def test_genus2_example_ends_are_turned():
     V, F, net = load_example("genus2")
     checked = check_input(V, F, net)
     assert checked.surface.euler_characteristics().tolist() == [-2]
+    assert len(net.curves) == 2 and len(checked.repairs) == 2
     for rep in checked.repairs:
         assert sorted(b.end for b in rep.ends) == ["end", "start"], rep.text()
         assert all(abs(b.input_angle_deg - 25.0) < 1.0 for b in rep.ends), rep.text()
@@ -576,13 +558,13 @@ def test_genus2_example_ends_are_turned():
         assert end_normal_angle(checked.surface, Q[::-1]) < 1.0
 
 
-def test_feature_curves_leave_no_missing_singular_faces():
+def test_feature_curves_leave_no_missing_singular_faces(solved):
     """A feature curve (sigma = 0) pierces faces where the field is regular:
     they are not missing singular faces (the genus-2 example, whose two
     curves are features, reported 34-37 of them on perfect solves)."""
-    V, F, net = load_example("genus2")
+    _, _, net = load_example("genus2")
     assert net.curves and all(c.sigma == 0 for c in net.curves)
-    r = solve(V, F, net)
+    r = solved("genus2")
     assert r.report.converged, r.report.status_reason
     assert np.any(r.embedding.pierce_count > 0) and not r.embedding.prescribed_singular().any()
     m = r.report.metrics
@@ -627,9 +609,10 @@ def test_a_curve_from_a_node_is_bent_over_most_of_its_length():
     net = Network(curves=[Curve(c.points * S, sigma=c.sigma, name=c.name) for c in net.curves])
     checked = check_input(V * S, F, net)
     h = checked.scale
-    for k, c in enumerate(net.curves):
-        if not c.name.startswith("radial"):
-            continue
+    radial = [k for k, c in enumerate(net.curves) if c.name.startswith("radial")]
+    assert len(radial) == 8
+    for k in radial:
+        c = net.curves[k]
         rep = checked.repairs[k]
         (bend,) = rep.ends
         assert bend.input_angle_deg > 45.0, rep.text()

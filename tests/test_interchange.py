@@ -2,7 +2,8 @@
 .fra + .perm, OVM, .qtn) and solver/io/tetnetwork.py (a network read from a tet
 mesh with tagged edges).
 
-One cylinder (four axial curves, sigma = 1/4) is solved once per module.
+One cylinder (four axial curves, sigma = 1/4) is solved once per session
+(tests/conftest.py).
 fTetWild is not deterministic, so the assertions are properties of whatever
 mesh it made, not counts.
 """
@@ -57,23 +58,22 @@ H = 0.4
 
 
 @pytest.fixture(scope="module")
-def solved():
-    V, F, net = load_example("cylinder")
-    return solve(V, F, net, edge_length=H, refine=0)
+def cylinder(solved):
+    return solved("cylinder", edge_length=H, refine=0)
 
 
 @pytest.fixture(scope="module")
-def fe(solved):
-    return field_export(solved)
+def fe(cylinder):
+    return field_export(cylinder)
 
 
 @pytest.fixture(scope="module")
-def files(solved, tmp_path_factory):
+def files(cylinder, tmp_path_factory):
     d = tmp_path_factory.mktemp("interchange")
     out = {}
-    data = field_export(solved)
+    data = field_export(cylinder)
     for ext in ("vtu", "mesh", "ovm", "qtn"):
-        for p in export_field(solved, str(d / f"cyl.{ext}"), data=data):
+        for p in export_field(cylinder, str(d / f"cyl.{ext}"), data=data):
             out[p.rsplit(".", 1)[1]] = p
     return out
 
@@ -119,8 +119,8 @@ def test_group_tables_and_cubecover_encoding():
 
 
 # ------------------------------------------------------------ frames per tet
-def test_tet_frames_are_the_documented_average(solved, fe):
-    mesh, omega, E = solved.mesh, solved.omega, solved.frames
+def test_tet_frames_are_the_documented_average(cylinder, fe):
+    mesh, omega, E = cylinder.mesh, cylinder.omega, cylinder.frames
     T = mesh.tets
     # the matchings: omega carries the first vertex's frame to each other vertex
     for k in range(1, 4):
@@ -140,7 +140,7 @@ def test_tet_frames_are_the_documented_average(solved, fe):
     # (analysis.tet_frames) away from the curves; next to them an edge may turn
     # by more than 45 degrees and closest-rotation matching picks another
     # representative than omega does
-    away = away_tets(solved)
+    away = away_tets(cylinder)
     assert away.sum() > 0.3 * mesh.n_tets
     d = np.degrees(cross_distance(F[away], karcher_tet_frames(mesh, E)[away]))
     assert d.max() < 1.0
@@ -171,10 +171,10 @@ def test_face_matchings_on_a_synthetic_field():
 
 
 # ---------------------------------------------------------------------- VTU
-def test_vtu_round_trip_through_meshio(solved, fe, files, tmp_path):
-    mesh = solved.mesh
+def test_vtu_round_trip_through_meshio(cylinder, fe, files, tmp_path):
+    mesh = cylinder.mesh
     crossed = np.zeros(mesh.n_tets, bool)
-    crossed[crossed_tets(solved)] = True
+    crossed[crossed_tets(cylinder)] = True
     pd, cd = vtu_field_data(fe)
     ascii_path = str(tmp_path / "ascii.vtu")
     write_vtu(ascii_path, mesh.vertices, mesh.tets, pd, cd, binary=False)
@@ -184,12 +184,12 @@ def test_vtu_round_trip_through_meshio(solved, fe, files, tmp_path):
         assert [c.type for c in m.cells] == ["tetra"]
         assert np.array_equal(m.cells[0].data, mesh.tets)
         for k in range(3):
-            assert np.allclose(m.point_data[f"axis{k}"], solved.frames[:, :, k], atol=1e-6)
+            assert np.allclose(m.point_data[f"axis{k}"], cylinder.frames[:, :, k], atol=1e-6)
             assert np.allclose(m.cell_data[f"tet_axis{k}"][0], fe.tet.frames[:, :, k], atol=1e-6)
         assert np.array_equal(m.cell_data["singular"][0].astype(bool), crossed)
         cur = m.cell_data["curve"][0]
-        for i in range(len(solved.embedding.traces)):
-            assert np.all(cur[solved.curve_tets(i)] >= 0)
+        for i in range(len(cylinder.embedding.traces)):
+            assert np.all(cur[cylinder.curve_tets(i)] >= 0)
         assert np.all(cur[~crossed] == -1)
         # the crossed tets are where omega-matched faces fail to close
         osing = m.cell_data["omega_singular"][0]
@@ -198,8 +198,8 @@ def test_vtu_round_trip_through_meshio(solved, fe, files, tmp_path):
 
 
 # -------------------------------------------------------------------- MEDIT
-def test_medit_round_trip_through_meshio(solved, fe, files):
-    mesh = solved.mesh
+def test_medit_round_trip_through_meshio(cylinder, fe, files):
+    mesh = cylinder.mesh
     m = meshio.read(files["mesh"])
     assert np.allclose(m.points, mesh.vertices, atol=1e-12)
     cells = {c.type: (c.data, ref) for c, ref in zip(m.cells, m.cell_data["medit:ref"])}
@@ -237,8 +237,8 @@ def face_symmetries_from_perm(mesh, path):
     return out
 
 
-def test_perm_matchings_follow_omega(solved, files):
-    mesh, omega, E = solved.mesh, solved.omega, solved.frames
+def test_perm_matchings_follow_omega(cylinder, files):
+    mesh, omega, E = cylinder.mesh, cylinder.omega, cylinder.frames
     g = face_symmetries_from_perm(mesh, files["perm"])
     interior = np.nonzero(~mesh.is_boundary_face)[0]
     A, B = mesh.face_tets[interior].T
@@ -253,10 +253,10 @@ def test_perm_matchings_follow_omega(solved, files):
         votes.append(GROUP_PRODUCT[GROUP_INVERSE[hB], hA])
     votes = np.stack(votes, axis=1)
     crossed = np.zeros(mesh.n_tets, bool)
-    crossed[crossed_tets(solved)] = True
+    crossed[crossed_tets(cylinder)] = True
     gi = g[interior]
     # faces the network does not pierce: the written matching is a majority of the omega votes
-    not_pierced = ~np.isin(interior, pierced_faces(solved))
+    not_pierced = ~np.isin(interior, pierced_faces(cylinder))
     majority = (votes == gi[:, None]).sum(axis=1) >= 2
     assert np.all(majority[not_pierced])
     # faces between two tets no curve crosses: all three votes agree with it
@@ -265,7 +265,7 @@ def test_perm_matchings_follow_omega(solved, files):
     # away from the curves (no vertex of either tet on a crossed tet): the
     # closest rotation between the written tet frames gives the same symmetry
     F = read_fra(files["fra"])
-    away = away_tets(solved)[A] & away_tets(solved)[B]
+    away = away_tets(cylinder)[A] & away_tets(cylinder)[B]
     assert away.sum() > 0.3 * len(interior)
     closest = closest_symmetry(np.einsum("kji,kjl->kil", F[A], F[B]))  # F_A^T F_B g ~ I
     assert np.array_equal(closest[away], gi[away])
@@ -273,15 +273,15 @@ def test_perm_matchings_follow_omega(solved, files):
                        np.eye(3), atol=np.sin(np.radians(30)))
 
 
-def test_perm_singular_edges_are_on_the_curves(solved, files):
+def test_perm_singular_edges_are_on_the_curves(cylinder, files):
     """What CubeCover derives from the .perm (FrameField::setSingularEdges):
     composing the matchings around an interior edge gives the identity except
     on edges of tets a curve crosses, and every curve leaves such edges."""
-    mesh = solved.mesh
+    mesh = cylinder.mesh
     g = face_symmetries_from_perm(mesh, files["perm"])
     ft = mesh.face_tets
     crossed = np.zeros(mesh.n_tets, bool)
-    crossed[crossed_tets(solved)] = True
+    crossed[crossed_tets(cylinder)] = True
     # faces around each interior edge
     fe = mesh.face_edges.reshape(-1)
     fid = np.repeat(np.arange(mesh.n_faces), 3)
@@ -310,13 +310,13 @@ def test_perm_singular_edges_are_on_the_curves(solved, files):
     edge_in_crossed = np.zeros(mesh.n_edges, bool)
     edge_in_crossed[mesh.tet_edges[crossed].reshape(-1)] = True
     assert len(singular) and np.all(edge_in_crossed[singular])
-    for i in range(len(solved.embedding.traces)):
-        assert np.isin(mesh.tet_edges[solved.curve_tets(i)].reshape(-1), singular).any()
+    for i in range(len(cylinder.embedding.traces)):
+        assert np.isin(mesh.tet_edges[cylinder.curve_tets(i)].reshape(-1), singular).any()
 
 
 # ---------------------------------------------------------------- QTN / OVM
-def test_qtn_and_ovm_round_trip(solved, fe, files):
-    mesh = solved.mesh
+def test_qtn_and_ovm_round_trip(cylinder, fe, files):
+    mesh = cylinder.mesh
     q = read_qtn(files["qtn"])
     assert q.shape == (mesh.n_tets, 4)
     assert np.allclose(np.linalg.norm(q, axis=1), 1.0)
@@ -326,7 +326,7 @@ def test_qtn_and_ovm_round_trip(solved, fe, files):
     assert np.array_equal(d.edges, mesh.edges)
     assert np.array_equal(np.sort(d.tets, axis=1), np.sort(mesh.tets, axis=1))
     assert np.all(TetMesh._signed_volumes(d.vertices, d.tets) > 0)
-    assert np.allclose(quaternion_frames(d.props["vertex"]["vertex_frame_wxyz"]), solved.frames, atol=1e-6)
+    assert np.allclose(quaternion_frames(d.props["vertex"]["vertex_frame_wxyz"]), cylinder.frames, atol=1e-6)
     assert np.allclose(quaternion_frames(d.props["cell"]["cell_frame_wxyz"]), fe.tet.frames, atol=1e-6)
     for k in range(3):
         assert np.allclose(d.props["cell"][f"cell_axis{k}"], fe.tet.frames[:, :, k], atol=1e-9)
@@ -361,11 +361,11 @@ def check_ovm_topology(d):
     assert np.all(np.einsum("cfk,cfk->cf", n, cen[:, None, :] - P[:, :, 0]) > 0)
 
 
-def test_export_rejects_unknown_format(solved, tmp_path):
+def test_export_rejects_unknown_format(cylinder, tmp_path):
     with pytest.raises(ValueError, match="extension"):
-        export_field(solved, str(tmp_path / "x.stl"))
+        export_field(cylinder, str(tmp_path / "x.stl"))
     with pytest.raises(ValueError, match="unknown format"):
-        export_field(solved, str(tmp_path / "x.vtu"), fmt="stl")
+        export_field(cylinder, str(tmp_path / "x.vtu"), fmt="stl")
 
 
 # ----------------------------------------------------------- tagged networks
@@ -441,9 +441,9 @@ def shortest_interior_path(mesh, a, b):
     return np.array(path[::-1])
 
 
-def test_import_tagged_tet_mesh_and_solve(solved, tmp_path):
-    mesh = solved.mesh
-    curves = solved.problem.network.curves
+def test_import_tagged_tet_mesh_and_solve(cylinder, tmp_path):
+    mesh = cylinder.mesh
+    curves = cylinder.problem.network.curves
     bnd = mesh.is_boundary_vertex
     index = np.zeros(mesh.n_edges, np.int64)
     ends = []
@@ -503,6 +503,7 @@ def test_import_tagged_tet_mesh_and_solve(solved, tmp_path):
     # the chains as read (zig-zag along tet edges, ends where the mesh had them)
     # solve through the curve intake, and the field winds around them as the
     # original network's did: omega-matched singular faces exactly on the curves
+    # (a mesh of its own: the surface is the read tet mesh's boundary)
     res = solve(V, F, net, edge_length=H)
     m, lm = res.report.metrics, res.report.lm
     print(f"\nimported network: {len(net.curves)} curves, {res.mesh.n_tets} tets; LM {lm.n_iterations} iterations, "

@@ -75,7 +75,7 @@ def test_refined_boundary_lies_on_the_input_surface():
 
 def test_cube_on_a_refined_mesh_keeps_its_sharp_edges():
     V, F, net = load_example("cube")
-    problem = FieldProblem(V, F, net, Options(edge_length=0.15, refine=1))
+    problem = FieldProblem(V, F, net, Options(edge_length=0.15, refine=1))  # meshed here: refinement is the point
     # one level: every coarse tet split into eight
     assert problem.report.sizes["refine_levels"] == 1
     assert problem.mesh.n_tets == 8 * problem.report.sizes["mesher_tets"]
@@ -102,7 +102,7 @@ def test_cylinder_on_a_refined_mesh_has_the_network_as_its_singular_set():
     from tests.test_examples import check_omega_singular_set, check_singular_structure
 
     V, F, net = load_example("cylinder")
-    problem = FieldProblem(V, F, net, Options(edge_length=0.115, refine=1))
+    problem = FieldProblem(V, F, net, Options(edge_length=0.115, refine=1))  # meshed here: refinement is the point
     r = problem.solve()
     assert r.report.lm.converged
     check_singular_structure(r)

@@ -155,7 +155,7 @@ def test_short_curve_within_budget():
     for the ball); now the mesh is graded and stays within 1.5x the budget.
     Meshing only: LM on such a mesh converges slowly (README, limitations),
     too slowly for a test."""
-    V, F, net = ball_example(inner=0.015)
+    V, F, net = ball_example(inner=0.015)  # meshed here: its own network, and the budget retries are the point
     budget = 6000
     problem = FieldProblem(V, F, net, Options(target_tets=budget))
     sizes = problem.report.sizes
@@ -193,7 +193,7 @@ def test_short_curves_solve_within_budget():
     tube edge between its node regions (each 0.04 across, plus the ring of
     tets around it), with its vertices one edge length (0.034-0.051) from
     the curve, where the field is off by 3-6 deg (4 of ~200 vertices)."""
-    V, F, net = ball_example(inner=0.05)
+    V, F, net = ball_example(inner=0.05)  # its own network: meshed here
     budget = 8000
     r = solve(V, F, net, target_tets=budget)
     sizes = r.report.sizes
@@ -221,9 +221,8 @@ def test_short_curves_solve_within_budget():
 
 
 # ------------------------------------------------------------------ status
-def test_not_converged_status_and_exit_code(cube, tmp_path, capsys):
-    V, F, net = cube
-    res = solve(V, F, net, edge_length=0.4, max_iterations=1, init="random")
+def test_not_converged_status_and_exit_code(solved, tmp_path, capsys):
+    res = solved("cube", edge_length=0.4, max_iterations=1, init="random")
     assert res.report.status == "not converged" and not res.report.converged
     assert "Levenberg-Marquardt" in res.report.status_reason
     assert res.report.to_dict()["converged"] is False
@@ -235,14 +234,13 @@ def test_not_converged_status_and_exit_code(cube, tmp_path, capsys):
     assert "not converged" in capsys.readouterr().err
 
 
-def test_the_iteration_cap_says_how_close_it_came():
+def test_the_iteration_cap_says_how_close_it_came(solved):
     """Stopped by the cap with the penalty already at the discretisation
     level: the status names the energy's last change and the option to
-    raise (the cylinder from a random start needs 8 iterations)."""
-    from solver.examples import load_example
-
-    V, F, net = load_example("cylinder")
-    res = solve(V, F, net, edge_length=0.4, max_iterations=6, init="random")
+    raise (the cylinder from a random start needs 8 iterations).  (refine=0
+    is what the automatic choice gives at this edge length: the mesh of
+    tests/test_interchange.py.)"""
+    res = solved("cylinder", edge_length=0.4, refine=0, max_iterations=6, init="random")
     assert res.report.status == "not converged"
     why = res.report.status_reason
     assert "stopped after 6 iterations" in why and "discretisation level" in why, why
@@ -250,8 +248,7 @@ def test_the_iteration_cap_says_how_close_it_came():
     assert "close to a minimum" not in why  # it was still falling fast
 
 
-def test_converged_status(cube):
-    V, F, net = cube
-    res = solve(V, F, net, edge_length=0.4)
+def test_converged_status(solved):
+    res = solved("cube", edge_length=0.4)
     assert res.report.converged, res.report.summary()
     assert "status: converged" in res.report.summary()

@@ -63,11 +63,28 @@ def u_curve(depth: float, n: int = 24) -> np.ndarray:
     return np.vstack([down, arc, up])
 
 
-def test_a_u_shaped_curve_under_one_face_is_refused():
+@pytest.fixture(scope="module")
+def box_mesh():
+    """The box [-1, 1]^3 at h = 0.25 as the solver meshes it for a network
+    without singular curves: by TetGen, from the surface alone (no curve
+    tubes), so the same mesh for every such network.  The box tests share it."""
     V, F = box(n=2)
+    p = FieldProblem(V, F, Network(sharp_angle=30.0), Options(edge_length=0.25))
+    assert p.report.mesher == "TetGen", p.report.mesher
+    return p.mesh
+
+
+def on_the_box(net, mesh):
+    """FieldProblem of the box with a network of feature curves, on its shared mesh."""
+    V, F = box(n=2)
+    assert not any(c.sigma for c in net.curves)  # else fTetWild would mesh it, with tubes
+    return FieldProblem(V, F, net, Options(edge_length=0.25), mesh=mesh)
+
+
+def test_a_u_shaped_curve_under_one_face_is_refused(box_mesh):
     net = Network(curves=[Curve(u_curve(0.5), sigma=0, role="feature", name="u")], sharp_angle=30.0)
     with pytest.raises(TopologyError, match=r"curve 0 'u' meets the surface .* arrives reversed"):
-        FieldProblem(V, F, net, Options(edge_length=0.25))
+        on_the_box(net, box_mesh)
 
 
 def quarter_circle(n: int = 13) -> np.ndarray:
@@ -77,31 +94,29 @@ def quarter_circle(n: int = 13) -> np.ndarray:
     return np.c_[1.0 - 0.6 * np.cos(t), np.zeros(n), 1.0 - 0.6 * np.sin(t)]
 
 
-def test_a_curve_from_a_top_face_to_a_side_face_is_refused():
+def test_a_curve_from_a_top_face_to_a_side_face_is_refused(box_mesh):
     """A quarter circle from the box's top face to a side face, meeting both
     along the normal: the vertical axis the top face gives it stays
     vertical over the sharp edge, and arrives across the curve on the side
     face.  Without the check LM reported "converged" with the field 43
     degrees off the curve's tangent all along it."""
-    V, F = box(n=2)
     net = Network(curves=[Curve(quarter_circle(), sigma=0, role="feature", name="bend")], sharp_angle=30.0)
     with pytest.raises(TopologyError, match=r"curve 0 'bend' meets the surface .* arrives across the curve"):
-        FieldProblem(V, F, net, Options(edge_length=0.25))
+        on_the_box(net, box_mesh)
 
 
-def test_a_curve_between_opposite_faces_is_carried():
+def test_a_curve_between_opposite_faces_is_carried(box_mesh):
     """From the top face straight down to the bottom face: the vertical axis
     is carried over the sharp edges and the side faces, and arrives along
     the curve (the cylinder's axial curves are the singular case)."""
-    V, F = box(n=2)
     P = np.c_[np.full(9, 0.3), np.full(9, 0.2), np.linspace(1.0, -1.0, 9)]
     net = Network(curves=[Curve(P, sigma=0, role="feature", name="down")], sharp_angle=30.0)
-    res = solve(V, F, net, Options(edge_length=0.25))
+    res = on_the_box(net, box_mesh).solve()
     assert res.report.converged, res.report.status_reason
     assert res.report.metrics["tangent_adaptation_max_deg"] < 1.0, res.report.metrics
 
 
-def test_a_field_off_its_curve_is_not_converged_whatever_its_penalty(monkeypatch):
+def test_a_field_off_its_curve_is_not_converged_whatever_its_penalty(box_mesh, monkeypatch):
     """The quarter circle with the check switched off: LM meets its stopping
     rule with a penalty of ~3e-5, but the frames are ~43 degrees off the
     curve; the status says not converged, with the adaptation."""
@@ -109,9 +124,8 @@ def test_a_field_off_its_curve_is_not_converged_whatever_its_penalty(monkeypatch
     from solver.report import ADAPTATION_DEG
 
     monkeypatch.setattr(meshed_boundary, "misaligned_curves", lambda *a, **k: [])
-    V, F = box(n=2)
     net = Network(curves=[Curve(quarter_circle(), sigma=0, role="feature", name="bend")], sharp_angle=30.0)
-    res = solve(V, F, net, Options(edge_length=0.25))
+    res = on_the_box(net, box_mesh).solve()
     m = res.report.metrics
     assert m["tangent_adaptation_mean_deg"] > ADAPTATION_DEG
     assert res.report.status == "not converged"
@@ -122,7 +136,9 @@ def test_a_curve_the_singular_curves_link_is_left_to_the_solve():
     """The ball's vertical diameter as a feature curve, from pole to pole:
     its axis arrives reversed over the smooth sphere, but every loop it
     makes with the surface is linked by the inner cube's edges (singular),
-    and the cube-sphere field follows it (frames Cartesian along the axis)."""
+    and the cube-sphere field follows it (frames Cartesian along the axis).
+    (Meshed afresh: the axis gets a curve tube of its own, as a user's
+    network would.)"""
     from solver.examples import ball_example
 
     V, F, net = ball_example()

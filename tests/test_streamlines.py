@@ -181,6 +181,7 @@ def test_one_direction_starts_at_the_seed_along_the_axis(identity_field):
     seeds = seed_points(identity_field, 5, seed=8)
     axes = identity_field.frames_at(seeds)[:, :, 1]
     lines = trace_streamlines(identity_field, seeds, family=1, both_directions=False)
+    assert len(lines) == 5
     for s, a, P in zip(seeds, axes, lines):
         assert np.array_equal(P[0], s)
         d = (P[-1] - P[0]) / np.linalg.norm(P[-1] - P[0])
@@ -208,7 +209,9 @@ def test_helical_field_lines():
             # both ends on the side walls
             ends = P[[0, -1], :2]
             assert np.all(np.abs(np.abs(ends).max(axis=1) - 1.0) < 1e-9)
-    for s, P in zip(seeds, trace_streamlines(f, seeds, family=2)):
+    lines = trace_streamlines(f, seeds, family=2)
+    assert len(lines) == 15
+    for s, P in zip(seeds, lines):
         assert np.abs(P[:, :2] - s[:2]).max() < 1e-10
         assert abs(P[:, 2].min()) < 1e-9 and abs(P[:, 2].max() - 1.5) < 1e-9
 
@@ -232,6 +235,7 @@ def test_curved_line_matches_the_exact_integral_curve(method, tol):
 def test_step_and_max_length(identity_field):
     seeds = seed_points(identity_field, 10, seed=10)
     lines = trace_streamlines(identity_field, seeds, family=0, step=0.02, max_length=0.15)
+    assert len(lines) == 10
     for s, P in zip(seeds, lines):
         seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
         assert seg.max() <= 0.02 + 1e-12
@@ -307,12 +311,8 @@ def test_glyph_quaternions_are_the_interpolated_frames():
 
 # --------------------------------------------------------- a solved field
 @pytest.fixture(scope="module")
-def cylinder():
-    from solver import solve
-    from solver.examples import load_example
-
-    V, F, net = load_example("cylinder")
-    return solve(V, F, net, edge_length=0.3)
+def cylinder(solved):
+    return solved("cylinder", edge_length=0.3)
 
 
 def test_streamlines_of_a_solved_cylinder_follow_the_field(cylinder):

@@ -1,5 +1,9 @@
 """The fTetWild child process never outlives the solve that started it, and
-its temporary folder does not outlive its owner (issue 28, item 4)."""
+its temporary folder does not outlive its owner (issue 28, item 4).
+
+The deadlines here only catch a hang: a loaded machine may take many times
+longer than a quiet one (Ctrl-C ends the command in 0.06-0.27 s there).
+"""
 
 from __future__ import annotations
 
@@ -15,6 +19,15 @@ from solver.mesh.tetwild import TEMP_PREFIX, remove_stale_folders
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc")
+HANG = 300.0  # seconds after which a step counts as hung
+
+# ``python -m solver ...`` with Python's own SIGINT handler (KeyboardInterrupt),
+# as in a terminal.  A process started with SIGINT ignored -- as a background
+# job of a non-interactive shell is, a CI runner's may be -- passes that on to
+# its children, and Python then leaves SIGINT ignored: the command would
+# never see the test's Ctrl-C.
+COMMAND = ("import runpy, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+           "sys.argv[0] = 'solver'; runpy.run_module('solver', run_name='__main__', alter_sys=True)")
 
 
 def _children(pid: int) -> list[int]:
@@ -47,11 +60,11 @@ def _start_long_solve(tmp_path):
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     env = dict(os.environ, TMPDIR=str(tmp), SYMFRAMES_THREADS="1")
-    proc = subprocess.Popen([sys.executable, "-m", "solver", "--example", "cylinder", "--edge-length", "0.1",
+    proc = subprocess.Popen([sys.executable, "-c", COMMAND, "--example", "cylinder", "--edge-length", "0.1",
                              "--refine", "0", "-q", "-o", str(tmp_path / "out.npz")], cwd=ROOT, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    t0 = time.time()
-    while time.time() - t0 < 60:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < HANG:
         kids = _children(proc.pid)
         folders = [p for p in tmp.iterdir() if p.name.startswith(TEMP_PREFIX)]
         if kids and folders and (folders[0] / "in.npz").exists():
@@ -61,12 +74,12 @@ def _start_long_solve(tmp_path):
             raise AssertionError(f"the solve ended early: {proc.stderr.read().decode()}")
         time.sleep(0.1)
     proc.kill()
-    raise AssertionError("fTetWild did not start within 60 s")
+    raise AssertionError(f"fTetWild did not start within {HANG:.0f} s")
 
 
-def _wait(cond, seconds=15.0):
-    t0 = time.time()
-    while time.time() - t0 < seconds:
+def _wait(cond, seconds=HANG):
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
         if cond():
             return True
         time.sleep(0.1)
@@ -79,7 +92,7 @@ def test_terminating_the_command_stops_ftetwild_and_removes_its_folder(tmp_path,
     proc, child, folder = _start_long_solve(tmp_path)
     try:
         proc.send_signal(sig)
-        proc.wait(timeout=20)
+        proc.wait(timeout=HANG)
         assert _wait(lambda: _gone(child)), "the fTetWild child outlived the command"
         assert not folder.exists(), "the temporary folder was left behind"
         assert proc.returncode in (128 + sig, -sig, 130, 1), proc.returncode
@@ -97,7 +110,7 @@ def test_killed_parent_takes_the_child_along_and_its_folder_is_removed_later(tmp
     proc, child, folder = _start_long_solve(tmp_path)
     try:
         proc.kill()
-        proc.wait(timeout=20)
+        proc.wait(timeout=HANG)
         assert _wait(lambda: _gone(child)), "the fTetWild child was orphaned"
         assert folder.exists()
         assert remove_stale_folders(str(folder.parent)) == [str(folder)]
@@ -139,9 +152,9 @@ def test_cancel_stops_ftetwild_and_removes_its_folder(tmp_path, monkeypatch):
     def cancel():
         kids = _children(os.getpid())
         seen.extend(k for k in kids if k not in seen)
-        return len(seen) > 0 and time.time() - t0 > 1.5
+        return len(seen) > 0 and time.monotonic() - t0 > 1.5  # meshing takes far longer
 
-    t0 = time.time()
+    t0 = time.monotonic()
     with pytest.raises(Cancelled):
         run_tetwild(V, F, 0.03, 1e-3, cancel=cancel)
     assert seen and all(_wait(lambda k=k: _gone(k)) for k in seen)

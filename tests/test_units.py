@@ -17,7 +17,7 @@ def test_cylinder_at_micrometre_scale_solves():
     V, F, net = cylinder_example()
     net = Network([Curve(c.points * s, c.sigma, c.role, c.torsion, c.name) for c in net.curves],
                   sharp_angle=net.sharp_angle)
-    r = solve(V * s, F, net, edge_length=0.4 * s)
+    r = solve(V * s, F, net, edge_length=0.4 * s)  # meshed here: fTetWild at this scale is the point
     X = r.mesh.vertices
     assert np.allclose(X.min(axis=0), V.min(axis=0) * s, atol=1e-3 * s)
     assert np.allclose(X.max(axis=0), V.max(axis=0) * s, atol=1e-3 * s)

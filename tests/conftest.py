@@ -1,0 +1,205 @@
+"""Meshed and solved examples shared by the whole test session.
+
+fTetWild takes most of a solve's time (the cylinder at h = 0.3: ~15 of ~19
+CPU seconds), and many modules need the same solids.  Each example is
+meshed once, and solved once, per session and set of options; the factory
+fixtures hand out deep copies, so a test may change what it gets (solve it
+again, turn its boundary field, edit its arrays) without touching the next
+test's:
+
+    solved(example, **options)   -> Result: the session's solve
+    meshed(example, **options)   -> FieldProblem: tet mesh, embedding,
+                                    boundary field and constraints, not solved
+    tet_mesh(example, **options) -> TetMesh
+    example_input(example)       -> (V, F, Network)
+
+``options`` are fields of solver.Options (validated and normalised by it).
+The mesh is keyed by the example and every field but the solver's own
+(SOLVER_FIELDS: penalty, max_iterations, tolerance, init, seed): a
+meshed() problem carries the options asked for, and solved() solves such a
+problem.  A result is keyed by the example and every field.  ``example`` is
+a name of solver.examples.EXAMPLES, ``l_prism``
+(solver.examples.l_prism_example), or either followed by ``:tet-edge``: its
+interior curves routed along the edges of an independent fTetWild mesh, as
+other tools export networks (testkit/tetedge.py; drawn once per session).
+
+./dev.sh test runs the suite on two pytest-xdist workers; they share the
+cache through files in the run's common temporary folder (one worker makes
+an entry, the other waits for it and reads it), so an example is meshed
+once per run on either.
+
+fTetWild is not deterministic: a shared mesh is one of the meshes it may
+make, and what a test checks on it must hold on any of them.  A test that
+needs a mesh made afresh (meshing is what it checks, or its input is its
+own) builds one itself and says why.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import os
+import pickle
+import shutil
+from dataclasses import asdict
+
+import pytest
+
+try:
+    import fcntl
+except ImportError:  # Windows: each pytest-xdist worker makes its own
+    fcntl = None
+
+SOLVER_FIELDS = ("penalty", "max_iterations", "tolerance", "init", "seed")
+TET_EDGE = ":tet-edge"
+# edge length of the independent mesh a tet-edge network is routed through
+# (the solve's own default h is 0.15-0.16 for these examples)
+TET_EDGE_H = {"cylinder": 0.25, "ball": 0.2}
+TET_EDGE_H_DEFAULT = 0.2
+
+
+# ------------------------------------------------------------------ inputs
+def _load(example: str):
+    """(V, F, Network) of an example (names as in the module docstring)."""
+    from solver.examples import l_prism_example, load_example
+
+    base, _, variant = example.partition(":")
+    V, F, net = l_prism_example() if base == "l_prism" else load_example(base)
+    if not variant:
+        return V, F, net
+    if ":" + variant != TET_EDGE:
+        raise ValueError(f"unknown variant {variant!r} of {base!r}; the one there is: {TET_EDGE}")
+    from solver.examples import cylinder_surface
+    from solver.mesh.tetwild import tetrahedralize
+    from solver.surface.trisurface import TriSurface
+    from testkit.tetedge import tet_edge_network
+
+    h_src = TET_EDGE_H.get(base, TET_EDGE_H_DEFAULT)
+    mesh = None
+    if base == "cylinder":
+        # fTetWild takes 3x longer on the example's 64-gon with its thin
+        # wall triangles; a 32-gon of the same solid routes as well
+        mesh = tetrahedralize(TriSurface(*cylinder_surface(1.0, 2.0, n=32, rings=4)), h_src)
+    tn, _ = tet_edge_network(V, F, net, h_src, mesh=mesh, seed=1)
+    return V, F, tn
+
+
+def _keys(options: dict):
+    """(Options, mesh key, solve key) of keyword options."""
+    from solver import Options
+
+    opts = Options(**options)
+    fields = asdict(opts)
+    mesh_key = tuple((k, v) for k, v in fields.items() if k not in SOLVER_FIELDS)
+    return opts, mesh_key, tuple(fields.items())
+
+
+class _Session:
+    """The cache.  Nothing in it is handed out: every call returns a deep
+    copy.  With pytest-xdist the workers share it through files (shared):
+    one worker makes an entry, the others wait for it and read it."""
+
+    def __init__(self):
+        self.made = {}  # (kind, key) -> input (V, F, Network), FieldProblem or Result
+        self.shared = None  # a folder every worker of this run sees, or None
+
+    def _get(self, kind, key, make):
+        if (kind, key) not in self.made:
+            self.made[kind, key] = self._made_once(kind, key, make)
+        return self.made[kind, key]
+
+    def _made_once(self, kind, key, make):
+        if self.shared is None or fcntl is None:
+            return make()
+        path = self.shared / f"{kind}-{hashlib.sha1(repr(key).encode()).hexdigest()}.pickle"
+        with open(path.with_suffix(".lock"), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+            if path.exists():
+                with open(path, "rb") as fh:
+                    return pickle.load(fh)
+            obj = make()
+            tmp = path.with_suffix(".part")
+            with open(tmp, "wb") as fh:
+                pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(tmp, path)
+            return obj
+
+    def input(self, example):
+        return self._get("input", example, lambda: _load(example))
+
+    def problem(self, example, options):
+        from solver import FieldProblem
+
+        opts, mesh_key, _ = _keys(options)
+        p = self._get("problem", (example, mesh_key), lambda: FieldProblem(*self.input(example), opts))
+        return p, opts
+
+    def meshed(self, example, options):
+        p, opts = self.problem(example, options)
+        out = copy.deepcopy(p)
+        out.options = opts  # differs at most in the solver's own fields
+        return out
+
+    def _solve(self, example, options):
+        r = self.meshed(example, options).solve()
+        # the LM matrices (~50 MB for the ball at 6.5k tets): made again,
+        # the same, by a copy that asks for problem.volume
+        r.problem._volume = None
+        return r
+
+    def solved(self, example, options):
+        _, _, key = _keys(options)
+        return copy.deepcopy(self._get("result", (example, key), lambda: self._solve(example, options)))
+
+
+_SESSION = _Session()
+
+
+CACHE_FOLDER = "symframes-cache"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _shared_cache(tmp_path_factory):
+    """Under pytest-xdist: a folder of this run that every worker sees
+    (the parent of the workers' own temporary folders)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        _SESSION.shared = tmp_path_factory.getbasetemp().parent / CACHE_FOLDER
+        _SESSION.shared.mkdir(exist_ok=True)
+    yield
+
+
+def pytest_sessionfinish(session):
+    """The controller of a pytest-xdist run removes the workers' shared
+    cache (a few hundred MB of pickles) once they are done."""
+    factory = getattr(session.config, "_tmp_path_factory", None)
+    if os.environ.get("PYTEST_XDIST_WORKER") or factory is None or not session.config.getoption("numprocesses", None):
+        return
+    shutil.rmtree(factory.getbasetemp() / CACHE_FOLDER, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def example_input():
+    """example_input(example) -> (V, F, Network) of an example, a copy of the
+    session's (a tet-edge network is drawn once per session)."""
+    return lambda example: copy.deepcopy(_SESSION.input(example))
+
+
+@pytest.fixture(scope="session")
+def tet_mesh():
+    """tet_mesh(example, **options) -> a copy of the session's TetMesh of an example."""
+    return lambda example, **options: copy.deepcopy(_SESSION.problem(example, options)[0].mesh)
+
+
+@pytest.fixture(scope="session")
+def meshed():
+    """meshed(example, **options) -> a FieldProblem of the caller's own on the
+    session's mesh of the example (the options that only the solve reads
+    are set on it)."""
+    return lambda example, **options: _SESSION.meshed(example, options)
+
+
+@pytest.fixture(scope="session")
+def solved():
+    """solved(example, **options) -> a copy of the session's Result for the
+    example and options."""
+    return lambda example, **options: _SESSION.solved(example, options)
