@@ -52,6 +52,7 @@ class RawHexes:
     hexes: np.ndarray
     lost_corners: int
     duplicate_cells: int
+    fractional: int = 0  # cut faces whose translation is not an integer vector
 
 
 def snap(U: np.ndarray) -> np.ndarray:
@@ -209,6 +210,7 @@ def extract_hexes(mesh: TetMesh, faces: np.ndarray, ab: np.ndarray, M: np.ndarra
         _, keep = np.unique(np.round(xc / tol).astype(np.int64), axis=0, return_index=True)
         tc, Pc = tc[keep], Pc[keep]
     nbr, rot, tau = _face_transitions(mesh, faces, ab, M, U)
+    fractional = int(np.sum(np.any(np.abs(tau - np.rint(tau)) > EPS, axis=2) & (nbr >= 0)) // 2)
     m = len(tc)
     dirs = (VTK_CORNERS - 0.5).astype(float)  # (8, 3)
     t0 = np.repeat(tc, 8)
@@ -231,4 +233,4 @@ def extract_hexes(mesh: TetMesh, faces: np.ndarray, ab: np.ndarray, M: np.ndarra
     used = np.zeros(len(vertices), bool)
     used[hexes.reshape(-1)] = True
     remap = np.cumsum(used) - 1
-    return RawHexes(vertices[used], remap[hexes], lost, dup)
+    return RawHexes(vertices[used], remap[hexes], lost, dup, fractional)

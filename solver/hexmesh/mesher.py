@@ -264,6 +264,11 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
             "network's curves, the surface or its thin parts are closer there than the rounding can keep apart)",
             report)
     raw = clock.run("extraction", extract_hexes, cem.mesh, tr.faces, tr.tets, tr.transition, gm.corners, cell)
+    report.lost_corners = raw.lost_corners
+    if raw.fractional:
+        raise HexMeshError(
+            f"internal: the map is not an integer-grid map ({raw.fractional} cut faces with a translation that is "
+            "not whole); no mesh is written. Please report this input", report)
     if not len(raw.hexes):
         raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g}; choose a smaller cell size", report)
     V, H = raw.vertices, raw.hexes
@@ -273,7 +278,6 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
         V = clock.run("smoothing", _smooth, V, H, cell, inp, _curve_vertices(V, cem, cell),
                       _ticker(clock, "smoothing", "smoothing"))
     clock.run("quality", _assess, report, inp, V, H, cell)
-    report.sizes["lost_corners"] = raw.lost_corners
     e, val = _irregular(H)
     return HexMesh(V, H, scaled_jacobian(V, H), report, e, val,
                    (cem.mesh.vertices, cem.mesh.tets, snap(gm.corners)))
@@ -531,6 +535,8 @@ def _verdict(report: HexReport) -> None:
         why.append(f"{report.non_hex_cells} cells are not hexahedra")
     if report.inverted:
         why.append(f"{report.inverted} cells are inverted")
+    if report.lost_corners:
+        why.append(f"{report.lost_corners} cell corners could not be traced (their cells are missing)")
     if report.faces_over_two:
         why.append(f"{report.faces_over_two} faces are shared by more than two cells")
     if report.euler != report.euler_expected:

@@ -70,6 +70,7 @@ class HexReport:
     sj_mean_raw: float = 0.0
     sj_mean_irregular: float = 0.0
     faces_over_two: int = 0
+    lost_corners: int = 0
     euler: list = field(default_factory=list)
     euler_expected: list = field(default_factory=list)
     irregular: dict = field(default_factory=dict)

@@ -245,32 +245,59 @@ class AffineUnionFind:
 
 class IntegerSpace:
     """Unknowns q = [tau; lines] with linear relations among them, reduced
-    to free integer variables k with q = N k (N integer where every pivot is
-    +-1, which holds for the relations the map produces)."""
+    to free integer variables k with q = N k, N integer: every integer k
+    gives integer q, and every integer q meeting the relations comes from an
+    integer k.
+
+    A relation r.q = 0 (rational, from the map's cycles: halves at most) is
+    scaled to integers and reduced by Euclid's algorithm on its coefficients
+    in k -- unimodular column operations on N -- until one coefficient g is
+    left; g k_p = 0 then removes k_p.  (A pivot on a coefficient other than
+    +-1 without this would leave N with fractions: a boundary plane at 16/3
+    on a tet-edge ball.)"""
 
     def __init__(self, n: int):
         self.N = np.eye(n)
-        self.cols = np.arange(n)  # the original unknown each k stands for
-        self.nonunimodular = 0
+        self.cols = np.arange(n)  # the original unknown each k stands for (before column operations)
+        self.nonunimodular = 0  # relations whose coefficients were not dyadic (reduced in floating point)
 
-    def add(self, row: np.ndarray, prefer: np.ndarray | None = None) -> None:
+    def add(self, row: np.ndarray) -> None:
         r = row @ self.N
         r[np.abs(r) < 1e-9] = 0.0
         if not np.any(r):
             return
-        unit = np.nonzero(np.isclose(np.abs(r), 1.0))[0]
-        if len(unit) and prefer is not None:
-            pu = prefer[self.cols[unit]]
-            pref = unit[pu] if np.any(pu) else unit
-            p = int(pref[-1])
-        elif len(unit):
-            p = int(unit[-1])
-        else:
-            p = int(np.argmax(np.abs(r)))
+        scale = 1.0
+        while scale <= 4096 and not np.allclose(r * scale, np.rint(r * scale), rtol=0, atol=1e-7):
+            scale *= 2.0
+        if scale > 4096:
+            # not a relation the map makes: eliminate in floating point
             self.nonunimodular += 1
-        # k_p = -(sum_{i != p} r_i k_i) / r_p, substituted into q = N k
-        coeff = np.delete(-r / r[p], p)
-        self.N = np.delete(self.N, p, axis=1) + np.outer(self.N[:, p], coeff)
+            p = int(np.argmax(np.abs(r)))
+            self._eliminate(p, -r / r[p])
+            return
+        ri = np.rint(r * scale).astype(np.int64)
+        nz = np.nonzero(ri)[0]
+        while len(nz) > 1:
+            # the smallest coefficient reduces the others (Euclid), one column
+            # operation each: col_i -= q col_j, r_i -= q r_j
+            j = nz[np.argmin(np.abs(ri[nz]))]
+            for i in nz:
+                if i == j:
+                    continue
+                q = ri[i] // ri[j]
+                if q:
+                    ri[i] -= q * ri[j]
+                    self.N[:, i] -= q * self.N[:, j]
+            nz = np.nonzero(ri)[0]
+        # g k_p = 0: k_p is gone
+        p = int(nz[0])
+        self.N = np.delete(self.N, p, axis=1)
+        self.cols = np.delete(self.cols, p)
+
+    def _eliminate(self, p: int, coeff: np.ndarray) -> None:
+        """k_p = coeff . k (coeff[p] ignored), substituted into q = N k."""
+        c = np.delete(coeff, p)
+        self.N = np.delete(self.N, p, axis=1) + np.outer(self.N[:, p], c)
         self.cols = np.delete(self.cols, p)
 
 
@@ -545,20 +572,18 @@ def _integer_space(uf: AffineUnionFind, root_int: np.ndarray, ntau: int):
     fixed_int = [r for r in uf.fixed if root_int[r]]
     q = ntau + len(fixed_int)
     isp = IntegerSpace(q)
-    prefer = np.zeros(q, bool)
-    prefer[:ntau] = True
     if uf.tau_rows:
         # the same relation comes from many cycles: each distinct one once
         R = np.unique(np.round(np.array(uf.tau_rows), 9), axis=0)
         for row in R:
-            isp.add(np.r_[row, np.zeros(len(fixed_int))], prefer)
+            isp.add(np.r_[row, np.zeros(len(fixed_int))])
     for i, r in enumerate(fixed_int):
         row = np.r_[2.0 * uf.fixed[r], np.zeros(len(fixed_int))]
         row[ntau + i] = -2.0
         rk = row @ isp.N
         if np.all(np.isclose(np.rint(rk) % 2, 0)) and np.allclose(rk, np.rint(rk)):
             row = 0.5 * row  # integer already: the line value follows from the tau
-        isp.add(row, prefer)
+        isp.add(row)
     return isp, fixed_int
 
 
