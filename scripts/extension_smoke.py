@@ -132,7 +132,7 @@ def main(argv: list[str]) -> int:
             raise RuntimeError("glyphs differ after reload")
 
     def hex():
-        # the reloaded file's field: the network is traced through it again
+        # the reloaded file's field, with the network its solve traced (kept in the file)
         s = bpy.context.scene.symframes  # the scene of the reloaded file
         s.hex_cells = 300
         finished(bpy.ops.symframes.hex_mesh(), "hex_mesh")

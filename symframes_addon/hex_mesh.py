@@ -20,7 +20,8 @@ boundary quads as a closed surface.  Its mesh holds:
 * material index      the step of that ramp: one of SJ_STEPS materials whose
                       viewport display color is the step's, so the Solid view
                       as it opens (Color: Material) shows quality too
-* ``["symframes_hex_report"]`` JSON: the solver's HexReport.as_dict()
+* ``["symframes_hex_report"]`` JSON: the solver's HexReport.to_dict()
+                      (read back by HexReport.from_dict)
 * ``["symframes_hex_id"]``: the id under which job.py keeps the HexMesh in
                       memory (exports write that one while it is kept: full
                       precision, with its integer-grid map)
@@ -150,11 +151,6 @@ def _set(me, name: str, kind: str, domain: str, values) -> None:
     me.attributes[name].data.foreach_set(key, np.asarray(values, dtype).ravel())
 
 
-def _json_value(x):
-    # the report's sizes may hold numpy numbers
-    return x.tolist() if hasattr(x, "tolist") else str(x)
-
-
 def new_hex_mesh_data(hm: HexMesh, hex_id: str, name: str = OBJECT_NAME):
     """A new (unlinked) mesh datablock: the cell soup of hm with the
     attributes of the module docstring; nothing is left if a step fails."""
@@ -186,7 +182,7 @@ def new_hex_mesh_data(hm: HexMesh, hex_id: str, name: str = OBJECT_NAME):
         me.color_attributes.render_color_index = me.color_attributes.active_color_index
         me.color_attributes[COLOR_ATTRIBUTE].data.foreach_set(
             "color", np.repeat(sj_colors(sj), 24, axis=0).astype(np.float32).ravel())
-        me[REPORT_KEY] = json.dumps(hm.report.as_dict(), default=_json_value)
+        me[REPORT_KEY] = json.dumps(hm.report.to_dict())
         me[HEX_ID_KEY] = hex_id
     except Exception:
         bpy.data.meshes.remove(me)
@@ -261,20 +257,25 @@ def hex_object(scene):
     return obj if obj is not None and obj.type == "MESH" else None
 
 
-def stored_report(scene) -> dict | None:
-    """The HexReport (as_dict) of the scene's hex mesh, or None."""
+def stored_report(scene) -> HexReport | None:
+    """The HexReport of the scene's hex mesh, or None."""
     obj = hex_object(scene)
-    if obj is None or REPORT_KEY not in obj.data:
+    return None if obj is None else _read_report(obj.data)
+
+
+def _read_report(me) -> HexReport | None:
+    if REPORT_KEY not in me:
         return None
     try:
-        return json.loads(obj.data[REPORT_KEY])
-    except (TypeError, ValueError):
+        return HexReport.from_dict(json.loads(me[REPORT_KEY]))
+    except (TypeError, ValueError, KeyError, AttributeError):
         return None
 
 
 def read_hex_mesh(obj) -> HexMesh:
     """The conforming hex mesh of a hex mesh object (its ``vertex`` ids),
-    in the single precision Blender keeps; no report, no integer-grid map."""
+    in the single precision Blender keeps, with its stored report (an empty
+    one if it has none); no integer-grid map."""
     me = obj.data
     n, k = len(me.vertices), len(me.polygons)
     attr = me.attributes.get(VERTEX_ATTRIBUTE)
@@ -293,7 +294,7 @@ def read_hex_mesh(obj) -> HexMesh:
     V[ids] = P.reshape(-1, 3)
     sj = np.empty(k, np.float32)
     sj_attr.data.foreach_get("value", sj)
-    return HexMesh(V, ids.reshape(-1, 8).astype(np.int64), sj[::6].astype(float), HexReport())
+    return HexMesh(V, ids.reshape(-1, 8).astype(np.int64), sj[::6].astype(float), _read_report(me) or HexReport())
 
 
 def hex_mesh_to_export(scene) -> tuple[HexMesh, bool]:

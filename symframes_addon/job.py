@@ -8,7 +8,8 @@ calling thread (background mode, tests).
 
 * ``SolveJob``: FieldProblem + solve + glyph/streamline sampling.
 * ``HexJob``: solver.hexmesh of the last solve's Result, or of the stored
-  field with the network traced through it again (``StoredField``).
+  field with the network embedding its solve kept beside it
+  (``StoredField``: solver.input_from_arrays).
 
 Kept in memory beside the scene, each with what it depends on:
 
@@ -16,7 +17,8 @@ Kept in memory beside the scene, each with what it depends on:
   re-solving after changing only solver settings (penalty, iterations,
   start, indices) does not remesh;
 * the last solve's Result, under the id written on its field datablock, so
-  Hex Mesh uses the solve's own network embedding while that field is the
+  Hex Mesh meshes the solve itself (its frames and omega in double
+  precision, the .blend keeps them in single) while that field is the
   scene's;
 * the last HexMesh, under the id written on its object, so that the export
   writes it in full precision with its integer-grid map.
@@ -37,9 +39,9 @@ from ..solver import (
     HexInput,
     HexMesh,
     Report,
-    check,
+    hex_source_arrays,
     hexmesh,
-    input_from_check,
+    input_from_arrays,
     vertex_normal_adaptation,
 )
 from ..solver.io import FieldData, field_data
@@ -152,6 +154,7 @@ class Outcome:
     remeshed: bool = True
     glyphs: tuple | None = None  # (points, quaternions, errors or None, error attribute name)
     streamlines: tuple | None = None  # (lines, families)
+    hex_source: dict | None = None  # solver.hex_source_arrays: kept in the .blend for Hex Mesh
     result: object = None  # the solver Result, kept for Hex Mesh once written (remember_result)
     solve_id: str = ""  # written on the field datablock: the kept Result is that field's
     inputs_key: str = ""  # scene_io.Inputs.field_key() of the inputs solved
@@ -176,7 +179,8 @@ class SolveJob(Job):
         adaptation = vertex_normal_adaptation(result)
         network_faces = result.embedding.network_faces(result.mesh)
         out = Outcome(field_data(result), result.quaternions(), adaptation, network_faces, result.report,
-                      remeshed=mesh is None, result=result, solve_id=new_id(), inputs_key=inp.field_key())
+                      remeshed=mesh is None, hex_source=hex_source_arrays(HexInput.from_result(result)),
+                      result=result, solve_id=new_id(), inputs_key=inp.field_key())
         if self.want_glyphs or self.want_streamlines:
             self._progress("display", 0.97, "sampling glyphs and streamlines")
             f = FrameField.from_result(result)
@@ -197,26 +201,24 @@ class SolveJob(Job):
 
 @dataclass
 class StoredField:
-    """A field read back from the .blend, without the solve's Result: the
-    network is traced through its tet mesh again (solver.input_from_check)
-    from the scene's inputs, which must be the ones it was solved with.
+    """A field read back from the .blend, without the solve's Result: its
+    tet mesh, frames and omega, and the arrays of solver.hex_source_arrays
+    that its solve kept beside it (the network as the solve traced it, the
+    input surface), from which solver.input_from_arrays rebuilds the solve's
+    HexInput -- nothing is traced again.
 
-    field  : storage.read_field_data's FieldData (mesh, frames, omega)
-    inputs : scene_io.Inputs (surface, network, options)
-    node_radius : an upper bound of the solve's node-region radius
-    status : the stored Report's status ('converged' or not)
+    mesh   : the stored tet mesh (TetMesh, the solve's vertex positions)
+    frames : (#V, 3, 3) the vertex frames;  omega : (#E, 3) on mesh.edges
+    arrays : storage.read_hex_source's dict of hex_source_arrays
     """
 
-    field: FieldData
-    inputs: object
-    node_radius: float
-    status: str
+    mesh: object
+    frames: np.ndarray
+    omega: np.ndarray
+    arrays: dict
 
     def hex_input(self) -> HexInput:
-        inp = self.inputs
-        checked = check(inp.V, inp.F, inp.network, options=inp.options).checked
-        f = self.field
-        return input_from_check(f.mesh, f.frames, f.omega, checked, self.node_radius, self.status)
+        return input_from_arrays(self.mesh, self.frames, self.omega, self.arrays)
 
 
 @dataclass
@@ -236,7 +238,7 @@ class HexJob(Job):
 
     def _work(self) -> HexOutcome:
         if isinstance(self.source, StoredField):
-            self._progress("network", 0.0, "tracing the network through the stored field")
+            self._progress("network", 0.0, "reading the solve's network from the stored field")
             inp = self.source.hex_input()
         else:
             inp = HexInput.from_result(self.source)

@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty
 
-from ..solver import HexMeshError, SymFramesError, TopologyError, check
+from ..solver import SymFramesError, TopologyError, check
 from ..solver.examples import EXAMPLES
 from . import (
     diagnostics,
@@ -52,7 +52,7 @@ def write_outcome(scene, out: job.Outcome) -> None:
     created = []
     try:
         field_me = storage.new_field_mesh(out.field, out.quaternions, out.adaptation, out.network_faces, out.report,
-                                          out.remeshed)
+                                          out.remeshed, out.hex_source)
         created.append((bpy.data.meshes, field_me))
         field_me[storage.SOLVE_ID_KEY] = out.solve_id
         field_me[storage.INPUTS_KEY] = out.inputs_key
@@ -271,9 +271,9 @@ class SYMFRAMES_OT_compute(_Threaded, bpy.types.Operator):
 
 def hex_source(context):
     """What Hex Mesh meshes: the Result of the last Compute Field while the
-    stored field is that result; else the stored field, with the scene's
-    network traced through it again (job.StoredField), which needs the
-    scene's inputs to be the ones it was solved with.  ValueError (or a
+    stored field is that result; else the stored field with the network
+    embedding its solve kept beside it (job.StoredField), as long as the
+    scene's inputs are the ones it was solved with.  ValueError (or a
     SymFramesError) says why there is none."""
     scene = context.scene
     me = storage.stored_field(scene)
@@ -282,18 +282,16 @@ def hex_source(context):
     result = job.cached_result(me.get(storage.SOLVE_ID_KEY))
     if result is not None:
         return result
-    report = storage.stored_report(scene)
-    if report is None or not report.edge_length:
-        raise ValueError("this result stores no report of its solve; compute the field again")
-    inp = scene_io.read_inputs(context)
+    arrays = storage.read_hex_source(me)
     solved = me.get(storage.INPUTS_KEY)
-    if solved is not None and solved != inp.field_key():
+    if arrays is None or solved is None:
+        raise ValueError("this field was stored without the network as its solve traced it, which Hex Mesh needs: "
+                         "compute the field again")
+    if solved != scene_io.read_inputs(context).field_key():
         raise ValueError("the domain, the network or their settings changed since the field was computed, so the "
                          "stored field is not theirs: press Compute Field again (or undo the change)")
-    # the solve's node regions had a radius of node_radius edge lengths at most
-    # (less between close nodes); the hex stage takes an upper bound
-    radius = inp.options.node_radius * report.edge_length * 1.5
-    return job.StoredField(storage.read_field_data(scene), inp, radius, report.status)
+    f = storage.frame_field(scene)
+    return job.StoredField(f.mesh, f.frames, storage.field_omega(scene), arrays)
 
 
 def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
@@ -304,14 +302,7 @@ def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
     if j.error is not None:
         if not isinstance(j.error, (SymFramesError, ValueError)):
             traceback.print_exception(j.error)
-        msg = error_text(j.error)
-        stage_failed = isinstance(j.error, HexMeshError) and j.error.report is not None  # not the settings
-        if isinstance(j.source, job.StoredField) and stage_failed:
-            # the network traced again is not always the solve's (node regions): say what else to try
-            msg += (" (the field was read back from the file, its network traced through it again; if this "
-                    "persists, Compute Field again and make the hex mesh in the same session: the solve's own "
-                    "network embedding is kept in memory, not in the file)")
-        return "ERROR", msg
+        return "ERROR", error_text(j.error)
     if scene is None:
         return "ERROR", "SymFrames: the scene was deleted during hex meshing; nothing was written"
     out = j.outcome

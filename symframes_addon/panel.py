@@ -4,6 +4,7 @@ import fnmatch
 
 import bpy
 
+from ..solver import HexReport
 from . import diagnostics, error_slice, hex_mesh, job, operators, storage
 
 
@@ -260,24 +261,27 @@ class SYMFRAMES_PT_hex(SymFramesPanel, bpy.types.Panel):
         layout.operator("symframes.export_hex_mesh", text="Export Hex Mesh…", icon="EXPORT")
 
 
-def draw_hex_report(col, r: dict) -> None:
-    """The verdict and figures of a stored HexReport (as_dict)."""
-    valid = r.get("status") == "valid"
-    col.label(text="Valid hex mesh" if valid else "Defective hex mesh", icon="CHECKMARK" if valid else "ERROR")
-    if not valid and r.get("reason"):
-        for part in str(r["reason"]).split("; "):
+def _number(x) -> float:
+    """A figure of a report read back from JSON (where NaN is null)."""
+    return float("nan") if x is None else float(x)
+
+
+def draw_hex_report(col, r: HexReport) -> None:
+    """The verdict and figures of a stored HexReport."""
+    col.label(text="Valid hex mesh" if r.valid else "Defective hex mesh", icon="CHECKMARK" if r.valid else "ERROR")
+    if not r.valid and r.reason:
+        for part in str(r.reason).split("; "):
             col.label(text=f"   {part}")
-    col.label(text=f"Hexahedra {r.get('hexes', 0):,}   vertices {r.get('vertices', 0):,}")
-    col.label(text=f"Cell size {r.get('cell_size', 0):.3g}")
-    col.label(text=f"Scaled Jacobian min {r.get('sj_min', 0):.3f}   mean {r.get('sj_mean', 0):.3f}")
-    col.label(text=f"   before smoothing min {r.get('sj_min_raw', 0):.3f}")
-    irregular = r.get("irregular") or {}
-    by_valence = ", ".join(f"{n} of valence {v}" for v, n in sorted(irregular.items(), key=lambda kv: int(kv[0])))
+    col.label(text=f"Hexahedra {r.hexes:,}   vertices {r.vertices:,}")
+    col.label(text=f"Cell size {_number(r.cell_size):.3g}")
+    col.label(text=f"Scaled Jacobian min {_number(r.sj_min):.3f}   mean {_number(r.sj_mean):.3f}")
+    col.label(text=f"   before smoothing min {_number(r.sj_min_raw):.3f}")
+    by_valence = ", ".join(f"{n} of valence {v}" for v, n in sorted(r.irregular.items()))
     col.label(text=f"Irregular edges: {by_valence or 'none'}")
-    exact = bool(r.get("structure_exact"))
+    exact = bool(r.structure_exact)
     col.label(text="   exactly the prescribed curves" if exact else "   not the prescribed curves",
               icon="CHECKMARK" if exact else "ERROR")
-    col.label(text=f"Hausdorff distance {100 * r.get('hausdorff_relative', 0):.2f}% of the diagonal")
+    col.label(text=f"Hausdorff distance {100 * _number(r.hausdorff_relative):.2f}% of the diagonal")
 
 
 class SYMFRAMES_PT_diagnostics(SymFramesPanel, bpy.types.Panel):

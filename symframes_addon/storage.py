@@ -27,17 +27,23 @@ setting ``symframes.field`` (a pointer counts as a user, so it is saved):
 * ``["symframes_solve_id"]`` = the id under which job.py keeps the solve's
   Result in memory (Hex Mesh uses it while it is kept);
   ``["symframes_inputs_key"]`` = scene_io.Inputs.field_key() of the inputs
-  solved (Hex Mesh on a reopened file traces the scene's network through the
-  stored mesh again, and refuses if the inputs changed since)
+  solved (Hex Mesh on a reopened file refuses if the scene's inputs changed
+  since: the stored field is not theirs)
+* ``["symframes_hex_source"]`` = a group of ID properties: the arrays of
+  solver.hex_source_arrays (the network as the solve traced it through the
+  tet mesh -- traces, node regions, the prepared curves and nodes --, and the
+  input surface with its sharp edges), from which solver.input_from_arrays
+  rebuilds the solve's HexInput on the stored mesh (Hex Mesh on a reopened
+  file).  Each array is kept flat, float64 (``d``) or int32 (``i``; booleans
+  as 0/1), a string as a string property; ``["layout"]`` (JSON) gives each
+  key's kind and shape.
 
 Quaternions and omega are float32 in Blender; the frames are rebuilt from
 the normalised quaternions (solver.io.quaternion_frames), so they are exact
 rotations.  The vertex positions are kept in full precision as well, in
 ``["symframes_positions"]`` (float64, flattened (n, 3)), and read from there:
-Hex Mesh on a reopened file traces the network through the stored tet mesh
-again, and where the mesher put vertices on a curve, positions rounded to
-float32 send the trace through other faces than the solve's (the field's
-singular faces then no longer lie where the network passes).
+the stored traces cross faces at points computed on the solve's own
+positions, and exports and diagnostics see the mesh as it was solved.
 
 Output objects (glyphs, streamlines, the diagnostics, the hex mesh and its
 irregular edges: see OUTPUT_ROLES) are found by the custom property
@@ -68,6 +74,8 @@ REMESHED_KEY = "symframes_remeshed"
 POSITIONS_KEY = "symframes_positions"
 SOLVE_ID_KEY = "symframes_solve_id"
 INPUTS_KEY = "symframes_inputs_key"
+HEX_SOURCE_KEY = "symframes_hex_source"
+HEX_SOURCE_LAYOUT = "layout"
 ROLE_KEY = "symframes_role"
 RESULTS_COLLECTION = "SymFrames Results"
 OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "error_slice", "hex_mesh",
@@ -76,7 +84,7 @@ OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "erro
 
 # ------------------------------------------------------------------- field
 def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.ndarray, network_faces: np.ndarray,
-                   report: Report, remeshed: bool):
+                   report: Report, remeshed: bool, hex_source: dict | None = None):
     """A new (unlinked) mesh datablock holding a solved field.
 
     field : the solve's FieldData (tet mesh, omega on its edges, per-tet
@@ -85,6 +93,8 @@ def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.nda
     adaptation : (#V,) solver.vertex_normal_adaptation of the solve
     network_faces : (k,) ids of the faces the network passes through
     report : the solve's Report;  remeshed : whether the solve made its tet mesh
+    hex_source : solver.hex_source_arrays of the solve (what Hex Mesh needs
+        of it beyond the field), or None
     """
     mesh = field.mesh
     n, m = mesh.n_vertices, mesh.n_tets
@@ -114,6 +124,8 @@ def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.nda
         me.attributes[NODE_ATTRIBUTE].data.foreach_set("value", np.asarray(field.node_region, bool))
         me[REPORT_KEY] = json.dumps(report.to_dict())
         me[REMESHED_KEY] = bool(remeshed)
+        if hex_source is not None:
+            me[HEX_SOURCE_KEY] = encode_arrays(hex_source)
     except Exception:
         bpy.data.meshes.remove(me)
         raise
@@ -161,6 +173,61 @@ def read_field(me) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if n and exact.shape == V.shape and np.abs(exact - V).max() <= 1e-6 * max(np.abs(V).max(), 1.0):
         V = exact
     return V.reshape(-1, 3), T.reshape(-1, 4).astype(np.int64), q
+
+
+_INT32 = np.iinfo(np.int32)
+
+
+def encode_arrays(arrays: dict) -> dict:
+    """Arrays as values an ID property group holds (see the module
+    docstring): flat float64 or int32 arrays and strings, with their layout."""
+    group, layout = {}, {}
+    for key, value in arrays.items():
+        a = np.asarray(value)
+        if a.dtype.kind in "US":
+            if a.ndim:
+                raise ValueError(f"'{key}': only a single string can be kept")
+            group[key], layout[key] = str(a), ["str", []]
+        elif a.dtype.kind in "biu":
+            if a.size and (a.min() < _INT32.min or a.max() > _INT32.max):
+                raise ValueError(f"'{key}': values beyond 32-bit integers cannot be kept")
+            kind = "bool" if a.dtype.kind == "b" else "int"
+            group[key], layout[key] = a.astype(np.int32).ravel(), [kind, list(a.shape)]
+        elif a.dtype.kind == "f":
+            group[key], layout[key] = a.astype(np.float64).ravel(), ["float", list(a.shape)]
+        else:
+            raise ValueError(f"'{key}': cannot keep an array of {a.dtype}")
+    group[HEX_SOURCE_LAYOUT] = json.dumps(layout)
+    return group
+
+
+def decode_arrays(group) -> dict:
+    """encode_arrays' arrays back from an ID property group (int64 for
+    integers); ValueError if the group is not as encode_arrays wrote it."""
+    key = HEX_SOURCE_LAYOUT
+    try:
+        layout = json.loads(group[key])
+        out = {}
+        for key, (kind, shape) in layout.items():
+            value = group[key]
+            if kind == "str":
+                if not isinstance(value, str):
+                    raise TypeError("not a string")
+                out[key] = np.array(value)
+                continue
+            dtype = {"float": np.float64, "int": np.int64, "bool": bool}[kind]
+            out[key] = np.asarray(value).astype(dtype).reshape(shape)
+        return out
+    except (KeyError, TypeError, ValueError) as e:
+        raise ValueError(f"this field's stored network is not as Compute Field wrote it ('{key}': "
+                         f"{type(e).__name__}); compute the field again") from None
+
+
+def read_hex_source(me) -> dict | None:
+    """solver.hex_source_arrays of the stored field's solve, or None if the
+    field does not keep them; ValueError if they are damaged."""
+    group = me.get(HEX_SOURCE_KEY)
+    return None if group is None else decode_arrays(group)
 
 
 def read_adaptation(me) -> np.ndarray | None:

@@ -18,7 +18,6 @@ from scipy.sparse.csgraph import dijkstra
 
 from solver import solve
 from solver.analysis.measures import tet_frames as karcher_tet_frames
-from solver.examples import load_example
 from solver.field.matchings import face_matchings, omega_matchings, omega_tet_frames
 from solver.io.interchange import (
     boundary_triangles,
