@@ -23,8 +23,7 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
 * Hex meshing (docs/hexmesh.md): ``hexmesh`` makes a pure hex mesh of a
   solved field (``HexMesh``, its ``HexReport``); ``HexInput`` is what it
   needs of the field (``HexInput.from_result``; ``hex_source_arrays`` /
-  ``input_from_arrays`` keep it beside a stored field; ``input_from_check``
-  traces the network again through a stored mesh); ``default_cell_size``.
+  ``input_from_arrays`` keep it beside a stored field); ``default_cell_size``.
 * Errors: ``SymFramesError`` and its subclasses (``HexMeshError`` when no
   valid hex mesh exists at the settings); ``Cancelled``.
 
@@ -57,7 +56,6 @@ from .hexmesh import (
     hex_source_arrays,
     hexmesh,
     input_from_arrays,
-    input_from_check,
 )
 from .network.network import Curve, Network, Role, Torsion
 from .pipeline import FieldProblem, Options, Result, solve
@@ -92,7 +90,6 @@ __all__ = [
     "hex_source_arrays",
     "hexmesh",
     "input_from_arrays",
-    "input_from_check",
     "monodromy_angles",
     "regular_face_mask",
     "sample_glyphs",

@@ -4,7 +4,7 @@ edges the prescribed curves (docs/hexmesh.md; the stages in mesher.py)."""
 from ..errors import HexMeshError
 from .mesher import STAGE_WEIGHTS, EdgeField, HexMesh, default_cell_size, field_on_edges, hexmesh
 from .report import CurveMatch, HexReport
-from .source import HexInput, hex_source_arrays, input_from_arrays, input_from_check
+from .source import HexInput, hex_source_arrays, input_from_arrays
 
 __all__ = [
     "STAGE_WEIGHTS",
@@ -19,5 +19,4 @@ __all__ = [
     "hex_source_arrays",
     "hexmesh",
     "input_from_arrays",
-    "input_from_check",
 ]

@@ -4,10 +4,8 @@ A field is meshed from a ``HexInput``: the tet mesh with its frames and
 omega, the network as the solve traced it through that mesh (the embedding
 and the prepared curves), and the input surface with its sharp edges.
 A solver Result gives all of it; a stored field gives it back through
-``hex_source_arrays`` / ``input_from_arrays`` (the .npz result file), or by
-tracing the prepared network through the stored mesh again
-(``input_from_check``: the add-on's .blend keeps the field, and the scene
-keeps the network and the surface).
+``hex_source_arrays`` / ``input_from_arrays`` (the .npz result file and the
+add-on's .blend keep those arrays beside the field).
 """
 
 from __future__ import annotations
@@ -17,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh.embed import CurveTrace, Embedding, embed_network
+from ..mesh.embed import CurveTrace, Embedding
 from ..mesh.tetmesh import TetMesh
 from ..network.network import Curve, Node, PreparedNetwork
 from ..surface.trisurface import TriSurface
@@ -113,22 +111,3 @@ def input_from_arrays(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, arra
     S = TriSurface(np.asarray(arrays["hex_surface_vertices"], float), np.asarray(arrays["hex_surface_faces"], np.int64))
     return HexInput(mesh, np.asarray(omega, float), np.asarray(frames, float), emb, net, S,
                     np.asarray(arrays["hex_surface_sharp"], bool), meta.get("status", "converged"))
-
-
-def input_from_check(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, checked, node_radius: float,
-                     status: str = "converged") -> HexInput:
-    """The HexInput of a field stored without its embedding: the prepared
-    network of ``checked`` (solver.check's CheckedInput, made with the
-    solve's options) traced through the stored mesh again.
-
-    node_radius : radius of the node regions (model units); the hex stage
-        grows them into star-shaped balls
-    The mesh must have the solve's exact vertex positions (a float32 copy
-    can trace a curve through other faces than the solve did); where the
-    solve's embedding can be kept, hex_source_arrays / input_from_arrays
-    give exactly the solve's network instead.
-    """
-    net = checked.network
-    emb = embed_network(mesh, net, node_radius)
-    return HexInput(mesh, np.asarray(omega, float), np.asarray(frames, float), emb, net, checked.surface,
-                    np.asarray(checked.features.sharp, bool), status)
