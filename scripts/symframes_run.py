@@ -71,6 +71,11 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--seed-volume", action="store_true",
                    help="seed streamlines throughout the solid instead of on the slice plane")
     p.add_argument("--family", default=None, choices=["X", "Y", "Z", "ALL"], help="streamline axis family")
+    p.add_argument("--hex", action="store_true", help="also make the hex mesh and show it (cells coloured by "
+                   "scaled Jacobian, the front ones falling away) instead of glyphs and streamlines")
+    p.add_argument("--hex-cells", type=int, default=None, help="with --hex: cells aimed at (default: the scene's)")
+    p.add_argument("--fall-away", type=float, default=0.5, help="with --hex: the Hex View's Fall Away (0-1)")
+    p.add_argument("--explode", type=float, default=0.15, help="with --hex: the Hex View's Explode (0-0.9)")
     p.add_argument("--no-render", action="store_true", help="skip the PNG")
     p.add_argument("--resolution", default="800x600", help="PNG size WxH (default 800x600)")
     p.add_argument("--samples", type=int, default=16, help="Cycles samples, denoised (default 16)")
@@ -154,13 +159,34 @@ def main(argv: list[str]) -> int:
         return 1
     print(f"SymFrames: solved in {time.perf_counter() - t:.1f} s")
     print(storage.stored_report(scene).summary())
+    if args.hex:
+        if args.hex_cells is not None:
+            s.hex_cell_size, s.hex_cells = 0.0, args.hex_cells
+        t = time.perf_counter()
+        try:
+            bpy.ops.symframes.hex_mesh()
+        except RuntimeError as e:
+            print(f"symframes_run.py: {e}", file=sys.stderr)
+            return 1
+        print(f"SymFrames: hex mesh in {time.perf_counter() - t:.1f} s")
+        hex_mesh = import_module(f"{PACKAGE}.symframes_addon.hex_mesh")
+        print(hex_mesh.stored_report(scene).summary())
+        s.hex_fall_away, s.hex_explode = args.fall_away, args.explode
+        # the cells only: the solid, glyphs and streamlines stay out of the picture
+        hexes = hex_mesh.hex_object(scene)
+        for o in scene.objects:
+            if o is not hexes and not (o.type == "CURVE" and "Irregular" in o.name):
+                o.hide_render = True
 
     os.makedirs(args.out_dir, exist_ok=True)
     if not args.no_render:
         w, h = (int(x) for x in args.resolution.lower().split("x"))
         if scene.camera is None:
             shown = [o for o in scene.objects if o.type in {"MESH", "CURVE"} and not o.hide_render]
-            presentation.setup_presentation(scene, [s.domain] if s.domain else shown, w, h, args.samples)
+            frame = [s.domain] if s.domain else shown
+            if args.hex:
+                frame = [o for o in shown if not o.hide_render] or frame
+            presentation.setup_presentation(scene, frame, w, h, args.samples)
         else:  # a .blend with its own camera and lights
             presentation.setup_cycles(scene, w, h, args.samples)
     blend = os.path.join(os.path.abspath(args.out_dir), f"{name}.blend")
