@@ -25,7 +25,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-EDGE_LENGTH = 0.094  # the ball at this edge length: ~50k tets (about 10 tets per h^3 of volume)
+EDGE_LENGTH = 0.088  # the ball at this edge length: ~50k tets (about 10 tets per h^3 of volume)
 CELLS = (3000, 12000)
 
 
