@@ -42,16 +42,22 @@ MAX_HEXES = 2_000_000
 class HexMesh:
     """A hexahedral mesh.
 
+    Attributes
+    ----------
     vertices : (n, 3) float array
-    hexes    : (m, 8) int array, VTK_HEXAHEDRON order (bottom face
-               counter-clockwise seen from inside... i.e. corners (0,0,0),
-               (1,0,0), (1,1,0), (0,1,0), then the same at z = 1)
-    scaled_jacobian : (m,) Verdict's scaled Jacobian per cell (min over corners)
-    report   : HexReport
-    irregular_edges : (k, 2) vertex pairs of the interior edges whose valence
-               is not 4; irregular_valence (k,) their valences
-    grid_map : (tet vertices (n, 3), tets (t, 4), parameters (t, 4, 3)) the
-               integer-grid map the hexes were extracted from (.hexex)
+    hexes : (m, 8) int array
+        VTK_HEXAHEDRON corner order: corners (0,0,0), (1,0,0), (1,1,0),
+        (0,1,0) of the cell's parameter cube, then the same at z = 1
+    scaled_jacobian : (m,) float array
+        Verdict's scaled Jacobian per cell (the minimum over its corners)
+    report : HexReport
+    irregular_edges : (k, 2) int array
+        vertex pairs of the interior edges whose valence is not 4
+    irregular_valence : (k,) int array
+        their valences
+    grid_map : tuple or None
+        (tet vertices (n, 3), tets (t, 4), parameters (t, 4, 3)): the
+        integer-grid map the hexes were extracted from (written as .hexex)
     """
 
     vertices: np.ndarray
@@ -63,7 +69,13 @@ class HexMesh:
     grid_map: tuple | None = None
 
     def boundary_quads(self) -> np.ndarray:
-        """(k, 4) boundary faces, oriented outward."""
+        """The boundary faces.
+
+        Returns
+        -------
+        (k, 4) int array
+            faces held by one cell, oriented outward
+        """
         return boundary_quads(self.hexes)[0]
 
 
@@ -80,9 +92,21 @@ def _curve_lengths(net) -> np.ndarray:
 
 
 def default_cell_size(inp: HexInput, target_hexes: int = DEFAULT_HEXES) -> float:
-    """A cell size for about target_hexes hexahedra, finer where the network
-    needs it: at least 1.5 cells along its shortest singular curve (so that
-    the rounding keeps it one cell long or more)."""
+    """The automatic cell size.
+
+    Parameters
+    ----------
+    inp : HexInput
+    target_hexes : int
+        the number of cells aimed at
+
+    Returns
+    -------
+    float
+        a cell size for about target_hexes hexahedra, finer where the
+        network needs it: at least 1.5 cells along its shortest singular
+        curve (so that the rounding keeps it one cell long or more)
+    """
     vol = float(np.sum(inp.mesh.tet_volumes))
     cell = (vol / target_hexes) ** (1.0 / 3.0)
     L = _curve_lengths(inp.network)

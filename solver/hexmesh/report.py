@@ -45,16 +45,28 @@ def _plain(x):
 class HexReport:
     """Figures of a hex mesh and the verdict on it.
 
-    status : 'valid' (pure hex, manifold, no inverted cell, the irregular
-             edges exactly the prescribed curves, the boundary's topology and
-             position right) or 'defective' (the reason says which check failed)
-    sj_*   : Verdict's scaled Jacobian (corner definition), after smoothing;
-             sj_*_raw before it; sj_mean_irregular over the cells touching an
-             irregular edge
-    irregular : {valence: count} of the interior edges whose valence is not 4
-    hausdorff : two-sided (sampled) distance between the hex mesh's boundary
-             and the input surface; hausdorff_relative divides by the
-             bounding-box diagonal
+    Attributes
+    ----------
+    status : str
+        'valid' (pure hex, manifold, no inverted cell, the irregular edges
+        exactly the prescribed curves, the boundary's topology and position
+        right) or 'defective'; ``reason`` says which check failed
+    sj_min, sj_mean : float
+        Verdict's scaled Jacobian (corner definition) after smoothing;
+        ``sj_min_raw`` / ``sj_mean_raw`` before it, ``sj_mean_irregular`` over
+        the cells touching an irregular edge
+    irregular : dict of int to int
+        {valence: count} of the interior edges whose valence is not 4
+    curves : list of CurveMatch
+        how each prescribed singular curve is followed
+    hausdorff : float
+        two-sided (sampled) distance between the hex mesh's boundary and the
+        input surface; ``hausdorff_relative`` divides it by the bounding-box
+        diagonal
+    stage_seconds : dict of str to float
+        seconds per stage
+    sizes : dict
+        sizes of the intermediate meshes and systems
     """
 
     status: str = DEFECTIVE

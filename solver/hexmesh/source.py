@@ -25,12 +25,25 @@ from ..surface.trisurface import TriSurface
 class HexInput:
     """What hex meshing needs of a solved field.
 
-    mesh, omega (#E, 3), frames (#V, 3, 3) : the field on its tet mesh
-    embedding : mesh.embed.Embedding (the curves traced through the mesh)
-    network   : network.network.PreparedNetwork (the curves and nodes traced)
-    surface   : the input surface (TriSurface), for the boundary's position
-    sharp     : (#E,) bool over surface.edges, its sharp edges
-    status    : the field's status ('converged' or 'not converged')
+    Attributes
+    ----------
+    mesh : TetMesh
+        the field's tet mesh
+    omega : (#E, 3) float array
+        the Darboux derivative on mesh.edges (Eq. 8)
+    frames : (#V, 3, 3) float array
+        the vertex frames, columns the cross axes
+    embedding : mesh.embed.Embedding
+        the curves traced through the mesh (pierced faces, node regions)
+    network : network.network.PreparedNetwork
+        the curves and nodes the embedding traced
+    surface : TriSurface
+        the input surface, for the boundary's position and the Hausdorff
+        distance
+    sharp : (#surface edges,) bool array
+        the surface's sharp edges
+    status : str
+        the field's status, 'converged' or 'not converged'
     """
 
     mesh: TetMesh
@@ -44,7 +57,16 @@ class HexInput:
 
     @classmethod
     def from_result(cls, result) -> HexInput:
-        """The HexInput of a solver Result."""
+        """The HexInput of a solver Result.
+
+        Parameters
+        ----------
+        result : solver.Result
+
+        Returns
+        -------
+        HexInput
+        """
         checked = result.problem.checked
         return cls(result.mesh, np.asarray(result.omega), np.asarray(result.frames), result.embedding,
                    result.problem.network, checked.surface, np.asarray(checked.features.sharp, bool),
@@ -64,8 +86,21 @@ def _split(flat, off):
 
 
 def hex_source_arrays(inp: HexInput) -> dict:
-    """Arrays (prefixed ``hex_``) from which input_from_arrays rebuilds the
-    network, its embedding and the surface on the stored tet mesh."""
+    """What a stored field needs, besides its mesh, frames and omega, to be
+    hex meshed again.
+
+    Parameters
+    ----------
+    inp : HexInput
+
+    Returns
+    -------
+    dict of str to numpy array
+        arrays prefixed ``hex_`` (the traces, node regions, the prepared
+        curves and nodes as JSON in ``hex_meta``, the input surface and its
+        sharp edges), for ``numpy.savez`` or any array store;
+        ``input_from_arrays`` rebuilds the HexInput from them
+    """
     emb, net = inp.embedding, inp.network
     tr = emb.traces
     out = {}
@@ -92,7 +127,21 @@ def hex_source_arrays(inp: HexInput) -> dict:
 
 
 def input_from_arrays(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, arrays: dict) -> HexInput:
-    """The HexInput of a stored field (hex_source_arrays' arrays)."""
+    """The HexInput of a stored field.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+        the field's tet mesh, with the solve's exact vertex positions
+    frames : (#V, 3, 3) float array
+    omega : (#E, 3) float array
+    arrays : dict
+        what ``hex_source_arrays`` returned for this field
+
+    Returns
+    -------
+    HexInput
+    """
     meta = json.loads(str(arrays["hex_meta"]))
     parts = {k: _split(arrays[f"hex_{k}"], arrays[f"hex_{k}_offsets"])
              for k in ("tets", "faces", "points", "tangents", "polyline", "curve_points", "node_region")}

@@ -254,8 +254,23 @@ def save_result(path: str, result) -> None:
 
 
 def load_hex_input(path: str):
-    """The field of a saved result as a hexmesh.HexInput, to mesh it again
-    without solving (``python -m solver --from-result``)."""
+    """The field of a saved result, to mesh it again without solving
+    (``python -m solver --from-result``).
+
+    Parameters
+    ----------
+    path : str
+        a result ``.npz`` written by ``save_result``
+
+    Returns
+    -------
+    hexmesh.HexInput
+
+    Raises
+    ------
+    SymFramesError
+        when the file cannot be read or lacks what hex meshing needs
+    """
     from ..hexmesh import input_from_arrays
     from ..mesh.tetmesh import TetMesh
 

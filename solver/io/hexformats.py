@@ -117,7 +117,24 @@ def write_hexex(path: str, vertices: np.ndarray, tets: np.ndarray, params: np.nd
 
 
 def read_hexex(path: str):
-    """(vertices (n, 3), tets (m, 4), params (m, 4, 3)) of a ``.hexex`` file."""
+    """Read an integer-grid map in HexEx's ``.hexex`` format.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    vertices : (n, 3) float array
+    tets : (m, 4) int array
+    params : (m, 4, 3) float array
+        the parameter point of each tet corner
+
+    Raises
+    ------
+    ValueError
+        when the file is not a complete .hexex file
+    """
     with open(path, encoding="ascii") as fh:
         tok = fh.read().split()
     try:
@@ -131,8 +148,24 @@ def read_hexex(path: str):
 
 
 def export_hexmesh(hex_mesh, path: str) -> list[str]:
-    """Write a HexMesh in the format its extension names (module docs);
-    returns the paths written."""
+    """Write a HexMesh in the format its extension names (module docs).
+
+    Parameters
+    ----------
+    hex_mesh : hexmesh.HexMesh
+    path : str
+        ``.vtu``, ``.vtk``, ``.mesh`` or ``.hexex``
+
+    Returns
+    -------
+    list of str
+        the paths written
+
+    Raises
+    ------
+    ValueError
+        for an unknown extension, or ``.hexex`` for a mesh without its map
+    """
     ext = os.path.splitext(path)[1].lower()
     V, H = hex_mesh.vertices, hex_mesh.hexes
     sj = np.asarray(hex_mesh.scaled_jacobian, float)
