@@ -5,6 +5,7 @@
 #   ./dev.sh test [ARGS]   lint (ruff), then run the test suite on two processes (pytest ARGS; -n 0: one)
 #   ./dev.sh lint [ARGS]   ruff check (ARGS e.g. --fix)
 #   ./dev.sh bench [ARGS]  run the benchmarks
+#   ./dev.sh docs [DIR]    build the API reference (docs/api/index.html) from the docstrings
 #   ./dev.sh matrix [ARGS] install and run the built extension in every supported Blender (bpy module) release
 #   ./dev.sh python ...    run the venv's python
 set -euo pipefail
@@ -28,7 +29,8 @@ case "$cmd" in
             exec "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile "$@" ;;
     lint)   exec "$VENV/bin/ruff" check "$ROOT" "$@" ;;
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
+    docs)   exec "$VENV/bin/python" scripts/build_docs.py "$@" ;;
     matrix) exec "$VENV/bin/python" scripts/matrix.py "$@" ;;
     python) exec "$VENV/bin/python" "$@" ;;
-    *) sed -n '2,9p' "$0"; exit 1 ;;
+    *) sed -n '2,10p' "$0"; exit 1 ;;
 esac

@@ -338,11 +338,23 @@ class FieldProblem:
 
 @dataclass
 class Result:
-    """A solved field.
+    """A solved field (what ``solve`` and ``FieldProblem.solve`` return).
 
-    omega  : (#E, 3) Darboux derivative per edge of problem.mesh
-    frames : (#V, 3, 3) rotation per vertex; columns are the cross axes
-    root   : vertex the frames were developed from
+    Attributes
+    ----------
+    problem : FieldProblem
+        The meshed problem: ``problem.mesh`` is the tet mesh the field lives
+        on (also ``mesh``), ``problem.embedding`` the curves in it.
+    omega : (#E, 3) float array
+        The Darboux derivative per edge of the tet mesh (§4.1).
+    x : (n,) float array
+        LM's unknowns: omega and the free torsions (Eq. 21).
+    frames : (#V, 3, 3) float array
+        One rotation per tet-mesh vertex; its columns are the cross axes.
+    root : int
+        The vertex the frames were developed from (§4.3).
+    report : Report
+        Sizes, timings, repairs, the LM history and the status.
     """
 
     problem: FieldProblem
@@ -412,7 +424,37 @@ class Result:
 def solve(V, F, network: Network, options: Options | None = None, progress=None, cancel=None, **kw) -> Result:
     """Compute the field in one call: ``solve(V, F, network, edge_length=0.1)``.
 
-    Keyword arguments override fields of ``options``.
+    Parameters
+    ----------
+    V : (n, 3) float array
+        Vertices of the closed, manifold triangle surface of the solid.
+    F : (m, 3) int array
+        Its triangles, outward facing.
+    network : Network
+        The singular, feature and sharp curves.
+    options : Options, optional
+        Settings of the solve (default ``Options()``).
+    progress : callable, optional
+        ``progress(stage, fraction, message)`` as the stages run
+        (fraction of the whole solve in [0, 1]).
+    cancel : callable, optional
+        Polled between stages and LM iterations; returning True raises
+        ``Cancelled``.
+    **kw
+        Fields of ``Options`` overriding those of ``options``.
+
+    Returns
+    -------
+    Result
+        The field; ``result.report.status`` is ``'converged'`` or
+        ``'not converged'`` (with the reason), never a silent failure.
+
+    Raises
+    ------
+    SurfaceError, NetworkError, TopologyError, OptionsError, MeshingError
+        Refusals of the input before or during meshing (docs/errors.md).
+    Cancelled
+        When ``cancel()`` returned True.
     """
     opts = options or Options()
     if kw:

@@ -15,7 +15,34 @@ from .surface.corners import CornerChoice, corners_text
 
 @dataclass
 class Report:
-    """Sizes, timings (seconds per stage) and the solver history of a solve."""
+    """Sizes, timings (seconds per stage) and the solver history of a solve.
+
+    Attributes
+    ----------
+    stage_seconds : dict
+        Seconds per stage (``'validate'``, ``'tetmesh'``, ... ``'integrate'``).
+    sizes : dict
+        Counts: ``tets``, ``vertices``, ``edges`` and the meshing details.
+    lm : LMReport or None
+        The Levenberg-Marquardt history (§5.1).
+    metrics : dict
+        Measures of the field (analysis/measures.py): spurious singular
+        faces, adaptation angles, ...
+    edge_length : float
+        The tet mesh's edge length h.
+    repairs : list
+        One ``CurveRepair`` per interior curve: what the intake changed.
+    repair_scale : float
+        The h the curves were repaired at.
+    mesher : str
+        The mesher that made the tet mesh, and why if not the one asked for.
+    corners : list
+        One ``CornerChoice`` per reported sharp corner.
+    status : str
+        ``'converged'`` or ``'not converged'``.
+    status_reason : str
+        Why (solution_status).
+    """
 
     stage_seconds: dict = field(default_factory=dict)
     sizes: dict = field(default_factory=dict)

@@ -487,6 +487,8 @@ def seed_points(field, count: int, mode: str = "volume", plane_origin=None, plan
         probability proportional to volume).  ``plane``: a jittered grid on
         the plane through plane_origin (default: bounding-box centre) with
         normal plane_normal (default +z), restricted to the solid.
+    plane_origin, plane_normal : (3,) float arrays, optional
+        The plane of ``mode='plane'``.
     seed : int
         Random seed.
 

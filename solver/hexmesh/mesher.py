@@ -226,13 +226,18 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     result : solver Result, or HexInput
         the solved field (``solve(...)``)
     cell_size : float, optional
-        hex edge length in the units of the surface; default: about
-        target_hexes cells, at least three along the shortest singular curve
+        hex edge length in the units of the surface; default
+        (``default_cell_size``): about target_hexes cells, at least 1.5
+        along the shortest singular curve
     smooth : bool
         optimise the vertex positions afterwards (never lowering the
         minimum scaled Jacobian)
     progress : callable(stage, fraction, message), optional
-    cancel : callable() -> bool, optional; raises Cancelled when it returns True
+    cancel : callable() -> bool, optional
+        polled between stages; raises Cancelled when it returns True
+    target_hexes : int
+        the number of cells the default cell size aims at (ignored when
+        cell_size is given)
 
     Returns
     -------

@@ -51,6 +51,22 @@ def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
     Face indices are OBJ's: 1-based, negative counts back from the last
     vertex read so far; any other index (0, or beyond the vertices) is
     refused with the file, the line and the valid range.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    V : (n, 3) float array
+    F : (m, 3) int array
+        0-based triangles.
+
+    Raises
+    ------
+    SurfaceError
+        An unreadable file, a bad line, an index out of range or a
+        degenerate polygon, with the file and line.
     """
     V, polys, lines = [], [], []
     try:
@@ -108,6 +124,15 @@ def _obj_index_message(path, line, index, n, relative):
 
 
 def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
+    """Write a triangle surface as OBJ.
+
+    Parameters
+    ----------
+    path : str
+    V : (n, 3) float array
+    F : (m, 3) int array
+        0-based (written 1-based).
+    """
     with open(path, "w", encoding="utf-8") as fh:
         fh.write("".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V))
         fh.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F))
@@ -119,9 +144,27 @@ _CURVE_KEYS = {"name", "points", "sigma", "role", "torsion", "closed"}
 
 
 def network_from_dict(d: dict) -> tuple[Network, dict]:
-    """(Network, options dict) from the JSON structure above.  Types are
-    checked here and in Curve/Network (checks.py); every message names the
-    key and the curve."""
+    """A network and its solver options from the JSON structure above.
+
+    Types are checked here and in Curve/Network (checks.py); every message
+    names the key and the curve.
+
+    Parameters
+    ----------
+    d : dict
+        The parsed JSON (``{"curves": [...], "sharp_angle": ..., ...}``).
+
+    Returns
+    -------
+    network : Network
+    options : dict
+        The file's ``"options"`` (``options_from_dict`` makes them Options).
+
+    Raises
+    ------
+    NetworkError
+        An unknown key, a value of the wrong type or out of range.
+    """
     E = NetworkError
     if not isinstance(d, dict):
         raise E(f"the network file must hold a JSON object with a 'curves' list, got {checks.describe(d)}")
@@ -170,6 +213,19 @@ def _corner_turns(items) -> dict | None:
 
 
 def network_to_dict(net: Network, options: dict | None = None) -> dict:
+    """The JSON structure of a network (the inverse of ``network_from_dict``).
+
+    Parameters
+    ----------
+    net : Network
+    options : dict, optional
+        Solver options stored beside the curves.
+
+    Returns
+    -------
+    dict
+        Plain lists and numbers, ready for ``json.dump``.
+    """
     d: dict = {"curves": [{"name": c.name, "points": np.asarray(c.points).tolist(), "sigma": c.sigma,
                            "role": c.role.value, "torsion": c.torsion.value, "closed": bool(c.closed)}
                           for c in net.curves]}
@@ -189,7 +245,27 @@ def network_to_dict(net: Network, options: dict | None = None) -> dict:
 
 
 def read_network(path: str) -> tuple[Network, dict, str | None]:
-    """(Network, options dict, surface path or None) from a JSON file."""
+    """A network file (JSON, the format above).
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    network : Network
+    options : dict
+        The file's solver options.
+    surface : str or None
+        The surface OBJ the file names, as a path relative to the file's
+        folder made absolute.
+
+    Raises
+    ------
+    NetworkError
+        An unreadable file, invalid JSON, or what ``network_from_dict``
+        refuses.
+    """
     try:
         with open(path, encoding="utf-8") as fh:
             d = json.load(fh)
@@ -209,6 +285,17 @@ def read_network(path: str) -> tuple[Network, dict, str | None]:
 
 
 def write_network(path: str, net: Network, surface: str | None = None, options: dict | None = None) -> None:
+    """Write a network file (JSON).
+
+    Parameters
+    ----------
+    path : str
+    net : Network
+    surface : str, optional
+        The surface OBJ to name in the file (relative to its folder).
+    options : dict, optional
+        Solver options to store beside the curves.
+    """
     d = network_to_dict(net, options)
     if surface is not None:
         d = {"surface": surface, **d}
@@ -217,6 +304,22 @@ def write_network(path: str, net: Network, surface: str | None = None, options: 
 
 
 def options_from_dict(d: dict):
+    """Solver options from a dict (a network file's ``"options"``).
+
+    Parameters
+    ----------
+    d : dict
+        Fields of ``solver.Options``.
+
+    Returns
+    -------
+    Options
+
+    Raises
+    ------
+    OptionsError
+        An unknown key or a value of the wrong type or out of range.
+    """
     from ..pipeline import Options
 
     d = checks.mapping("options", d, OptionsError)
@@ -234,7 +337,14 @@ def _flat(parts: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def save_result(path: str, result) -> None:
-    """Write a Result to an .npz file (see the module docstring)."""
+    """Write a solved field to an ``.npz`` file (the module docs list its
+    arrays), with what hex meshing needs to mesh it again.
+
+    Parameters
+    ----------
+    path : str
+    result : Result
+    """
     mesh = result.mesh
     n = len(result.embedding.traces)
     cf, cfo = _flat([result.curve_faces(i) for i in range(n)])
@@ -288,8 +398,19 @@ def load_hex_input(path: str):
 
 
 def load_result(path: str) -> dict:
-    """The arrays of a saved result; ``report`` parsed back to a dict
-    (``solver.Report.from_dict(out["report"])`` makes it a Report again)."""
+    """The arrays of a saved result.
+
+    Parameters
+    ----------
+    path : str
+        An ``.npz`` written by ``save_result``.
+
+    Returns
+    -------
+    dict
+        Array name -> array; ``"report"`` parsed back to a dict
+        (``solver.Report.from_dict(out["report"])`` makes it a Report).
+    """
     with np.load(path) as z:
         out = {k: z[k] for k in z.files}
     out["report"] = json.loads(str(out["report"]))

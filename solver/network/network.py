@@ -27,12 +27,37 @@ from ..errors import NetworkError
 
 
 class Role(str, Enum):
+    """What a curve of the network is to the field.
+
+    Attributes
+    ----------
+    SINGULAR : str
+        ``'singular'``: an interior curve with index sigma != 0; the field
+        turns by sigma about it (Eq. 17).
+    FEATURE : str
+        ``'feature'``: an interior curve with sigma = 0; the field is
+        adapted to its tangent but regular around it.
+    SHARP : str
+        ``'sharp'``: a sharp feature curve on the boundary surface.
+    """
+
     SINGULAR = "singular"  # interior curve with sigma != 0
     FEATURE = "feature"  # interior curve with sigma == 0: the field is tangent, not singular
     SHARP = "sharp"  # sharp feature curve lying on the boundary surface
 
 
 class Torsion(str, Enum):
+    """How the torsion of the field along a curve is treated (§4.2).
+
+    Attributes
+    ----------
+    FREE : str
+        ``'free'`` (the default): a free torsion per curve edge (Eq. 21).
+    FIXED : str
+        ``'fixed'``: the total torsion of the least-twist reference frame
+        (Eq. 22).
+    """
+
     FREE = "free"  # Eq. 21: free torsion per edge
     FIXED = "fixed"  # Eq. 22: total torsion of the least-twist reference frame
 
@@ -41,11 +66,30 @@ class Torsion(str, Enum):
 class Curve:
     """A polyline of the network.
 
-    points  : (n, 3) float array, n >= 2; a closed loop repeats its first point
-              at the end (or set ``closed``).
-    sigma   : index in turns, a multiple of 1/4 (sigma = 0 for features).
-    role    : 'singular', 'feature' or 'sharp'.
-    torsion : 'free' (Eq. 21, default) or 'fixed' (Eq. 22).
+    The fields are checked when the curve is made (``NetworkError`` names
+    the field and the fix).
+
+    Parameters
+    ----------
+    points : (n, 3) float array
+        n >= 2 points; a closed loop repeats its first point at the end (or
+        sets ``closed``).
+    sigma : float
+        The index in turns, a multiple of 1/4: +0.25 for a valence-3 edge
+        of a hex mesh, -0.25 for valence 5, 0 for a feature curve.
+    role : Role or str
+        ``'singular'`` (default), ``'feature'`` or ``'sharp'``.
+    torsion : Torsion or str
+        ``'free'`` (Eq. 21, default) or ``'fixed'`` (Eq. 22).
+    name : str
+        Named in every message about the curve.
+    closed : bool
+        The polyline is a loop.
+
+    Raises
+    ------
+    NetworkError
+        A field of the wrong type or out of range.
     """
 
     points: np.ndarray
@@ -92,17 +136,30 @@ def _corner_turns(turns) -> dict:
 class Network:
     """The curve network and the sharp-feature settings of a domain.
 
-    curves         : list of Curve
-    sharp_edges    : optional (k, 2) int array of surface vertex pairs marked sharp
-    sharp_angle    : optional dihedral threshold in degrees; surface edges whose
-                     normals differ by more than this are sharp
-    node_tolerance : endpoints closer than this form a node (default: 1e-3 of
-                     the surface's bounding-box diagonal)
-    boundary_tolerance : endpoints closer than this to the surface end on the
-                     boundary (default: 1e-2 of the diagonal)
-    corner_turns   : optional {surface vertex index or (x, y, z): quarter
-                     turns} fixing the turn of sharp corners (corners.py):
-                     0 = smooth, 1 = convex corner (index +1/4), -1 = concave
+    Parameters
+    ----------
+    curves : list of Curve
+    sharp_edges : (k, 2) int array, optional
+        Surface vertex pairs marked sharp.
+    sharp_angle : float, optional
+        Dihedral threshold in degrees: surface edges whose normals differ by
+        more than this are sharp.
+    node_tolerance : float, optional
+        Curve ends closer than this form a node (default: 1e-3 of the
+        surface's bounding-box diagonal).
+    boundary_tolerance : float, optional
+        Curve ends closer than this to the surface end on the boundary
+        (default: 1e-2 of the diagonal).
+    corner_turns : dict, optional
+        ``{surface vertex index or (x, y, z): quarter turns}`` fixing the
+        turn of sharp corners (surface/corners.py): 0 smooth, 1 a convex
+        corner (index +1/4), -1 a concave one.
+
+    Raises
+    ------
+    NetworkError
+        A field of the wrong type or out of range; ``validate()`` checks
+        again after fields were changed.
     """
 
     curves: list[Curve] = field(default_factory=list)
