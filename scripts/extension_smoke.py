@@ -9,13 +9,18 @@ The zip is installed with bpy.ops.extensions.package_install_files (what
 Install from Disk calls) and enabled; Blender unpacks the wheels the zip
 bundles for this platform and Python into the user resources'
 extensions/.local site-packages, which comes first on sys.path as in
-Blender.  Then: an example's compute, glyphs, streamlines, the diagnostics
-(singular faces, error slice), save the .blend and reload it, glyphs again
+Blender.  Then: an example's compute (the cylinder's needs Levenberg-Marquardt
+iterations, and the step fails if it took none; their count is recorded),
+glyphs, streamlines, the diagnostics (singular faces, error slice), Export
+Field (MEDIT + .fra + .perm), save the .blend and reload it, glyphs again
 from the reloaded file, a hex mesh of the reloaded field (its Hex View
-modifier evaluated exploded and fallen away, exported as .vtu), and clear.  Each step runs only if the previous
-ones passed; the last stdout line is ``RESULT {json}`` with a result per
-step (``ok`` or the error) and the versions that ran.  Used by
-tests/test_extension.py and scripts/matrix.py.
+modifier evaluated exploded and fallen away, exported as .vtu), clear, and
+Import Network (a JSON network and its OBJ written by the bundled solver,
+imported and checked with Check Network).  Each step runs only if the
+previous ones passed; the last stdout line is ``RESULT {json}`` with a
+result per step (``ok`` or the error) and the versions that ran; the exit
+code is 0 (scripts/matrix.py counts any other, a crash on exit, as a
+failure).  Used by tests/test_extension.py and scripts/matrix.py.
 """
 
 from __future__ import annotations
@@ -28,7 +33,8 @@ import sys
 import time
 import traceback
 
-STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "save_reload", "hex", "clear")
+STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "export_field", "save_reload", "hex",
+         "clear", "import_network")
 ADDON = "bl_ext.user_default.symframes"
 
 
@@ -107,6 +113,11 @@ def main(argv: list[str]) -> int:
         report = json.loads(s.field["symframes_report"])
         out["tets"] = report["sizes"]["tets"]
         out["lm_iterations"] = sum(1 for it in report.get("lm", {}).get("iterations", []) if it["iteration"] > 0)
+        out["status"] = report.get("status", "")
+        if example == "cylinder" and not out["lm_iterations"]:
+            raise RuntimeError("the cylinder's field took no Levenberg-Marquardt iteration")
+        if out["status"] != "converged":
+            raise RuntimeError(f"the field did not converge: {report.get('status_reason', '')}")
 
     def glyphs():
         finished(bpy.ops.symframes.show_glyphs(), "show_glyphs")
@@ -120,6 +131,13 @@ def main(argv: list[str]) -> int:
         finished(bpy.ops.symframes.show_singular_faces(), "show_singular_faces")
         finished(bpy.ops.symframes.show_slice(), "show_slice")
         out["roles"] = sorted(roles())
+
+    def export_field():
+        path = os.path.join(os.getcwd(), "smoke_field.mesh")
+        finished(bpy.ops.symframes.export_field(filepath=path, file_format="MEDIT"), "export_field")
+        for ext in (".mesh", ".fra", ".perm"):
+            if not os.path.getsize(path[:-5] + ext):
+                raise RuntimeError(f"the field export's {ext} is empty")
 
     def save_reload():
         path = os.path.join(os.getcwd(), "smoke.blend")
@@ -161,6 +179,20 @@ def main(argv: list[str]) -> int:
         out["left"] = sorted(roles())
         if out["left"]:
             raise RuntimeError(f"left behind: {out['left']}")
+
+    def import_network():
+        # a network file as another session of the bundled solver writes it
+        io = importlib.import_module(ADDON + ".solver.io")
+        V, F, net = importlib.import_module(ADDON + ".solver.examples").load_example("cube")
+        io.write_obj(os.path.join(os.getcwd(), "part.obj"), V, F)
+        path = os.path.join(os.getcwd(), "part.json")
+        io.write_network(path, net, surface="part.obj")
+        before = set(bpy.data.objects.keys())
+        finished(bpy.ops.symframes.import_network(filepath=path), "import_network")
+        added = set(bpy.data.objects.keys()) - before
+        if len(added) != 1 + len(net.curves):
+            raise RuntimeError(f"import added {sorted(added)}, expected the domain and {len(net.curves)} curve(s)")
+        finished(bpy.ops.symframes.check_network(), "check_network after import")
 
     try:
         for name in STEPS:

@@ -6,8 +6,9 @@ Blender (3.11 for 4.2-5.0, 3.13 for 5.1 and later), its bpy module and the
 numpy that Blender ships; the zip of the row's variant built by
 scripts/build_extension.py for linux-x64; then scripts/extension_smoke.py
 (install from disk into a temporary BLENDER_USER_RESOURCES, enable,
-compute, glyphs, streamlines, diagnostics, save and reload, hex mesh,
-clear).  Prints a table; --write puts it into README.md between the matrix
+compute the cylinder, whose field needs LM iterations, glyphs,
+streamlines, diagnostics, Export Field, save and reload, hex mesh, clear,
+Import Network; a crash on exit fails the row).  Prints a table; --write puts it into README.md between the matrix
 markers.
 
     ./dev.sh matrix                       # every row of ROWS
@@ -35,6 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 import build_extension  # noqa: E402
+import extension_smoke  # noqa: E402
 
 CACHE = os.path.join(ROOT, ".matrix")
 WHEELS = os.path.join(CACHE, "wheels")
@@ -49,7 +51,8 @@ ROWS = [
     ("5.1.2", None), ("5.2.3", None), ("5.3.0", None),
     ("4.2.23", "wildmeshing"), ("5.0.1", "wildmeshing"), ("5.3.0", "wildmeshing"),
 ]
-STEPS = ("install", "enable", "compute", "glyphs", "streamlines", "diagnostics", "save_reload", "hex", "clear")
+# the smoke's steps, then "exit": the smoke's process ended with code 0 (not a crash on exit)
+STEPS = extension_smoke.STEPS + ("exit",)
 MARK_BEGIN, MARK_END = "<!-- matrix -->", "<!-- /matrix -->"
 
 
@@ -125,6 +128,46 @@ def extension_zip(variant: str, mesher: str | None = None, log=print) -> str:
     return zips[0]
 
 
+# Without SymFrames: a property with an update callback, registered and
+# unregistered.  The bpy 4.2 module segfaults at interpreter exit after this
+# (5.0.1 does not); a row whose smoke crashes on exit runs it to tell the
+# bpy module's own crash from one SymFrames causes.
+EXIT_CONTROL = """
+import bpy
+class P(bpy.types.PropertyGroup):
+    x: bpy.props.FloatProperty(update=lambda self, context: None)
+bpy.utils.register_class(P)
+bpy.utils.unregister_class(P)
+"""
+BPY_EXIT_CRASH = "crash on exit: the bpy module's own"
+
+
+def exit_control_crashes(python: str) -> bool:
+    """Whether this bpy module crashes on exit without SymFrames (EXIT_CONTROL)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
+    with tempfile.TemporaryDirectory(prefix="symframes-control-") as tmp:
+        proc = subprocess.run([python, "-c", EXIT_CONTROL], cwd=tmp, env=env, capture_output=True, timeout=300)
+    return proc.returncode != 0
+
+
+def exit_result(returncode: int, stderr: str, python: str) -> str:
+    """The 'exit' step: ok, the bpy module's own crash (the control crashes
+    too), or the exit code and the last line of stderr."""
+    if returncode == 0:
+        return "ok"
+    if returncode < 0 and exit_control_crashes(python):
+        return f"{BPY_EXIT_CRASH} (signal {-returncode}; the 6-line control without SymFrames crashes too)"
+    return f"exit code {returncode}: " + (stderr.strip().splitlines() or ["(no message)"])[-1][:200]
+
+
+def row_passed(r: dict) -> bool:
+    """Every step ok; a crash on exit that the control reproduces is the bpy
+    module's (shown in the table, not counted against SymFrames)."""
+    got = r.get("steps", {})
+    return all(got.get(s) == "ok" or (s == "exit" and str(got.get(s, "")).startswith(BPY_EXIT_CRASH))
+               for s in STEPS)
+
+
 def smoke(python: str, zip_path: str, example: str = "cube", timeout: float = 1200) -> dict:
     """scripts/extension_smoke.py in python, with a fresh temporary Blender
     user folder; its RESULT dict (plus 'error' when it gave none)."""
@@ -140,6 +183,8 @@ def smoke(python: str, zip_path: str, example: str = "cube", timeout: float = 12
         out = json.loads(lines[-1][len("RESULT "):]) if lines else {"steps": {}}
         out["wall_seconds"] = round(time.perf_counter() - t0, 1)
         out["returncode"] = proc.returncode
+        if lines:
+            out["steps"]["exit"] = exit_result(proc.returncode, proc.stderr, python)
         if not lines:
             out["error"] = (proc.stdout[-1500:] + proc.stderr[-1500:]).strip()
         out["zip"] = os.path.basename(zip_path)
@@ -149,15 +194,21 @@ def smoke(python: str, zip_path: str, example: str = "cube", timeout: float = 12
 def row_table(results: list[dict]) -> str:
     """Markdown: one row per run; 'steps' is 'all ok' or the steps that
     failed or did not run, with the first error."""
-    head = ["Blender (bpy)", "Python", "numpy", "zip", "scipy", "mesher", "steps", "tets", "s"]
+    head = ["Blender (bpy)", "Python", "numpy", "zip", "scipy", "mesher", "steps", "tets", "LM iterations", "s"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
         cells = [r.get("bpy", ""), r.get("python", ""), r.get("numpy", ""), r.get("variant", ""), r.get("scipy", "-"),
                  r.get("mesher") or "-"]
         got = r.get("steps", {})
         bad = [f"{s}: {got[s][:80]}" if got.get(s) else f"{s}: not run" for s in STEPS if got.get(s) != "ok"]
-        cells.append(f"all {len(STEPS)} ok" if not bad else "**" + "; ".join(bad[:2]) + "**")
-        cells += [f"{r['tets']:,}" if "tets" in r else "-", str(r.get("wall_seconds", "-"))]
+        if not bad:
+            cells.append(f"all {len(STEPS)} ok")
+        elif row_passed(r):
+            cells.append(f"{len(STEPS) - 1} ok; **{BPY_EXIT_CRASH}**")
+        else:
+            cells.append("**" + "; ".join(bad[:2]) + "**")
+        cells += [f"{r['tets']:,}" if "tets" in r else "-", str(r.get("lm_iterations", "-")),
+                  str(r.get("wall_seconds", "-"))]
         lines.append("| " + " | ".join(str(c).replace("|", "/") for c in cells) + " |")
     return "\n".join(lines)
 
@@ -174,7 +225,7 @@ def write_readme(table: str, note: str) -> None:
         fh.write(text)
 
 
-def run_row(bpy_version: str, mesher: str | None = None, example: str = "cube", zips: dict | None = None,
+def run_row(bpy_version: str, mesher: str | None = None, example: str = "cylinder", zips: dict | None = None,
             log=print) -> dict:
     variant = build_extension.variant_for(bpy_version).name
     zips = {} if zips is None else zips
@@ -193,7 +244,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--bpy", action="append", help="bpy version to run (repeatable); default: every row of ROWS")
     p.add_argument("--mesher", choices=build_extension.MESHERS, help="with --bpy: force this mesher into the zip")
-    p.add_argument("--example", default="cube", choices=["cube", "cylinder"])
+    p.add_argument("--example", default="cylinder", choices=["cube", "cylinder"],
+                   help="the example solved (default: the cylinder, whose field needs LM iterations)")
     p.add_argument("--write", action="store_true", help="write the table into README.md")
     p.add_argument("--json", help="also write the results to this JSON file")
     args = p.parse_args(argv)
@@ -214,10 +266,11 @@ def main(argv=None) -> int:
     if args.write:
         note = (f"`./dev.sh matrix --write` (linux-x64, the {args.example} example): each release's bpy module "
                 "with the numpy it ships (5.1+: 2.3.5 standing in), the zip of its range installed from disk; "
-                f"steps: {', '.join(STEPS)}; wildmeshing rows bundle the macOS mesher.")
+                f"steps: {', '.join(STEPS)} (the process ended with code 0); 'LM iterations' those the field "
+                "took; wildmeshing rows bundle the macOS mesher.")
         write_readme(table, note)
         print("[matrix] README.md updated")
-    failed = [r for r in results if any(r["steps"].get(s) != "ok" for s in STEPS)]
+    failed = [r for r in results if not row_passed(r)]
     return 1 if failed else 0
 
 
