@@ -70,7 +70,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 try:  # the HexHex side (runner, .ovmb reader, valences) is shared with crosscheck_hexhex.py
-    from crosscheck_hexhex import figures, ovmb_hexes, read_ovmb, run_hexhex
+    from crosscheck_hexhex import figures, oriented_scaled_jacobians, ovmb_hexes, read_ovmb, run_hexhex
 except ImportError as exc:  # pragma: no cover
     print(f"error: bench/crosscheck_hexhex.py is needed beside this script ({exc})",
           file=sys.stderr)
@@ -486,6 +486,8 @@ def check_one(mesh: str, a, workdir: str) -> dict:
         hp, hv, he = ovmb_hexes(read_ovmb(run["ovmb"]))
         if hv:
             row["hexhex"] = figures(hp, hv, he)
+            sj = oriented_scaled_jacobians(hp, hv, he)  # HexHex's cells as extracted: no smoothing
+            row["hexhex"].update(sj_min=float(sj.min()), sj_mean=float(sj.mean()), inverted=int((sj <= 0).sum()))
     return row
 
 
@@ -496,8 +498,7 @@ def fmt_val(d: dict) -> str:
 def print_table(rows) -> None:
     hdr = ("case", "tets", "sing.edges/chains", "axis dev. med/max",
            "scale", "CC exit,s", "frac. jumps", "flipped", "degen.", "bad trans.", "HexHex",
-           "hexes",
-           "irregular interior edges")
+           "hexes", "SJ min/mean", "irregular interior edges")
     lines = []
     for r in rows:
         i = r["input"]
@@ -519,7 +520,8 @@ def print_table(rows) -> None:
             str(len(cc["fractional_jumps"])),
             str(mp["flipped"]) if mp else "-", str(mp["degenerate"]) if mp else "-",
             str(mp["bad_transitions"]) if mp else "-",
-            verdict, str(hh["hexes"]) if hh else "0" if mp else "-", irr_s))
+            verdict, str(hh["hexes"]) if hh else "0" if mp else "-",
+            f"{hh['sj_min']:.3f}/{hh['sj_mean']:.3f}" if hh else "-", irr_s))
     widths = [max(len(h), *(len(line[k]) for line in lines)) for k, h in enumerate(hdr)]
     print(" | ".join(h.ljust(w) for h, w in zip(hdr, widths)))
     print("-+-".join("-" * w for w in widths))
@@ -532,7 +534,8 @@ def print_table(rows) -> None:
           "degen.: tets of CubeCover's map with parameter det < 0 / = 0 (exact). bad trans.: "
           "interior faces whose two sides differ by more than matching + integer shift (1e-3). "
           "HexHex: its own IGM validity check, after its sanitization ('valid after large fix': it "
-          "had to move parameters by more than its epsilon first). irregular interior edges: valence:count of "
+          "had to move parameters by more than its epsilon first). SJ min/mean: the scaled Jacobian of "
+          "HexHex's cells as extracted (no smoothing). irregular interior edges: valence:count of "
           "interior hex edges of valence != 4.")
 
 

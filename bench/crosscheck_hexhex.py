@@ -166,6 +166,40 @@ def vtu_hexes(path: str):
     return np.asarray(m.points, dtype=float)[:, :3], hexes, vsets, esets
 
 
+def vtk_order(vset, eset) -> list[int]:
+    """A cell's 8 vertices in VTK_HEXAHEDRON order from its vertex and edge
+    sets (orientation not yet chosen: see oriented_scaled_jacobians)."""
+    nb = {v: set() for v in vset}
+    for e in eset:
+        a, b = tuple(e)
+        nb[a].add(b)
+        nb[b].add(a)
+    v0 = min(vset)
+    n1, n3, n4 = sorted(nb[v0])
+
+    def common(a, b):
+        return next(x for x in nb[a] & nb[b] if x != v0)
+
+    v2, v5, v7 = common(n1, n3), common(n1, n4), common(n3, n4)
+    v6 = next(iter(set(vset) - {v0, n1, v2, n3, n4, v5, v7}))
+    return [v0, n1, v2, n3, n4, v5, v6, v7]
+
+
+def oriented_scaled_jacobians(points: np.ndarray, vsets, esets) -> np.ndarray:
+    """Per cell the smallest corner scaled Jacobian of a mesh given as vertex
+    and edge sets (an .ovmb): each cell in VTK order, in the orientation
+    whose corner determinants sum higher (the mirror order negates them all)."""
+    H = np.array([vtk_order(v, e) for v, e in zip(vsets, esets)], dtype=np.int64).reshape(-1, 8)
+    out = []
+    for order in (H, H[:, [0, 3, 2, 1, 4, 7, 6, 5]]):
+        P = points[order]
+        E = P[:, _VTK_CORNER_NBRS] - P[:, :, None, :]
+        E /= np.maximum(np.linalg.norm(E, axis=3, keepdims=True), 1e-300)
+        out.append(np.einsum("...i,...i->...", E[..., 0, :], np.cross(E[..., 1, :], E[..., 2, :])))
+    a, b = out
+    return np.where(b.sum(axis=1) > a.sum(axis=1), b.min(axis=1), a.min(axis=1))
+
+
 def min_scaled_jacobian(points: np.ndarray, hexes: np.ndarray) -> float:
     """Smallest corner scaled Jacobian (det of the 3 unit edges at a corner)."""
     if not len(hexes):
