@@ -54,7 +54,7 @@ class Report:
         if self.sizes.get("resolution_floor"):
             lines.append(f"  the network asked for edges down to {self.sizes['edge_length_needed']:.3g} "
                          f"(~{self.sizes['needed_tets']:,} tets): held at {self.sizes['resolution_floor']:.3g} to keep "
-                         f"the tet budget; raise target_tets to resolve it")
+                         f"the tet budget or its ceiling; raise target_tets or tets_ceiling to resolve it")
         if self.sizes.get("refine_levels"):
             who = "TetGen" if self.mesher == "TetGen" else "fTetWild"
             lines.append(f"  {who} meshed {self.sizes['mesher_tets']:,} tets, refined "

@@ -67,13 +67,25 @@ def test_override_lifts_the_refusal(cube):
 
 def test_automatic_resolution_keeps_the_budget():
     """A curve 0.05 from the wall asked for h = 0.0167 everywhere (~2.6e7
-    tets); the budget now holds and the report names what was given up."""
+    tets); a budget given holds and the report names what was given up; by
+    default the network may spend up to the ceiling (4x the default
+    budget), and the estimate says what it held back past it."""
     V, F, net = wall_network()
     checked = check_input(V, F, net)
-    plan = resolution_plan(checked, Options())
-    assert plan.graded and plan.tets <= 1.5 * Options().target_tets
+    plan = resolution_plan(checked, Options(target_tets=15_000))
+    assert plan.graded and plan.tets <= 1.5 * 15_000
     assert plan.finest < plan.edge_length
     assert plan.floor > 0 and "keep the budget" in plan.describe()
+    default = resolution_plan(checked, Options())
+    assert Options().budget == 15_000 and Options().ceiling == 60_000
+    # the bulk keeps the budget's edge length, the network gets what it asks
+    assert 15_000 < default.tets <= 60_000 and default.edge_length == pytest.approx(0.2, rel=0.01)
+    assert default.floor == 0 and default.finest == pytest.approx(0.05 / 3, rel=0.05)
+    assert "spent" in default.describe()
+    # a ceiling that binds: the finest sizes floored, what was held back said
+    held = resolution_plan(checked, Options(tets_ceiling=30_000))
+    assert held.tets <= 1.05 * 30_000 and 0 < held.floor < plan.floor and held.grading == 0.5
+    assert "ceiling of 30,000 tets" in held.describe() and "held back" in held.describe()
     # a budget that affords the network resolves it
     big = resolution_plan(checked, Options(target_tets=80_000))
     assert big.floor == 0 and big.finest == pytest.approx(0.05 / 3, rel=0.05)
