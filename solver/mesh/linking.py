@@ -33,6 +33,12 @@ import scipy.sparse.linalg as spla
 from .embed import Embedding
 from .tetmesh import TetMesh, edge_graph, shortest_path
 
+# the largest angle between a carried axis and the next frame's nearest axis
+# that _carry takes as a match (a refusal rests on every step of the carry):
+# on a smooth part, and at a step to or from a vertex on a sharp edge
+CARRY_MATCH_DEG = 40.0
+CARRY_MATCH_SHARP_DEG = 20.0
+
 
 def _edge_chain(mesh: TetMesh, path: np.ndarray) -> np.ndarray:
     """The 1-chain of a vertex path: +-1 on each mesh edge it walks."""
@@ -42,16 +48,35 @@ def _edge_chain(mesh: TetMesh, path: np.ndarray) -> np.ndarray:
     return eta
 
 
-def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray) -> np.ndarray | None:
+def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray, on_sharp: np.ndarray | None = None) -> np.ndarray | None:
     """The signed axis w (body coordinates of E0[path[0]]) carried along the
     surface path: at each step the axis of the next frame nearest to it.
     Only that axis is matched, so the frames may turn fast about it (about
     the normal next to a curve's end).  None where no axis of the next
-    frame lies within 40 degrees (the match would be a guess)."""
+    frame lies within CARRY_MATCH_DEG, or CARRY_MATCH_SHARP_DEG at a step
+    to or from a vertex of a sharp edge (on_sharp: a mask of the boundary
+    vertices): the match would be a guess, and a refusal must not rest on
+    a guess.
+
+    Issue 41c: across a sharp edge the boundary field's frames on the two
+    faces need not share an axis along the edge (next to the end of a
+    singular curve on one of the faces they are 20-35 degrees apart on the
+    genus-2 family), so the nearest axis of the next frame can be the wrong
+    one.  With 40 degrees allowed, a tangent axis carried over the top of
+    an arm of the genus-2 block, from an outer wall to a hole wall, was
+    matched at 33 degrees to an in-plane axis of the hole wall: it
+    "arrived across the curve" and refused 4 of 10 inputs of the family
+    (sound networks: they converge when the mesh happens to carry it
+    right).  A smooth surface, where a real refusal lives (a curve across
+    the tube of a torus), matches the carried normal within a few degrees
+    at every step (40 degrees stay allowed there: next to a curve's end
+    the frames turn fast about the carried normal)."""
+    smooth, sharp = np.cos(np.radians(CARRY_MATCH_DEG)), np.cos(np.radians(CARRY_MATCH_SHARP_DEG))
     for u, v in zip(path[:-1], path[1:]):
         c = E0[v].T @ (E0[u] @ w)
         j = int(np.argmax(np.abs(c)))
-        if abs(c[j]) < np.cos(np.radians(40)):
+        at_sharp = on_sharp is not None and (on_sharp[u] or on_sharp[v])
+        if abs(c[j]) < (sharp if at_sharp else smooth):
             return None
         w = np.sign(c[j]) * np.eye(3)[j]
     return w
@@ -103,7 +128,7 @@ def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.
         k = int(np.argmax(np.abs(body)))
         if abs(body[k]) < np.cos(np.radians(30)):
             continue  # the frame at the end is not along the curve: nothing to read
-        w = _carry(E0, outer, np.sign(body[k]) * np.eye(3)[k])
+        w = _carry(E0, outer, np.sign(body[k]) * np.eye(3)[k], on_sharp)
         if w is None:
             continue
         cos = float((E0[b] @ w) @ t1)
