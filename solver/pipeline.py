@@ -267,7 +267,8 @@ class FieldProblem:
         self.network: PreparedNetwork = self.checked.network
         if mesh is None:
             st.say("tetmesh", f"tetmesh: {self.plan.describe()}")
-            mesh = st.run("tetmesh", mesh_domain, self.checked, self.plan, opts.mesh_settings(self.plan), cancel)
+            mesh = st.run("tetmesh", mesh_domain, self.checked, self.plan, opts.mesh_settings(self.plan), cancel,
+                          lambda msg: st.say("tetmesh", msg))
         elif isinstance(mesh, TetMesh):
             # made elsewhere: meant for the planned edge length, its making unknown
             mesh = MeshOutcome(mesh, self.plan.edge_length)

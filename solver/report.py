@@ -64,6 +64,9 @@ class Report:
             lines.append(f"  fTetWild left {self.sizes['flat_tets']} flat tet(s): "
                          f"{self.sizes.get('flat_moved_vertices', 0)} vertices moved off their plane"
                          + (f", {left} still flat (no move of an interior vertex improved them)" if left else ""))
+        if self.sizes.get("mesher_surface_triangles"):
+            lines.append(f"  the surface simplified for the mesher: {self.sizes['surface_triangles']:,} -> "
+                         f"{self.sizes['mesher_surface_triangles']:,} triangles (dense input, mesh/decimate.py)")
         if self.sizes.get("snapped_vertices") is not None:
             kept = self.sizes.get("snap_kept_vertices", 0)
             lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "
