@@ -27,10 +27,10 @@ from solver.network.network import Curve, Network
 SIZE = (2.5, 1.5, 0.5)
 # the holes' squares (x0, x1) x (y0, y1), and the flat walls a curve may end
 # on: (a point of the wall, its outward normal, the ranges of the two other
-# coordinates, kept 0.07 off the sharp edges)
+# coordinates, kept 0.09 off the sharp edges, so that a tet-edge variant does not move an end onto one)
 HOLE_X = ((0.5, 1.0), (1.5, 2.0))
 HOLE_Y = (0.5, 1.0)
-MARGIN = 0.07
+MARGIN = 0.09
 
 
 def block_with_holes(n: int = 2) -> tuple[np.ndarray, np.ndarray]:

@@ -48,7 +48,8 @@ def _edge_chain(mesh: TetMesh, path: np.ndarray) -> np.ndarray:
     return eta
 
 
-def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray, on_sharp: np.ndarray | None = None) -> np.ndarray | None:
+def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray, on_sharp: np.ndarray | None = None,
+           sharp_match_deg: float = CARRY_MATCH_SHARP_DEG) -> np.ndarray | None:
     """The signed axis w (body coordinates of E0[path[0]]) carried along the
     surface path: at each step the axis of the next frame nearest to it.
     Only that axis is matched, so the frames may turn fast about it (about
@@ -71,7 +72,7 @@ def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray, on_sharp: np.ndarray
     the tube of a torus), matches the carried normal within a few degrees
     at every step (40 degrees stay allowed there: next to a curve's end
     the frames turn fast about the carried normal)."""
-    smooth, sharp = np.cos(np.radians(CARRY_MATCH_DEG)), np.cos(np.radians(CARRY_MATCH_SHARP_DEG))
+    smooth, sharp = np.cos(np.radians(CARRY_MATCH_DEG)), np.cos(np.radians(sharp_match_deg))
     for u, v in zip(path[:-1], path[1:]):
         c = E0[v].T @ (E0[u] @ w)
         j = int(np.argmax(np.abs(c)))
@@ -83,7 +84,7 @@ def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray, on_sharp: np.ndarray
 
 
 def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.ndarray,
-                      sharp: np.ndarray) -> list[tuple]:
+                      sharp: np.ndarray, sharp_match_deg: float = CARRY_MATCH_SHARP_DEG) -> list[tuple]:
     """Curves with both ends on the boundary whose tangent axis the frames
     on the surface do not carry from one end to the other, around a loop
     that bounds a chain no singular curve crosses.
@@ -92,6 +93,10 @@ def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.
     sigma : index of each prepared curve (0 for feature curves)
     E0    : (#boundary vertices, 3, 3) the boundary field's frames
     sharp : (#boundary edges,) sharp mask over mesh.boundary.edges
+    sharp_match_deg : the match _carry takes at steps by sharp-edge vertices
+                      (CARRY_MATCH_SHARP_DEG; meshed_boundary.py also asks
+                      at CARRY_MATCH_DEG, to find a boundary field that
+                      turns across a sharp edge next to a curve's end)
     Returns [(curve, start vertex, end vertex, cosine)]: global vertex ids,
     and the cosine between the carried axis and the curve's tangent at its
     end (-1: reversed, 0: across); empty for every sound network.
@@ -128,7 +133,7 @@ def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.
         k = int(np.argmax(np.abs(body)))
         if abs(body[k]) < np.cos(np.radians(30)):
             continue  # the frame at the end is not along the curve: nothing to read
-        w = _carry(E0, outer, np.sign(body[k]) * np.eye(3)[k], on_sharp)
+        w = _carry(E0, outer, np.sign(body[k]) * np.eye(3)[k], on_sharp, sharp_match_deg)
         if w is None:
             continue
         cos = float((E0[b] @ w) @ t1)
