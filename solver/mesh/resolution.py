@@ -79,7 +79,7 @@ GRADED_FACTOR = 1.7
 # the final estimate tests its samples for inside the solid (winding
 # numbers: samples x faces) on surfaces up to this many faces
 INSIDE_TEST_MAX_FACES = 20_000
-INSIDE_SAMPLES = 1000
+INSIDE_SAMPLES = 500
 
 
 class ResolutionError(MeshingError):
