@@ -37,13 +37,17 @@ from ..surface.trisurface import TriSurface
 # of it (an h-mesh of area A has about A / (sqrt(3)/4 h^2) triangles);
 # below it fTetWild's own simplification (tetwild.wants_simplify) does
 DENSE_FACTOR = 8.0
-# grid cell of the clustering, as a fraction of the mesh's edge length h:
-# fTetWild's time grows with the input triangles (the 81,920-triangle
-# sphere at h = 0.16 clustered at h / 3: 11.6k triangles, 186 s; at h / 2:
-# 5.4k, 65 s; at h: 1.4k, 8 s), and the vertices lie on the input, so the
-# error is chordal, ~ c^2 / 8R (3e-3 on the unit sphere at h = 0.16, about
-# fTetWild's envelope of 1e-3 of the diagonal)
-CELL_FRACTION = 1.0
+# grid cell of the clustering, as a fraction of the mesh's edge length h.
+# fTetWild's time grows with the input's triangles and falls with their
+# quality, and the field suffers from a boundary of coarse chords: the
+# ball's network on the 81,920-triangle sphere at h = 0.161 (one run each,
+# 2 cores, another job running),
+#   cell h:     1,350 triangles, meshing 10-14 s, penalty 5.4-13 (bound ~6.7)
+#   cell 0.6 h: 3,738 triangles, meshing 68 s,    penalty 3.98
+#   cell 0.5 h: 5,256 triangles, meshing 46 s,    penalty 1.48, converged
+# against 0.20 for an unsimplified 5,120-triangle sphere (24 s) and 0.23
+# for the 1,280-triangle example: h / 2, the field first
+CELL_FRACTION = 0.5
 # passes of tangential smoothing of the smooth clusters (onto the input):
 # fTetWild takes poorly shaped input triangles slowly (the 81,920-triangle
 # sphere clustered at h into 1,404 triangles: 15.5 s raw, 7.8 s smoothed,
