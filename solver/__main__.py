@@ -73,7 +73,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--from-result", metavar="FILE.npz", help="with --hex: mesh the field stored in a result file "
                    "instead of solving")
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
-    p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic")
+    p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic (default "
+                   "15,000, which the network may exceed up to --tets-ceiling; a count given here is held)")
+    p.add_argument("--tets-ceiling", type=int, help="with the automatic edge length: the most tets spent where the "
+                   "network asks for more than the budget (default 4x the default budget, within --max-tets)")
     p.add_argument("--grading", type=float, help="with the automatic edge length: growth of the edge length per "
                    "unit distance from the network where it needs a finer mesh (0.1-1, default 0.5; lower it, with "
                    "a larger --target-tets, around node-to-node curves shorter than an edge)")
@@ -98,7 +101,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def _options(args, file_options: dict):
     d = dict(file_options)
-    for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets), ("grading", args.grading),
+    for key, val in (("edge_length", args.edge_length), ("target_tets", args.target_tets),
+                     ("tets_ceiling", args.tets_ceiling), ("grading", args.grading),
                      ("penalty", args.penalty), ("max_iterations", args.iterations), ("init", args.init),
                      ("refine", args.refine), ("max_tets", args.max_tets), ("mesher", args.mesher)):
         if val is not None:

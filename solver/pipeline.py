@@ -31,7 +31,18 @@ from .field.root import default_root, node_region_edges
 from .field.volume3d import VolumeProblem
 from .mesh.embed import Embedding, embed_network
 from .mesh.meshing import MeshOutcome, MeshSettings, mesh_domain, node_edge_length, node_radius
-from .mesh.resolution import GRADING, Plan, check_resolution, plan_resolution, solid_volume, uniform_tets
+from .mesh.resolution import (
+    CEILING_FACTOR,
+    DEFAULT_TARGET_TETS,
+    GRADING,
+    GRADING_GENTLEST,
+    Plan,
+    check_resolution,
+    plan_resolution,
+    solid_volume,
+    tet_limit,
+    uniform_tets,
+)
 from .mesh.tetmesh import TetMesh
 from .network.network import Network, PreparedNetwork
 from .network.validation import CheckedInput, check_input
@@ -60,12 +71,22 @@ class Options:
     node_radius    : radius of node regions, relative to edge_length
     epsilon        : fTetWild envelope, relative to the bounding-box diagonal
     target_tets    : tet budget when edge_length is None: the mesh is graded
-                     (fine only where the network needs it, resolution.py)
-                     and stays within 1.5x of it whatever the network
+                     (fine only where the network needs it, resolution.py).
+                     None (the default): 15,000, and where the network asks
+                     for more the mesh spends it, up to ``tets_ceiling``; a
+                     number given here is held (within 1.5x) whatever the
+                     network asks, unless tets_ceiling is given too
+    tets_ceiling   : the most tets the automatic resolution spends where the
+                     network asks for more than the budget (the bulk keeps
+                     the budget's edge length); None: 4x the default budget
+                     (60,000) when target_tets is None, else target_tets.
+                     Always within the memory guard (max_tets)
     grading        : growth of that graded mesh's edge length per unit
-                     distance from the network (0.1-1; default 0.5).  Lower
-                     it together with a larger target_tets to resolve
-                     node-to-node curves shorter than an edge better
+                     distance from the network (0.1-1).  None (the default):
+                     the gentlest of 0.2-0.5 that the tets the plan may spend
+                     allow (0.5, the densest, with a target_tets held as
+                     given); lower it together with a larger target_tets to
+                     resolve node-to-node curves shorter than an edge better
     max_tets       : refuse a solve whose estimated tet count exceeds this;
                      None: 1,000,000 tets, or fewer if their estimated
                      memory exceeds 3/4 of this machine's (resolution.py)
@@ -97,8 +118,9 @@ class Options:
     tube_radius: float = 0.35
     node_radius: float = 1.5
     epsilon: float = 1e-3
-    target_tets: int = 15000
-    grading: float = GRADING
+    target_tets: int | None = None
+    tets_ceiling: int | None = None
+    grading: float | None = None
     check_intersections: bool = True
     refine: int | None = None
     snap_features: bool = True
@@ -124,10 +146,14 @@ class Options:
         self.epsilon = checks.positive_float("option 'epsilon'", self.epsilon, E, high=0.1,
                                              fix="fTetWild's envelope as a fraction of the bounding-box diagonal, "
                                                  "the default is 1e-3")
-        self.target_tets = checks.integer("option 'target_tets'", self.target_tets, E, low=1,
-                                          fix="the default is 15000")
-        self.grading = checks.real("option 'grading'", self.grading, E, low=0.1, high=1.0,
-                                     fix=f"a growth of the edge length per unit distance, the default is {GRADING:g}")
+        self.target_tets = checks.integer("option 'target_tets'", self.target_tets, E, low=1, allow_none=True,
+                                          fix=f"a tet count, or null/None for the default ({DEFAULT_TARGET_TETS}, "
+                                              "which the network may exceed up to tets_ceiling)")
+        self.tets_ceiling = checks.integer("option 'tets_ceiling'", self.tets_ceiling, E, low=1, allow_none=True,
+                                           fix="a tet count, or null/None for 4x the default budget")
+        self.grading = checks.real("option 'grading'", self.grading, E, low=0.1, high=1.0, allow_none=True,
+                                   fix="a growth of the edge length per unit distance, or null/None for automatic "
+                                       f"({GRADING_GENTLEST:g}-{GRADING:g})")
         self.check_intersections = checks.boolean("option 'check_intersections'", self.check_intersections, E)
         self.refine = checks.integer("option 'refine'", self.refine, E, low=0, high=3, allow_none=True,
                                      fix="0-3 red-refinement levels, or null/None for automatic")
@@ -136,10 +162,25 @@ class Options:
                                        fix="a tet count, or null/None for the default limit (mesh/resolution.py)")
         self.mesher = checks.choice("option 'mesher'", self.mesher, MESHER_CHOICES, E)
 
-    def mesh_settings(self) -> MeshSettings:
-        """What the mesh stage (mesh/meshing.py) takes from these options."""
-        return MeshSettings(mesher=self.mesher, refine=self.refine,
-                            budget=None if self.edge_length else self.target_tets, tube_radius=self.tube_radius,
+    @property
+    def budget(self) -> int:
+        """The tet budget of the automatic resolution (target_tets or the default)."""
+        return int(self.target_tets) if self.target_tets is not None else DEFAULT_TARGET_TETS
+
+    @property
+    def ceiling(self) -> int:
+        """The most tets the automatic resolution spends where the network
+        asks for more than the budget (before the memory guard)."""
+        if self.tets_ceiling is not None:
+            return max(int(self.tets_ceiling), self.budget)
+        return int(CEILING_FACTOR * self.budget) if self.target_tets is None else self.budget
+
+    def mesh_settings(self, plan: Plan | None = None) -> MeshSettings:
+        """What the mesh stage (mesh/meshing.py) takes from these options
+        (the budget: what the plan spends, where the network asked for more)."""
+        budget = None if self.edge_length else (plan.mesh_budget if plan is not None and plan.budget
+                                                else self.budget)
+        return MeshSettings(mesher=self.mesher, refine=self.refine, budget=budget, tube_radius=self.tube_radius,
                             node_radius=self.node_radius, epsilon=self.epsilon, snap_features=self.snap_features)
 
 
@@ -167,10 +208,14 @@ def resolution_plan(checked: CheckedInput, opts: Options) -> Plan:
         plan = Plan(edge_length=h, tets=uniform_tets(vol, h))
         what = f"edge length {h:.4g} over a volume of {vol:.4g}"
     else:
-        target = int(opts.target_tets)
+        target = opts.budget
         check_resolution(target, opts.max_tets, f"target_tets = {target:,}")
-        plan = plan_resolution(vol, checked.surface, checked.network, target, grading=opts.grading)
-        what = f"target_tets = {target:,}"
+        # the network may spend up to the ceiling, within the memory guard
+        ceiling = min(opts.ceiling, tet_limit(opts.max_tets)[0])
+        plan = plan_resolution(vol, checked.surface, checked.network, target, grading=opts.grading,
+                               ceiling=ceiling, curve_scales=checked.curve_scales)
+        what = f"target_tets = {target:,}" + (f", spending up to {ceiling:,} where the network asks"
+                                              if ceiling > target else "")
     k = 0 if opts.refine is None else int(opts.refine)
     check_resolution(plan.tets, opts.max_tets, what, mesher_tets=plan.tets / 8.0**k, volume=vol)
     return plan
@@ -214,7 +259,7 @@ class FieldProblem:
         # the mesh: the edge length when given, else the budget edge length
         # of the solid alone (the default h below depends on the network)
         self.checked: CheckedInput = st.run("validate", check_input, V, F, network, opts.check_intersections,
-                                            opts.edge_length, True, opts.target_tets)
+                                            opts.edge_length, True, opts.budget)
         self.report.repairs = self.checked.repairs
         self.report.repair_scale = self.checked.scale
         self.report.corners = self.checked.corners
@@ -222,7 +267,8 @@ class FieldProblem:
         self.network: PreparedNetwork = self.checked.network
         if mesh is None:
             st.say("tetmesh", f"tetmesh: {self.plan.describe()}")
-            mesh = st.run("tetmesh", mesh_domain, self.checked, self.plan, opts.mesh_settings(), cancel)
+            mesh = st.run("tetmesh", mesh_domain, self.checked, self.plan, opts.mesh_settings(self.plan), cancel,
+                          lambda msg: st.say("tetmesh", msg))
         elif isinstance(mesh, TetMesh):
             # made elsewhere: meant for the planned edge length, its making unknown
             mesh = MeshOutcome(mesh, self.plan.edge_length)

@@ -112,5 +112,5 @@ def check(V, F, network: Network, *, options: Options | None = None) -> CheckRes
     if not isinstance(opts, Options):
         raise OptionsError(f"options = {opts!r}: must be a solver.Options (e.g. Options(edge_length=0.1)) or None")
     checked = check_input(V, F, network, check_intersections=opts.check_intersections, scale=opts.edge_length,
-                          repair=True, target_tets=opts.target_tets)
+                          repair=True, target_tets=opts.budget)
     return CheckResult(checked=checked, plan=resolution_plan(checked, opts))

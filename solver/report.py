@@ -81,7 +81,7 @@ class Report:
         if self.sizes.get("resolution_floor"):
             lines.append(f"  the network asked for edges down to {self.sizes['edge_length_needed']:.3g} "
                          f"(~{self.sizes['needed_tets']:,} tets): held at {self.sizes['resolution_floor']:.3g} to keep "
-                         f"the tet budget; raise target_tets to resolve it")
+                         f"the tet budget or its ceiling; raise target_tets or tets_ceiling to resolve it")
         if self.sizes.get("refine_levels"):
             who = "TetGen" if self.mesher == "TetGen" else "fTetWild"
             lines.append(f"  {who} meshed {self.sizes['mesher_tets']:,} tets, refined "
@@ -91,6 +91,9 @@ class Report:
             lines.append(f"  fTetWild left {self.sizes['flat_tets']} flat tet(s): "
                          f"{self.sizes.get('flat_moved_vertices', 0)} vertices moved off their plane"
                          + (f", {left} still flat (no move of an interior vertex improved them)" if left else ""))
+        if self.sizes.get("mesher_surface_triangles"):
+            lines.append(f"  the surface simplified for the mesher: {self.sizes['surface_triangles']:,} -> "
+                         f"{self.sizes['mesher_surface_triangles']:,} triangles (dense input, mesh/decimate.py)")
         if self.sizes.get("snapped_vertices") is not None:
             kept = self.sizes.get("snap_kept_vertices", 0)
             lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "

@@ -66,6 +66,9 @@ class SYMFRAMES_PT_advanced(SymFramesPanel, bpy.types.Panel):
         col = layout.column()
         sub = col.row()
         sub.active = s.auto_resolution
+        sub.prop(s, "follow_network")
+        sub = col.row()
+        sub.active = s.auto_resolution and not s.follow_network
         sub.prop(s, "grading")
         col.prop(s, "penalty")
         col.prop(s, "max_iterations")

@@ -17,6 +17,7 @@ import numpy as np
 from mathutils.geometry import interpolate_bezier
 
 from ..solver import Curve, Network, Options, SymFramesError
+from ..solver.mesh.resolution import CEILING_FACTOR
 
 
 class InputError(SymFramesError):
@@ -51,7 +52,8 @@ class Inputs:
         for c in self.network.curves:
             h.update(c.role.value.encode())
             h.update(np.ascontiguousarray(c.points).tobytes())
-        auto = (self.options.target_tets, self.options.grading) if self.options.edge_length is None else None
+        auto = ((self.options.target_tets, self.options.tets_ceiling, self.options.grading)
+                if self.options.edge_length is None else None)
         h.update(repr((self.options.edge_length, auto, self.network.node_tolerance)).encode())
         return h.hexdigest()
 
@@ -201,6 +203,7 @@ def network_note(collection, n_curves: int) -> str:
 
 
 def solver_options(settings) -> Options:
+    follow = bool(getattr(settings, "follow_network", False))
     return Options(
         edge_length=None if settings.auto_resolution else float(settings.edge_length),
         penalty=float(settings.penalty),
@@ -208,7 +211,9 @@ def solver_options(settings) -> Options:
         init=settings.init,
         seed=int(settings.solve_seed),
         target_tets=int(settings.target_tets),
-        grading=float(settings.grading),
+        # Follow Network: the solver's default rule (issue 41b) for this count
+        tets_ceiling=int(CEILING_FACTOR * settings.target_tets) if follow else None,
+        grading=None if follow else float(settings.grading),
     )
 
 

@@ -158,8 +158,15 @@ def test_presets_set_the_documented_values():
     rna = s.bl_rna.properties
     for key, value in properties.PRESETS["STANDARD"].items():
         assert rna[key].default == value, key
-    assert (Options().target_tets, Options().max_iterations) == (15000, 50)
-    assert rna["grading"].default == pytest.approx(Options().grading)  # the panel's default is the solver's
+    assert (Options().budget, Options().max_iterations) == (15000, 50)
+    # the solver's default follows the network (issue 41b), as the panel's does
+    assert rna["follow_network"].default is True and Options().target_tets is None
+    assert bpy.ops.symframes.apply_preset(preset="STANDARD") == {"FINISHED"}
+    inp = scene_io.solver_options(s)
+    assert (inp.grading, inp.ceiling) == (None, 4 * 15000) and Options().ceiling == 4 * 15000
+    from symframes.solver.mesh.resolution import GRADING
+
+    assert rna["grading"].default == pytest.approx(GRADING)  # the grading held when Follow Network is off
 
 
 def test_solve_seed_and_target_tets_reach_the_solver():
@@ -177,12 +184,13 @@ def test_solve_seed_and_target_tets_reach_the_solver():
     s.solve_seed = 8  # the seed does not change the mesh
     assert scene_io.read_inputs(bpy.context).options.seed == 8
     assert scene_io.read_inputs(bpy.context).mesh_key() == key
-    # nor does anything but the resolution: the grading does
+    # nor does anything but the resolution: the grading does (Follow Network off)
+    s.follow_network = False
     key = scene_io.read_inputs(bpy.context).mesh_key()
     s.grading = 0.3
     inp = scene_io.read_inputs(bpy.context)
     assert inp.options.grading == pytest.approx(0.3) and inp.mesh_key() != key
-    s.grading = 0.5
+    s.grading, s.follow_network = 0.5, True
     # a fixed edge length decides it alone
     s.auto_resolution = False
     key = scene_io.read_inputs(bpy.context).mesh_key()

@@ -624,3 +624,54 @@ def test_a_curve_from_a_node_is_bent_over_most_of_its_length():
         assert d0 @ (c.points[-1] - c.points[0]) / np.linalg.norm(c.points[-1] - c.points[0]) > np.cos(np.radians(10))
         assert end_normal_angle(checked.surface, Q) < 1.0
         assert np.all(checked.surface.winding_number(Q[1:-1]) > 0.5)
+
+
+# ------------------------------------------------- issue 41a: short oblique ends
+def _hook(y, sigma, name, deg, z0=0.06, r=0.1):
+    """A curve across the genus-2 block's arm x in (0, 0.5): square to the
+    hole wall x = 0.5, turning within r to deg degrees off the normal and
+    straight on to the outer wall x = 0 (about 0.6 long)."""
+    th = np.radians(deg)
+    u = np.linspace(0, th, 8)
+    x, z = 0.5 - r * np.sin(u), z0 + r * (1 - np.cos(u))
+    xe = np.linspace(x[-1], 0.0, 12)[1:]
+    ze = z[-1] + (x[-1] - xe) * np.tan(th)
+    return Curve(np.c_[np.r_[x, xe], np.full(len(x) + len(xe), y), np.r_[z, ze]][::-1], sigma=sigma, name=name)
+
+
+@pytest.mark.parametrize("deg", [30, 40])
+@pytest.mark.parametrize("target", [2000, 3000, 5000])
+def test_oblique_ends_of_curves_a_few_h_long_are_repaired_without_a_kink(deg, target):
+    """Issue 41a: a +-1/4 pair 2.5-4 h long, each reaching the outer wall
+    30-40 degrees off its normal, is repaired, never refused for a kink the
+    repair made; every repaired curve turns by at most the kink check's
+    MAX_KINK over its own scale (h, or the finer local scale the intake
+    chose), and meets the surface along the normal."""
+    from solver.network.fairing import MAX_KINK
+    from testkit.genus2 import block_with_holes
+
+    V, F = block_with_holes(2)
+    net = Network(curves=[_hook(0.62, 0.25, "plus", deg), _hook(0.88, -0.25, "minus", deg)], sharp_angle=30)
+    checked = check_input(V, F, net, target_tets=target)
+    length = float(np.linalg.norm(np.diff(net.curves[0].points, axis=0), axis=1).sum())
+    assert 2.4 <= length / checked.scale <= 4.0
+    S = checked.surface
+    for ci, c in enumerate(checked.network.curves):
+        hc = float(checked.curve_scales[ci])
+        assert hc <= checked.scale
+        assert turning(c.points, 0.5 * hc, False).max() <= MAX_KINK, checked.repairs[ci].text()
+        assert end_normal_angle(S, c.points) < 1.0 and end_normal_angle(S, c.points[::-1]) < 1.0
+
+
+def test_a_real_corner_is_named_as_the_users(cylinder):
+    """Issue 41a: a 90-degree corner of the curve as given (between straight
+    arms several h long) is refused as the user's corner, with where it is,
+    not as a fault of the repair."""
+    V, F, net = cylinder
+    pts = np.vstack([np.linspace([-0.35, -0.35, -1.0], [-0.35, -0.35, 0.0], 6),
+                     np.linspace([-0.35, -0.35, 0.0], [0.3, -0.35, 0.0], 6)[1:],
+                     np.linspace([0.3, -0.35, 0.0], [0.3, -0.35, 1.0], 6)[1:]])
+    with pytest.raises(NetworkError, match=r"'axial 0' turns by (8\d|9\d) degrees .* at \(.*a corner of the curve "
+                                           r"as given.*round the corner or split the curve at a node") as e:
+        check_input(V, F, with_curve(net, 0, pts))
+    assert "repair" not in str(e.value)

@@ -33,6 +33,12 @@ import scipy.sparse.linalg as spla
 from .embed import Embedding
 from .tetmesh import TetMesh, edge_graph, shortest_path
 
+# the largest angle between a carried axis and the next frame's nearest axis
+# that _carry takes as a match (a refusal rests on every step of the carry):
+# on a smooth part, and at a step to or from a vertex on a sharp edge
+CARRY_MATCH_DEG = 40.0
+CARRY_MATCH_SHARP_DEG = 20.0
+
 
 def _edge_chain(mesh: TetMesh, path: np.ndarray) -> np.ndarray:
     """The 1-chain of a vertex path: +-1 on each mesh edge it walks."""
@@ -42,23 +48,43 @@ def _edge_chain(mesh: TetMesh, path: np.ndarray) -> np.ndarray:
     return eta
 
 
-def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray) -> np.ndarray | None:
+def _carry(E0: np.ndarray, path: np.ndarray, w: np.ndarray, on_sharp: np.ndarray | None = None,
+           sharp_match_deg: float = CARRY_MATCH_SHARP_DEG) -> np.ndarray | None:
     """The signed axis w (body coordinates of E0[path[0]]) carried along the
     surface path: at each step the axis of the next frame nearest to it.
     Only that axis is matched, so the frames may turn fast about it (about
     the normal next to a curve's end).  None where no axis of the next
-    frame lies within 40 degrees (the match would be a guess)."""
+    frame lies within CARRY_MATCH_DEG, or CARRY_MATCH_SHARP_DEG at a step
+    to or from a vertex of a sharp edge (on_sharp: a mask of the boundary
+    vertices): the match would be a guess, and a refusal must not rest on
+    a guess.
+
+    Issue 41c: across a sharp edge the boundary field's frames on the two
+    faces need not share an axis along the edge (next to the end of a
+    singular curve on one of the faces they are 20-35 degrees apart on the
+    genus-2 family), so the nearest axis of the next frame can be the wrong
+    one.  With 40 degrees allowed, a tangent axis carried over the top of
+    an arm of the genus-2 block, from an outer wall to a hole wall, was
+    matched at 33 degrees to an in-plane axis of the hole wall: it
+    "arrived across the curve" and refused 4 of 10 inputs of the family
+    (sound networks: they converge when the mesh happens to carry it
+    right).  A smooth surface, where a real refusal lives (a curve across
+    the tube of a torus), matches the carried normal within a few degrees
+    at every step (40 degrees stay allowed there: next to a curve's end
+    the frames turn fast about the carried normal)."""
+    smooth, sharp = np.cos(np.radians(CARRY_MATCH_DEG)), np.cos(np.radians(sharp_match_deg))
     for u, v in zip(path[:-1], path[1:]):
         c = E0[v].T @ (E0[u] @ w)
         j = int(np.argmax(np.abs(c)))
-        if abs(c[j]) < np.cos(np.radians(40)):
+        at_sharp = on_sharp is not None and (on_sharp[u] or on_sharp[v])
+        if abs(c[j]) < (sharp if at_sharp else smooth):
             return None
         w = np.sign(c[j]) * np.eye(3)[j]
     return w
 
 
 def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.ndarray,
-                      sharp: np.ndarray) -> list[tuple]:
+                      sharp: np.ndarray, sharp_match_deg: float = CARRY_MATCH_SHARP_DEG) -> list[tuple]:
     """Curves with both ends on the boundary whose tangent axis the frames
     on the surface do not carry from one end to the other, around a loop
     that bounds a chain no singular curve crosses.
@@ -67,6 +93,10 @@ def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.
     sigma : index of each prepared curve (0 for feature curves)
     E0    : (#boundary vertices, 3, 3) the boundary field's frames
     sharp : (#boundary edges,) sharp mask over mesh.boundary.edges
+    sharp_match_deg : the match _carry takes at steps by sharp-edge vertices
+                      (CARRY_MATCH_SHARP_DEG; meshed_boundary.py also asks
+                      at CARRY_MATCH_DEG, to find a boundary field that
+                      turns across a sharp edge next to a curve's end)
     Returns [(curve, start vertex, end vertex, cosine)]: global vertex ids,
     and the cosine between the carried axis and the curve's tangent at its
     end (-1: reversed, 0: across); empty for every sound network.
@@ -103,7 +133,7 @@ def misaligned_curves(mesh: TetMesh, emb: Embedding, sigma: list[float], E0: np.
         k = int(np.argmax(np.abs(body)))
         if abs(body[k]) < np.cos(np.radians(30)):
             continue  # the frame at the end is not along the curve: nothing to read
-        w = _carry(E0, outer, np.sign(body[k]) * np.eye(3)[k])
+        w = _carry(E0, outer, np.sign(body[k]) * np.eye(3)[k], on_sharp, sharp_match_deg)
         if w is None:
             continue
         cos = float((E0[b] @ w) @ t1)

@@ -40,6 +40,7 @@ from ..network.validation import CheckedInput
 from ..surface.trisurface import TriSurface
 from . import cdt
 from .bisection import bisect
+from .decimate import Simplified, simplify_for_meshing
 from .refine import red_refine
 from .resolution import TETS_PER_H3, Plan, solid_volume
 from .slivers import FlatRepair
@@ -103,6 +104,9 @@ class MeshStats:
         fTetWild's flat tets and their repair (None for TetGen).
     snap : snapping.SnapStats or None
         The snap onto the sharp features (None where it was not asked for).
+    simplified : tuple of int or None
+        (input triangles, triangles the mesher got) where a dense surface
+        was simplified first (decimate.py), else None.
     """
 
     mesher: str = ""
@@ -112,6 +116,7 @@ class MeshStats:
     graded_tets: int = 0
     flat: FlatRepair | None = None
     snap: SnapStats | None = field(default=None, compare=False)
+    simplified: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -164,6 +169,8 @@ class MeshOutcome:
             out["flat_tets"] = st.flat.flat_tets
             out["flat_tets_left"] = st.flat.flat_tets_left
             out["flat_moved_vertices"] = st.flat.moved_vertices
+        if st.simplified is not None:
+            out["surface_triangles"], out["mesher_surface_triangles"] = st.simplified
         if st.snap is not None:
             out["snapped_vertices"] = st.snap.moved
             out["snap_kept_vertices"] = int(len(st.snap.kept))
@@ -184,7 +191,7 @@ class _Made:
     tetgen_off: str  # why TetGen did not mesh (then it is not asked again)
 
 
-def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cancel=None) -> MeshOutcome:
+def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cancel=None, say=None) -> MeshOutcome:
     """The tet mesh of a checked input for a resolution plan (module docs).
 
     Parameters
@@ -196,6 +203,8 @@ def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cance
     settings : MeshSettings
     cancel : callable() -> bool, or None
         Passed to the mesher's child process.
+    say : callable(str), or None
+        Progress messages (the surface simplified for the mesher, issue 41e).
 
     Returns
     -------
@@ -217,8 +226,11 @@ def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cance
     made: list[tuple[float, _Made]] = []  # (tets once refined, mesh) of each mesh kept as a candidate
     tetgen_off = ""  # why TetGen, asked for, did not mesh (then fTetWild did)
     retries = 0
+    # a surface far denser than the mesh is brought down to it first
+    # (decimate.py): fTetWild's time grows with its input's triangles
+    simplified = simplify_for_meshing(checked.surface, h, say)
     for attempt in range(3):
-        m = _mesh_at(checked, settings, h, tetgen_off, cancel)
+        m = _mesh_at(checked, settings, h, tetgen_off, cancel, simplified)
         tetgen_off = m.tetgen_off
         n = m.mesh.n_tets * 8.0**m.k
         if m.problem is not None:
@@ -252,10 +264,11 @@ def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cance
                 f"fTetWild meshed at {m.H:.4g} before {m.k} refinement level(s): try refine={m.k - 1}")
         raise MeshingError(f"the tet mesh's boundary {m.problem}; a thin part was lost, a cavity appeared or "
                            f"curve tubes too close to the surface merged with it. {hint}")
-    return _finish(checked, plan, settings, m, retries)
+    return _finish(checked, plan, settings, m, retries, simplified)
 
 
-def _finish(checked: CheckedInput, plan: Plan, settings: MeshSettings, m: _Made, retries: int) -> MeshOutcome:
+def _finish(checked: CheckedInput, plan: Plan, settings: MeshSettings, m: _Made, retries: int,
+            simplified: Simplified | None = None) -> MeshOutcome:
     """Snap, refine and grade the mesh kept."""
     mesh, snap = m.mesh, None
     if settings.snap_features:
@@ -270,16 +283,20 @@ def _finish(checked: CheckedInput, plan: Plan, settings: MeshSettings, m: _Made,
     if plan.graded:
         mesh, graded = grade(mesh, plan, settings.budget, checked.surface)
     stats = MeshStats(mesher=m.mesher, mesher_tets=mesher_tets, refine_levels=m.k, budget_retries=retries,
-                      graded_tets=graded, flat=m.flat, snap=snap)
+                      graded_tets=graded, flat=m.flat, snap=snap,
+                      simplified=None if simplified is None else (simplified.faces_in, simplified.faces_out))
     return MeshOutcome(mesh, m.h, stats)
 
 
-def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off: str, cancel) -> _Made:
+def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off: str, cancel,
+             simplified: Simplified | None = None) -> _Made:
     """A mesh for a final edge length h.  With mesher 'TetGen' the surface
     alone is meshed at h (no tubes: embed.py traces the curves through any
     mesh); where TetGen fails (or ``tetgen_off`` says why it may not),
     fTetWild meshes, coarser by the refinement levels, one level finer
-    each time the boundary's topology comes out wrong."""
+    each time the boundary's topology comes out wrong.  simplified: the
+    dense input brought down to the mesh scale (decimate.py), which the
+    mesher gets instead of the input surface."""
     mesher = settings.mesher
     if mesher == "auto":
         singular = any(c.sigma != 0 for c in checked.network.curves)
@@ -289,7 +306,8 @@ def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off
         # no faster than refinement's (refine_levels is for fTetWild)
         k = int(settings.refine or 0)
         try:
-            mesh = cdt.tetrahedralize_cdt(checked.surface, h * 2.0**k, cancel)
+            mesh = cdt.tetrahedralize_cdt(simplified.surface if simplified is not None else checked.surface,
+                                          h * 2.0**k, cancel)
         except MeshingError as e:
             tetgen_off = f"TetGen failed: {e}"
         else:
@@ -304,7 +322,8 @@ def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off
         flat = 0.01 * settings.epsilon * checked.surface.bbox_diagonal
         tubes = build_tubes(checked.network, checked.surface, r, r * np.sqrt(3.0),
                             node_radius(checked.network, H, settings.node_radius), flat)
-        mesh, repair = tetrahedralize_repaired(checked.surface, H, (tubes.V, tubes.F), settings.epsilon, cancel,
+        domain = simplified.surface if simplified is not None else checked.surface
+        mesh, repair = tetrahedralize_repaired(domain, H, (tubes.V, tubes.F), settings.epsilon, cancel,
                                                sharp=bool(np.any(checked.features.sharp)))
         problem = topology_change(checked.surface, mesh)
         if problem is None or k == 0 or settings.refine is not None:

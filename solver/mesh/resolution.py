@@ -55,13 +55,31 @@ SOLVER_KB_PER_TET = 18.5
 SOLVER_BASE_MB = 100.0
 MESHER_KB_PER_TET = 8.5
 DEFAULT_MAX_TETS = 1_000_000
+DEFAULT_TARGET_TETS = 15_000  # the budget when Options.target_tets is None
+CEILING_FACTOR = 4.0  # ... which the network may exceed up to this many times (Options.tets_ceiling)
+# expected seconds end to end ~ SECONDS_PER_TET_POW * tets^0.85 on the bench
+# machine (2 cores): a fit of bench/RESULTS.md's ball (15 s at 18.6k tets,
+# 46 s at 97k, 125 s at 195k) and the genus-2 family (10-24 s at ~12k);
+# the network and the machine's load move it by up to ~2x either way
+SECONDS_PER_TET_POW = 3.4e-3
+TIME_EXPONENT = 0.85
 RAM_FRACTION = 0.75
-GRADING = 0.5  # default growth of the sizing field per unit distance (Options.grading)
+GRADING = 0.5  # growth of the sizing field per unit distance with a budget held as given (Options.grading)
+# the growth the network asks for where the plan may spend beyond the budget:
+# around node-to-node curves shorter than an edge the structure penalty is
+# set by the growth (docs/limitations.md: 2.73 at 0.5, 0.92 at 0.2), so the
+# automatic grading is the gentlest of GRADING_STEPS within the ceiling
+GRADING_GENTLEST = 0.2
+GRADING_STEPS = (0.2, 0.25, 0.3, 0.35, 0.4, 0.5)
 BULK_SHARE_MIN = 0.5  # the bulk keeps at least half of the budget's tets
 # bisected tets are less regular than fTetWild's: grading a ball's mesh
 # from 0.2 down to a point of 0.02 (bisection.py, longest edges <= 1.5 h)
 # added 1,925 tets where the integral of 15 (h^-3 - H^-3) says 1,160
 GRADED_FACTOR = 1.7
+# the final estimate tests its samples for inside the solid (winding
+# numbers: samples x faces) on surfaces up to this many faces
+INSIDE_TEST_MAX_FACES = 20_000
+INSIDE_SAMPLES = 500
 
 
 class ResolutionError(MeshingError):
@@ -116,6 +134,8 @@ class Plan:
     finest: float = 0.0
     need_min: float = 0.0
     grading: float = GRADING
+    budget: float = 0.0  # the tet budget asked for (target_tets); 0: none (edge length given)
+    ceiling: float = 0.0  # what the plan may spend where the network asks for more than the budget
 
     @property
     def graded(self) -> bool:
@@ -125,15 +145,37 @@ class Plan:
         """Edge length h(x) wanted at points X (n, 3)."""
         return sizing_field(X, self.sources, self.sizes, self.edge_length, self.grading)
 
+    @property
+    def mesh_budget(self) -> int | None:
+        """The tet count the mesh stage keeps within 1.5x of: the budget, or
+        what the network asked beyond it up to the ceiling; None when the
+        edge length was given."""
+        if not self.budget:
+            return None
+        return int(round(max(self.budget, min(self.tets, self.ceiling or self.budget))))
+
     def describe(self) -> str:
+        """The estimate printed before meshing: edge lengths, tets, memory,
+        expected time, and what was spent beyond the budget or held back."""
         s = f"edge length {self.edge_length:.4g}"
         if self.graded:
-            s += f" in the bulk, down to {self.finest:.4g} near the network"
-        s += f"; expected ~{self.tets:,.0f} tets, ~{memory_mb(self.tets):,.0f} MB"
+            s += f" in the bulk, down to {self.finest:.4g} near the network (grading {self.grading:g})"
+        s += (f"; expected ~{self.tets:,.0f} tets, ~{memory_mb(self.tets):,.0f} MB, "
+              f"~{expected_seconds(self.tets):.0f} s end to end")
+        if self.budget and self.tets > 1.05 * self.budget and self.floor == 0:
+            s += f" (the network asks for more than the budget of {self.budget:,.0f} tets: spent)"
         if self.floor > 0:
+            why = (f"the ceiling of {self.ceiling:,.0f} tets" if self.ceiling > self.budget else "the budget")
             s += (f" (the network asks for edges down to {self.need_min:.3g}, ~{self.needed_tets:,.0f} "
-                  f"tets: held at {self.floor:.3g} to keep the budget)")
+                  f"tets: held at {self.floor:.3g} to keep {why}; held back ~{self.needed_tets - self.tets:,.0f} "
+                  "tets)")
         return s
+
+
+def expected_seconds(tets: float) -> float:
+    """Expected seconds end to end of a solve of this many tets on the
+    bench machine (SECONDS_PER_TET_POW)."""
+    return float(SECONDS_PER_TET_POW * max(tets, 1.0) ** TIME_EXPONENT)
 
 
 def sizing_field(X, sources, sizes, H, grading: float = GRADING, k: int = 24) -> np.ndarray:
@@ -162,12 +204,17 @@ def _unit_ball(n: int = 4000) -> np.ndarray:
     return _UNIT_BALL
 
 
-def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float, grading: float = GRADING) -> float:
+def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float, grading: float = GRADING,
+                      winding=None) -> float:
     """Monte Carlo estimate of the tets the sizing field adds to a uniform
     mesh at H: the integral of 15 (h^-3 - H^-3) over the union of the balls
     where h < H (each sample weighted by 1 / the number of balls holding it,
-    so overlaps count once; the part outside the solid is counted too, so
-    the estimate errs high)."""
+    so overlaps count once).  winding: None, or a function of points (k, 3)
+    returning the winding number (> 0.5 inside the solid); without it the
+    part of the balls outside the solid is counted too and the estimate errs
+    high -- by 1.7x on the genus-2 family at grading 0.2, where the balls
+    reach through a block 0.5 thick (issue 41b), so the printed estimate
+    counts inside only."""
     sel = sizes < H
     if not np.any(sel):
         return 0.0
@@ -185,26 +232,68 @@ def graded_extra_tets(sources: np.ndarray, sizes: np.ndarray, H: float, grading:
     hx = np.full(len(X), H)
     np.minimum.at(hx, row[inside], h[flat[inside]] + grading * d[inside])
     f = TETS_PER_H3 * (hx**-3 - H**-3)
+    if winding is not None:
+        # an unbiased subsample (winding numbers cost samples x faces)
+        sub = np.arange(0, len(X), max(1, len(X) // INSIDE_SAMPLES))
+        keep = np.zeros(len(X))
+        keep[sub] = (np.asarray(winding(X[sub])) > 0.5) * (len(X) / len(sub))
+        f = f * keep
     return float(GRADED_FACTOR * vol.sum() / len(X) * np.sum(f / np.maximum(c, 1.0)))
 
 
 def plan_resolution(volume: float, S: TriSurface, pn: PreparedNetwork, target_tets: int,
-                    graded: bool = True, grading: float = GRADING) -> Plan:
-    """The automatic resolution: a bulk edge length and a sizing field whose
-    estimated tet count is target_tets (module docstring)."""
+                    graded: bool = True, grading: float | None = GRADING, ceiling: float | None = None,
+                    curve_scales: np.ndarray | None = None) -> Plan:
+    """The automatic resolution: a bulk edge length and a sizing field for
+    the tet budget target_tets (module docstring).
+
+    ceiling      : where the network's needs cost more than the budget, the
+                   plan keeps the bulk at the budget's edge length and
+                   spends what the network asks, up to this many tets; past
+                   it the needs are floored.  None (or <= target_tets): the
+                   budget holds, the bulk coarsening to make room first.
+    grading      : growth of the sizing field; None: automatic, the
+                   gentlest of GRADING_STEPS whose plan fits the ceiling
+                   (GRADING when the budget is held).
+    curve_scales : (#curves,) the local scale each curve was repaired at
+                   (network.intake): a curve repaired finer than the bulk
+                   needs that edge length along it."""
     H0 = (TETS_PER_H3 * volume / target_tets) ** (1.0 / 3.0)
     pts, need = network_needs(S, pn) if graded else (np.zeros((0, 3)), np.zeros(0))
     h = need / 3.0
+    if graded and curve_scales is not None:
+        lp, lh = _local_scale_sources(pn, curve_scales)
+        pts, h = np.vstack([pts, lp]), np.r_[h, lh]
     sel = h < H0
+    ceiling = float(ceiling) if ceiling is not None else float(target_tets)
     if not np.any(sel):
-        return Plan(edge_length=H0, tets=uniform_tets(volume, H0))
+        return Plan(edge_length=H0, tets=uniform_tets(volume, H0), budget=target_tets, ceiling=ceiling,
+                    grading=GRADING if grading is None else float(grading))
     pts, h = pts[sel], h[sel]
     need_min = float(h.min())
+    if grading is None:
+        grading = GRADING
+        if ceiling > target_tets:
+            for g in GRADING_STEPS:
+                if uniform_tets(volume, H0) + graded_extra_tets(pts, h, H0, g) <= ceiling:
+                    grading = g
+                    break
     total = lambda H, hh: uniform_tets(volume, H) + graded_extra_tets(pts, hh, H, grading)  # noqa: E731
     H_max = H0 / BULK_SHARE_MIN ** (1.0 / 3.0)
     needed = total(H0, h)
     floor = 0.0
-    if total(H_max, h) <= target_tets:
+    if needed > target_tets and ceiling > target_tets:
+        # issue 41b: the default spends what the network asks, up to the
+        # ceiling, with the bulk at the budget's edge length; past the
+        # ceiling the finest needs are floored
+        H = H0
+        if needed > ceiling:
+            lo, hi = need_min, H
+            for _ in range(14):
+                mid = np.sqrt(lo * hi)
+                lo, hi = (mid, hi) if total(H, np.maximum(h, mid)) > ceiling else (lo, mid)
+            floor = hi
+    elif total(H_max, h) <= target_tets:
         lo, hi = H0, H_max
         for _ in range(8):
             mid = np.sqrt(lo * hi)
@@ -219,11 +308,29 @@ def plan_resolution(volume: float, S: TriSurface, pn: PreparedNetwork, target_te
             lo, hi = (mid, hi) if total(H, np.maximum(h, mid)) > target_tets else (lo, mid)
         floor = hi
     hh = np.maximum(h, floor)
-    extra = graded_extra_tets(pts, hh, H, grading)
-    p = Plan(edge_length=float(H), tets=uniform_tets(volume, H) + extra, graded_tets=extra, sources=pts,
-             sizes=hh, floor=float(floor), needed_tets=float(needed), finest=float(hh.min()), need_min=need_min,
-             grading=float(grading))
-    return p
+    # the estimate printed and kept by the mesh stage: inside the solid only
+    # (the bisections above err high, so spend at most the ceiling)
+    inside = S.winding_number if len(S.F) <= INSIDE_TEST_MAX_FACES else None
+    extra = graded_extra_tets(pts, hh, H, grading, inside)
+    return Plan(edge_length=float(H), tets=uniform_tets(volume, H) + extra, graded_tets=extra, sources=pts,
+                sizes=hh, floor=float(floor), needed_tets=float(needed), finest=float(hh.min()), need_min=need_min,
+                grading=float(grading), budget=target_tets, ceiling=ceiling)
+
+
+def _local_scale_sources(pn: PreparedNetwork, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points along the curves repaired at a finer local scale than the rest
+    (network.intake: an end bend too tight for h), at half that spacing,
+    with that scale as their edge length."""
+    base = float(np.max(scales)) if len(scales) else 0.0
+    P, hs = [np.zeros((0, 3))], [np.zeros(0)]
+    for c, sc in zip(pn.curves, scales):
+        if sc >= (1.0 - 1e-9) * base:
+            continue
+        cum = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(c.points, axis=0), axis=1))]
+        s = np.linspace(0.0, cum[-1], max(2, int(np.ceil(cum[-1] / (0.5 * sc))) + 1))
+        P.append(np.stack([np.interp(s, cum, c.points[:, k]) for k in range(3)], axis=1))
+        hs.append(np.full(len(s), float(sc)))
+    return np.vstack(P), np.concatenate(hs)
 
 
 # ------------------------------------------------------------------- guard

@@ -44,6 +44,10 @@ from .network import Curve, PreparedNetwork
 from .polyline import hausdorff, merge_close, resample, turning
 
 TETS_PER_H3 = 15.0  # as mesh/resolution.py's (network/ sits below mesh/)
+LOCAL_LEVELS = 3  # an end repair that kinks at h is redone at h / 2, h / 4, h / 8 (the mesh is refined there)
+# the repair's own bar: under the kink check's MAX_KINK (45 degrees over h),
+# with a margin for the mesh's sampling of the curve
+REPAIR_KINK = 40.0
 
 
 def solid_scale(S: TriSurface, target_tets: int = 15000) -> float:
@@ -80,6 +84,7 @@ class CurveRepair:
     note: str = ""
     joined: list = field(default_factory=list)  # ('start' or 'end', distance in h) of ends moved to join a node
     pieces: list = field(default_factory=list)  # input curves joined end to end into this one (more than one)
+    scale_h: float = 1.0  # the local scale the curve was repaired at, in h (< 1: the mesh is finer around it)
 
     @property
     def changed(self) -> bool:
@@ -123,15 +128,16 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
     names[ci] : label of prepared curve ci for messages;  boundary ends
     farther than boundary_tolerance from the surface are left as they are
     (validation refuses them).  joined : join_loose_ends' moves, reported
-    with the curves.  Returns the repaired network and one CurveRepair per
-    curve.
+    with the curves.  Returns the repaired network, one CurveRepair per
+    curve and the IntakeScales (each curve's local scale, the input's
+    corners held).
     """
     joined = joined or {}
 
     def moves(src):  # the ends moved to join a node, of the curve or of the pieces joined into it
         return [m for k in pn.pieces.get(src, [src]) for m in joined.get(k, [])]
 
-    curves, repairs = [], []
+    curves, repairs, scales, held = [], [], [], []
 
     def project(x):
         _, f, q = S.closest_points(x[None])
@@ -157,54 +163,124 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                                        joined=moves(pn.source[ci]),
                                        pieces=pn.pieces.get(pn.source[ci], [])))
             curves.append(c)
+            scales.append(h)
+            held.append(np.zeros((0, 3)))
             continue
-        slide = {}
-        if not c.closed and len(P0) > 1:
-            for end, kind in ((0, kinds[0]), (-1, kinds[1])):
-                if kind == "boundary":
-                    q, nrm = project(P0[end])
-                    if np.linalg.norm(q - P0[end]) <= boundary_tolerance:
-                        slide[end] = nrm
-        Q, merged, ell, ncorner, fixed = fair_curve(P0, h, c.closed, slide, project)
-        faired = True
-        note = ""
-        # the faired curve must stay inside the solid (a curve hugging a
-        # concave part of the surface could be pulled out of it)
-        inner = Q[1:-1]
-        if len(inner) and np.any(S.winding_number(inner) < 0.5):
-            Q = np.vstack([resample(P0, 0.5 * ell)])
-            faired = False
-            note = "not faired (fairing would leave the solid)"
-        ends = []
-        if not c.closed:
-            for end, kind in ((1, kinds[1]), (0, kinds[0])):
-                if kind != "boundary":
-                    continue
-                x = Q[-1] if end == 1 else Q[0]
-                d, _, _ = S.closest_points(x[None])
-                if d[0] > boundary_tolerance:
-                    continue
-                R = Q if end == 1 else Q[::-1]
-                both = kinds[0] == "boundary" and kinds[1] == "boundary"
-                R, bend = bend_end(S, R, h, names[ci], "end" if end == 1 else "start",
-                                   BEND_FRACTION if both else BEND_FRACTION_ONE_END)
-                Q = R if end == 1 else R[::-1]
-                slid = float(np.linalg.norm(R[-1] - (P0[-1] if end == 1 else P0[0]))) / h
-                if bend is None and (slid > 1e-3 or end in gaps):
-                    bend = EndBend("end" if end == 1 else "start", 0.0, 0.0, tuple(np.round(R[-1], 6)))
-                if bend is not None:
-                    if end in gaps:
-                        bend.gap, bend.gap_h = gaps[end]
-                    P_in = merge_close(P0 if end == 1 else P0[::-1], 1e-9 * h, False)
-                    bend.input_angle_deg = end_chord_angle(S, P_in, h)
-                    bend.slid_h = slid
-                    ends.append(bend)
+
+        def repair_at(hc):
+            """Fair and bend the curve at the scale hc (steps 1-6)."""
+            slide = {}
+            if not c.closed and len(P0) > 1:
+                for end, kind in ((0, kinds[0]), (-1, kinds[1])):
+                    if kind == "boundary":
+                        q, nrm = project(P0[end])
+                        if np.linalg.norm(q - P0[end]) <= boundary_tolerance:
+                            slide[end] = nrm
+            Q, merged, ell, ncorner, fixed = fair_curve(P0, hc, c.closed, slide, project)
+            faired, note = True, ""
+            # the faired curve must stay inside the solid (a curve hugging a
+            # concave part of the surface could be pulled out of it)
+            inner = Q[1:-1]
+            if len(inner) and np.any(S.winding_number(inner) < 0.5):
+                Q = np.vstack([resample(P0, 0.5 * ell)])
+                faired, fixed = False, np.zeros(len(Q), bool)
+                note = "not faired (fairing would leave the solid)"
+            ends = []
+            if not c.closed:
+                for end, kind in ((1, kinds[1]), (0, kinds[0])):
+                    if kind != "boundary":
+                        continue
+                    x = Q[-1] if end == 1 else Q[0]
+                    d, _, _ = S.closest_points(x[None])
+                    if d[0] > boundary_tolerance:
+                        continue
+                    R = Q if end == 1 else Q[::-1]
+                    both = kinds[0] == "boundary" and kinds[1] == "boundary"
+                    R, bend = bend_end(S, R, hc, names[ci], "end" if end == 1 else "start",
+                                       BEND_FRACTION if both else BEND_FRACTION_ONE_END)
+                    Q = R if end == 1 else R[::-1]
+                    slid = float(np.linalg.norm(R[-1] - (P0[-1] if end == 1 else P0[0]))) / h
+                    if bend is None and (slid > 1e-3 or end in gaps):
+                        bend = EndBend("end" if end == 1 else "start", 0.0, 0.0, tuple(np.round(R[-1], 6)))
+                    if bend is not None:
+                        if end in gaps:
+                            bend.gap, bend.gap_h = gaps[end]
+                        P_in = merge_close(P0 if end == 1 else P0[::-1], 1e-9 * h, False)
+                        bend.input_angle_deg = end_chord_angle(S, P_in, h)
+                        bend.slid_h = slid
+                        bend.length_h *= hc / h
+                        ends.append(bend)
+            return Q, merged, faired, note, ends, ncorner, _corner_points(Q, fixed, c.closed)
+
+        # A repair must never make what the kink check refuses (issue 41a):
+        # the check judges a singular curve over the mesh scale, and an end
+        # bent onto the normal on a curve a few h long can turn faster than
+        # that (a curve 3.4 h long with its start 30 degrees off turned by 79
+        # degrees over h).  The kink check judges the curve as given and
+        # the repair apart: a turn at a corner the fairing held is the
+        # user's (validation refuses it, naming the corner); one the repair
+        # made is repaired again at a local scale h / 2, h / 4, ..., and the
+        # mesh is made that fine around the curve (CheckedInput.curve_scales,
+        # resolution.py); only a turn no scale down to h / 2**LOCAL_LEVELS
+        # removes is left to validation, which says it is the repair's.
+        hc = h
+        Q, merged, faired, note, ends, ncorner, corners = repair_at(hc)
+        if c.sigma != 0 and len(Q) > 2:
+            for _ in range(LOCAL_LEVELS):
+                k, turn = _worst_turn(Q, hc, c.closed)
+                if turn <= REPAIR_KINK or _near(Q[k], corners, 0.5 * hc):
+                    break
+                finer = repair_at(0.5 * hc)
+                k2, turn2 = _worst_turn(finer[0], 0.5 * hc, c.closed)
+                hc *= 0.5
+                Q, merged, faired, note, ends, ncorner, corners = finer
+                if turn2 <= REPAIR_KINK:
+                    break
+            if hc < h:
+                note = (note + "; " if note else "") + (
+                    f"repaired at a local scale {hc:.3g} = {hc / h:.2g} h (its end bend turns too fast for h; the "
+                    "mesh is made that fine around it)")
+        scales.append(hc)
         turn_in = float(turning(merge_close(P0, 1e-9 * h, c.closed), 0.5 * h, c.closed).max()) if len(P0) > 2 else 0.0
         turn_out = float(turning(Q, 0.5 * h, c.closed).max()) if len(Q) > 2 else 0.0
         disp = hausdorff(P0, Q, 0.05 * h) / h
         curves.append(Curve(Q, c.sigma, c.role, c.torsion, c.name, c.closed))
         repairs.append(CurveRepair(pn.source[ci], c.name, len(P0), len(Q), merged, faired, disp, turn_in, turn_out,
                                    ncorner, ends[::-1], note, moves(pn.source[ci]),
-                                   pn.pieces.get(pn.source[ci], [])))
+                                   pn.pieces.get(pn.source[ci], []), hc / h))
+        held.append(corners)
     out = PreparedNetwork(curves, list(pn.source), list(pn.start_kind), list(pn.end_kind), pn.nodes, pn.pieces)
-    return out, repairs
+    return out, repairs, IntakeScales(np.array(scales, float), held)
+
+
+@dataclass
+class IntakeScales:
+    """Per prepared curve: the scale it was repaired and is checked at
+    (the intake's h, or finer where an end bend needed it), and the input's
+    corners the fairing held ((k, 3) each), which the kink check names as
+    the user's."""
+
+    scales: np.ndarray
+    corners: list
+
+
+def _worst_turn(Q: np.ndarray, hc: float, closed: bool) -> tuple[int, float]:
+    """Where and by how much (degrees) Q turns most over hc (the kink check's
+    measure: chords of hc / 2 on either side)."""
+    ang = turning(Q, 0.5 * hc, closed)
+    k = int(np.argmax(ang))
+    return k, float(ang[k])
+
+
+def _corner_points(Q: np.ndarray, fixed: np.ndarray, closed: bool) -> np.ndarray:
+    """(k, 3) the corners the fairing held (fixed points but the ends)."""
+    f = np.asarray(fixed, bool).copy()
+    if len(f) != len(Q):
+        return np.zeros((0, 3))
+    if not closed:
+        f[[0, -1]] = False
+    return Q[f]
+
+
+def _near(x: np.ndarray, P: np.ndarray, r: float) -> bool:
+    return bool(len(P)) and float(np.min(np.linalg.norm(P - x, axis=1))) <= r

@@ -23,7 +23,7 @@ from ..surface.features import (
 from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
 from .curve_ends import END_GAP, join_loose_ends
 from .fairing import MAX_KINK
-from .intake import repair_network, solid_scale
+from .intake import IntakeScales, repair_network, solid_scale
 from .network import Network, PreparedNetwork, _fmt, check_curve_basics, check_tolerances, prepare_network
 from .polyline import turning
 
@@ -43,6 +43,10 @@ class CheckedInput:
     repairs: list = field(default_factory=list)  # intake.CurveRepair per interior curve
     scale: float = 0.0  # the length h the curves were repaired and checked at
     corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
+    # (#curves,) the scale each prepared curve was repaired and checked at:
+    # `scale`, or finer where an end bend needed it (intake.py); the
+    # automatic resolution meshes that fine around it (mesh/resolution.py)
+    curve_scales: np.ndarray | None = None
 
 
 def _label(net_curves, k):
@@ -100,10 +104,13 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
         return _label(net.curves, pn.source[ci])
 
     repairs = []
+    intake = IntakeScales(np.full(len(pn.curves), h), [np.zeros((0, 3))] * len(pn.curves))
     if repair and pn.curves:
         # a real crossing is refused before fairing could pull it apart
         _check_crossings(pn, label, CROSSING_TOLERANCE * h)
-        pn, repairs = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol, joined)
+        pn, repairs, intake = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol, joined)
+        if scale is not None:
+            _check_local_scales(intake.scales, h, repairs, label)
 
     face_sigma = np.zeros(len(S.F))
     end_points = []  # (curve, point) of each end on the boundary
@@ -114,7 +121,8 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
                 f, q = _boundary_end(S, c.points, end, label(ci), btol, h)
                 face_sigma[f] += c.sigma
                 end_points.append((ci, q))
-        _check_inside(S, pn, ci, label(ci), h)
+        _check_inside(S, pn, ci, label(ci), float(intake.scales[ci]), intake.corners[ci],
+                      repairs[ci] if repairs else None)
     # ------------------------------------------------------------- crossings
     _check_crossings(pn, label, CROSSING_TOLERANCE * h)
     G = sharp_feature_graph(S, net)
@@ -127,7 +135,7 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     except TopologyError as e:
         explain_failure(S, G, corners, e, face_sigma)
     size = network_feature_size(S, pn)
-    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners)
+    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners, intake.scales)
 
 
 def _boundary_end(S: TriSurface, P: np.ndarray, end: int, label: str, btol: float, h: float):
@@ -167,9 +175,11 @@ def _boundary_end(S: TriSurface, P: np.ndarray, end: int, label: str, btol: floa
     return f[0], q[0]
 
 
-def _check_inside(S: TriSurface, pn: PreparedNetwork, ci: int, label: str, h: float) -> None:
+def _check_inside(S: TriSurface, pn: PreparedNetwork, ci: int, label: str, h: float,
+                  corners: np.ndarray | None = None, repaired=None) -> None:
     """Refuse a curve whose points or segments leave the solid, or a
-    singular curve with a kink."""
+    singular curve with a kink (over h, its own scale; corners: the input's
+    corners the intake held; repaired: the intake's CurveRepair of it)."""
     c = pn.curves[ci]
     P = c.points
     inner = P[1:-1] if not c.closed else P[:-1]
@@ -187,7 +197,7 @@ def _check_inside(S: TriSurface, pn: PreparedNetwork, ci: int, label: str, h: fl
             )
     _check_segments_inside(S, P, label, pn, ci)
     if c.sigma != 0:
-        _check_kinks(P, c.closed, label, h)
+        _check_kinks(P, c.closed, label, h, corners, repaired)
 
 
 def _check_end_points(S: TriSurface, G: FeatureGraph, end_points: list, label) -> None:
@@ -311,18 +321,52 @@ def _segment_triangle_point(a, b, T):
     return a + t[:, None] * (b - a)
 
 
-def _check_kinks(P, closed, label, h):
+def _check_kinks(P, closed, label, h, corners=None, repaired=None):
     """The turn between chords of h/2 on either side of each vertex: a
-    segment far shorter than h carries no direction of its own."""
+    segment far shorter than h carries no direction of its own.
+
+    The message says whose the turn is (issue 41a): at a corner of the
+    curve as given that the intake held (``corners``), the user's; anywhere
+    else on a repaired curve, the repair's -- the intake bends ends within
+    this bar and refines locally where a curve is too short for h, so such
+    a turn is a fault of the repair, reported as one with what the repair
+    did (``repaired``: its intake.CurveRepair)."""
 
     ang = turning(P, 0.5 * h, closed)
     bad = np.nonzero(ang > MAX_KINK)[0]
-    if len(bad):
-        k = bad[np.argmax(ang[bad])]
+    if not len(bad):
+        return
+    k = bad[np.argmax(ang[bad])]
+    at = f"{label} turns by {ang[k]:.0f} degrees over a length {h:.3g} (the mesh scale h) at {_fmt(P[k])}"
+    held = corners is not None and len(corners) and np.min(np.linalg.norm(corners - P[k], axis=1)) <= 0.5 * h
+    if held or repaired is None or not repaired.changed:
         raise NetworkError(
-            f"{label} turns by {ang[k]:.0f} degrees over a length {h:.3g} (the mesh scale h) at {_fmt(P[k])}; a "
-            "singular curve must be smooth (its axis of rotation is its tangent), so round the corner or split the "
-            "curve at a node"
+            f"{at}, a corner of the curve as given; a singular curve must be smooth (its axis of rotation is its "
+            "tangent), so round the corner or split the curve at a node"
+        )
+    local = f", even at the local scale {h:.3g} = {repaired.scale_h:.2g} h" if repaired.scale_h < 1.0 else ""
+    raise NetworkError(
+        f"{at}, a turn made by the curve intake's repair, not by the curve as given (it has no corner there): a "
+        f"fault of the repair, which could not bend the curve smoothly{local} ({repaired.text()}). Move that end "
+        "to where the curve meets the surface nearer the normal and away from sharp edges, or split the curve at "
+        "a node"
+    )
+
+
+def _check_local_scales(scales: np.ndarray, h: float, repairs: list, label) -> None:
+    """With the edge length given, a curve whose end repair needs a finer
+    local scale than h (intake.py) is refused with that scale: the mesh is
+    uniform at h and would not follow the bend (the automatic resolution
+    refines around it instead)."""
+    bad = np.nonzero(scales < (1.0 - 1e-9) * h)[0]
+    if len(bad):
+        ci = int(bad[np.argmin(scales[bad])])
+        ends = "; ".join(b.text() for b in repairs[ci].ends) if ci < len(repairs) else ""
+        raise NetworkError(
+            f"{label(ci)} is too short to bend its oblique end(s) onto the normal at the edge length {h:.4g}: the "
+            f"bend turns by more than {MAX_KINK:.0f} degrees over h, and stays within it at {scales[ci]:.3g} "
+            f"({scales[ci] / h:.2g} h)" + (f" ({ends})" if ends else "") + f". Use an edge length of at most "
+            f"{scales[ci]:.3g}, or leave it automatic (the mesh is then refined around the curve alone)"
         )
 
 
