@@ -57,56 +57,83 @@ MESHER_CHOICES = ("auto", "TetGen", "fTetWild")
 
 @dataclass
 class Options:
-    """Settings of a solve.
+    """Settings of a solve; every value is checked when the options are made
+    (``OptionsError`` names the option and the fix).
 
-    edge_length    : target tet edge length (units of the surface); None picks
-                     one from the solid's volume and the network's feature size
-    penalty        : a in Eq. 23 (affects convergence, not the minimiser)
-    max_iterations : Levenberg-Marquardt iterations
-    tolerance      : relative energy decrease at which LM stops
-    init           : 'zero', 'constant', 'random' or 'linear' (§5.2)
-    seed           : random initialisation seed
-    tube_radius    : cross-section size of the curve tubes, relative to
-                     edge_length
-    node_radius    : radius of node regions, relative to edge_length
-    epsilon        : fTetWild envelope, relative to the bounding-box diagonal
-    target_tets    : tet budget when edge_length is None: the mesh is graded
-                     (fine only where the network needs it, resolution.py).
-                     None (the default): 15,000, and where the network asks
-                     for more the mesh spends it, up to ``tets_ceiling``; a
-                     number given here is held (within 1.5x) whatever the
-                     network asks, unless tets_ceiling is given too
-    tets_ceiling   : the most tets the automatic resolution spends where the
-                     network asks for more than the budget (the bulk keeps
-                     the budget's edge length); None: 4x the default budget
-                     (60,000) when target_tets is None, else target_tets.
-                     Always within the memory guard (max_tets)
-    grading        : growth of that graded mesh's edge length per unit
-                     distance from the network (0.1-1).  None (the default):
-                     the gentlest of 0.2-0.5 that the tets the plan may spend
-                     allow (0.5, the densest, with a target_tets held as
-                     given); lower it together with a larger target_tets to
-                     resolve node-to-node curves shorter than an edge better
-    max_tets       : refuse a solve whose estimated tet count exceeds this;
-                     None: 1,000,000 tets, or fewer if their estimated
-                     memory exceeds 3/4 of this machine's (resolution.py)
-    refine         : red refinement levels (refine.py): fTetWild meshes at
-                     edge_length * 2**refine and each level splits every tet
-                     into eight; None picks 0-2 so that fTetWild's mesh keeps
-                     >= ~6k tets and >= 3 edges along the shortest curve
-                     (as the default edge length does)
-    snap_features  : move the tet mesh's boundary onto the input's sharp
-                     edges and patches (snapping.py); fTetWild leaves thin
-                     tilted triangles along creases that twist the field
-    mesher         : 'auto' (the default), 'TetGen' or 'fTetWild'.  TetGen
-                     (mesh/cdt.py) keeps a clean surface exactly and meshes
-                     3-10x faster; it needs the AGPL ``tetgen`` package, which
-                     the extension does not bundle.  fTetWild remeshes any
-                     triangle soup and meshes the curve tubes.  'auto'
-                     takes TetGen where it is installed, the network has no
-                     singular curves and the surface is no denser than an
-                     h-mesh of it (cdt.wants_tetgen), else fTetWild; where
-                     TetGen fails, fTetWild meshes and the report says why
+    Parameters
+    ----------
+    edge_length : float, optional
+        Target tet edge length (units of the surface); None picks one
+        from the solid's volume and the network's feature size.
+    penalty : float
+        The penalty a of Eq. 23 (affects convergence, not the minimiser).
+    max_iterations : int
+        Levenberg-Marquardt iterations.
+    tolerance : float
+        Relative energy decrease at which LM stops.
+    init : str
+        'zero', 'constant', 'random' or 'linear' (§5.2).
+    seed : int
+        Random initialisation seed.
+    tube_radius : float
+        Cross-section size of the curve tubes, relative to edge_length.
+    node_radius : float
+        Radius of node regions, relative to edge_length.
+    epsilon : float
+        The fTetWild envelope, relative to the bounding-box diagonal.
+    target_tets : int, optional
+        Tet budget when edge_length is None: the mesh is graded (fine
+        only where the network needs it, resolution.py). None (the
+        default): 15,000, and where the network asks for more the mesh
+        spends it, up to ``tets_ceiling``; a number given here is held
+        (within 1.5x) whatever the network asks, unless tets_ceiling is
+        given too.
+    tets_ceiling : int, optional
+        The most tets the automatic resolution spends where the network
+        asks for more than the budget (the bulk keeps the budget's edge
+        length); None: 4x the default budget (60,000) when target_tets
+        is None, else target_tets. Always within the memory guard
+        (max_tets).
+    grading : float, optional
+        Growth of that graded mesh's edge length per unit distance from
+        the network (0.1-1).  None (the default): the gentlest of
+        0.2-0.5 that the tets the plan may spend allow (0.5, the
+        densest, with a target_tets held as given); lower it together
+        with a larger target_tets to resolve node-to-node curves shorter
+        than an edge better.
+    check_intersections : bool
+        Check that the surface does not intersect itself before meshing
+        (turn off only for a surface known to be clean: it saves time on
+        dense ones).
+    max_tets : int, optional
+        Refuse a solve whose estimated tet count exceeds this; None:
+        1,000,000 tets, or fewer if their estimated memory exceeds 3/4
+        of this machine's (resolution.py).
+    refine : int, optional
+        Red refinement levels (refine.py): fTetWild meshes at
+        edge_length * 2**refine and each level splits every tet into
+        eight; None picks 0-2 so that fTetWild's mesh keeps >= ~6k tets
+        and >= 3 edges along the shortest curve (as the default edge
+        length does).
+    snap_features : bool
+        Move the tet mesh's boundary onto the input's sharp edges and
+        patches (snapping.py); fTetWild leaves thin tilted triangles
+        along creases that twist the field.
+    mesher : str
+        'auto' (the default), 'TetGen' or 'fTetWild'.  TetGen
+        (mesh/cdt.py) keeps a clean surface exactly and meshes 3-10x
+        faster; it needs the AGPL ``tetgen`` package, which the
+        extension does not bundle.  fTetWild remeshes any triangle soup
+        and meshes the curve tubes.  'auto' takes TetGen where it is
+        installed, the network has no singular curves and the surface is
+        no denser than an h-mesh of it (cdt.wants_tetgen), else
+        fTetWild; where TetGen fails, fTetWild meshes and the report
+        says why.
+
+    Raises
+    ------
+    OptionsError
+        A value of the wrong type or out of range.
     """
 
     edge_length: float | None = None
