@@ -194,13 +194,20 @@ class Options:
         """The tet budget of the automatic resolution (target_tets or the default)."""
         return int(self.target_tets) if self.target_tets is not None else DEFAULT_TARGET_TETS
 
+    @staticmethod
+    def following_ceiling(budget: int) -> int:
+        """The tets_ceiling the default rule gives a tet budget (CEILING_FACTOR
+        times it): what a setting that follows the network (the add-on's
+        presets) passes with its own target_tets."""
+        return int(CEILING_FACTOR * int(budget))
+
     @property
     def ceiling(self) -> int:
         """The most tets the automatic resolution spends where the network
         asks for more than the budget (before the memory guard)."""
         if self.tets_ceiling is not None:
             return max(int(self.tets_ceiling), self.budget)
-        return int(CEILING_FACTOR * self.budget) if self.target_tets is None else self.budget
+        return self.following_ceiling(self.budget) if self.target_tets is None else self.budget
 
     def mesh_settings(self, plan: Plan | None = None) -> MeshSettings:
         """What the mesh stage (mesh/meshing.py) takes from these options

@@ -17,7 +17,6 @@ import numpy as np
 from mathutils.geometry import interpolate_bezier
 
 from ..solver import Curve, Network, Options, SymFramesError
-from ..solver.mesh.resolution import CEILING_FACTOR
 
 
 class InputError(SymFramesError):
@@ -203,7 +202,7 @@ def network_note(collection, n_curves: int) -> str:
 
 
 def solver_options(settings) -> Options:
-    follow = bool(getattr(settings, "follow_network", False))
+    follow = bool(settings.follow_network)
     return Options(
         edge_length=None if settings.auto_resolution else float(settings.edge_length),
         penalty=float(settings.penalty),
@@ -212,7 +211,7 @@ def solver_options(settings) -> Options:
         seed=int(settings.solve_seed),
         target_tets=int(settings.target_tets),
         # Follow Network: the solver's default rule (issue 41b) for this count
-        tets_ceiling=int(CEILING_FACTOR * settings.target_tets) if follow else None,
+        tets_ceiling=Options.following_ceiling(settings.target_tets) if follow else None,
         grading=None if follow else float(settings.grading),
     )
 

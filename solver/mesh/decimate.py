@@ -6,7 +6,7 @@ smooth sphere of 81,920 triangles (the ball's network, h = 0.16) had not
 finished meshing after 600 s, the same sphere with 1,280 meshed in 5 s.
 Blender users' sculpted or subdivided objects commonly have 1e5-1e6
 triangles.  So a surface with over ``DENSE_FACTOR`` times the triangles of
-an h-mesh of it is simplified first, to about ``CELL_FRACTION`` h, by
+an h-mesh of it (and at least ``MIN_DENSE_TRIANGLES``) is simplified first, to about ``CELL_FRACTION`` h, by
 vertex clustering with quadric placement (Lindstrom 2000, "Out-of-core
 simplification of large polygonal models"): every vertex falls in a cell
 of a grid of that size, each cell becomes one vertex placed where the sum
@@ -37,6 +37,12 @@ from ..surface.trisurface import TriSurface
 # of it (an h-mesh of area A has about A / (sqrt(3)/4 h^2) triangles);
 # below it fTetWild's own simplification (tetwild.wants_simplify) does
 DENSE_FACTOR = 8.0
+# ... and has at least this many triangles: below it fTetWild meshes the
+# input as it is in seconds (the 4,480-triangle cylinder 5 s, a
+# 5,120-triangle sphere 24 s), and the boundary keeps the input's own
+# vertices (a clustering at h/2 leaves chords: the cylinder at h = 0.4 lost
+# 0.5% of its radius at the polygon's extremes)
+MIN_DENSE_TRIANGLES = 10_000
 # grid cell of the clustering, as a fraction of the mesh's edge length h.
 # fTetWild's time grows with the input's triangles and falls with their
 # quality, and the field suffers from a boundary of coarse chords: the
@@ -81,8 +87,9 @@ def h_mesh_faces(surface: TriSurface, h: float) -> float:
 
 def is_dense(surface: TriSurface, h: float) -> bool:
     """Whether the surface has over DENSE_FACTOR times the triangles of an
-    h-mesh of it."""
-    return len(surface.F) > DENSE_FACTOR * max(h_mesh_faces(surface, h), 1.0)
+    h-mesh of it, and at least MIN_DENSE_TRIANGLES."""
+    n = len(surface.F)
+    return n >= MIN_DENSE_TRIANGLES and n > DENSE_FACTOR * max(h_mesh_faces(surface, h), 1.0)
 
 
 def cluster_surface(V: np.ndarray, F: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
