@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import asdict, fields
+from io import BytesIO
 
 import numpy as np
 
@@ -42,6 +43,7 @@ from .. import checks
 from ..errors import NetworkError, OptionsError, SurfaceError, SymFramesError
 from ..network.network import Curve, Network
 from ..surface.polygons import triangulate_polygons
+from .atomic import write_files, write_text
 
 
 def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
@@ -108,9 +110,9 @@ def _obj_index_message(path, line, index, n, relative):
 
 
 def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V))
-        fh.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F))
+    """Write a triangle surface as OBJ (whole or not at all, atomic.py)."""
+    write_text(path, "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
+               + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F))
 
 
 _NETWORK_KEYS = {"surface", "sharp_angle", "sharp_edges", "node_tolerance", "boundary_tolerance", "curves",
@@ -212,8 +214,7 @@ def write_network(path: str, net: Network, surface: str | None = None, options: 
     d = network_to_dict(net, options)
     if surface is not None:
         d = {"surface": surface, **d}
-    with open(path, "w", encoding="utf-8") as fh:
-        json.dump(d, fh, indent=1)
+    write_text(path, json.dumps(d, indent=1))
 
 
 def options_from_dict(d: dict):
@@ -234,7 +235,9 @@ def _flat(parts: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def save_result(path: str, result) -> None:
-    """Write a Result to an .npz file (see the module docstring)."""
+    """Write a Result to an .npz file (see the module docstring), at exactly
+    ``path`` (numpy would add '.npz' to a name without it) and whole or not
+    at all (atomic.py)."""
     mesh = result.mesh
     n = len(result.embedding.traces)
     cf, cfo = _flat([result.curve_faces(i) for i in range(n)])
@@ -243,14 +246,19 @@ def save_result(path: str, result) -> None:
     report["options"] = asdict(result.problem.options)
     from ..hexmesh import HexInput, hex_source_arrays
 
-    np.savez_compressed(
-        path, vertices=mesh.vertices, tets=mesh.tets, edges=mesh.edges, faces=mesh.faces, omega=result.omega,
+    arrays = dict(
+        vertices=mesh.vertices, tets=mesh.tets, edges=mesh.edges, faces=mesh.faces, omega=result.omega,
         frames=result.frames, quaternions=result.quaternions(), root=np.int64(result.root),
         curve_faces=cf, curve_faces_offsets=cfo, curve_tets=ct, curve_tets_offsets=cto,
         report=np.array(json.dumps(report, default=float)),
         # what hex meshing needs to mesh this field again (hexmesh/source.py)
         **hex_source_arrays(HexInput.from_result(result)),
     )
+    # compressed in memory: numpy leaves its zip file open when a write
+    # fails, and it would complain again when collected
+    buf = BytesIO()
+    np.savez_compressed(buf, **arrays)
+    write_files({path: buf.getbuffer()})
 
 
 def load_hex_input(path: str):
