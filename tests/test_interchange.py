@@ -16,7 +16,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from solver import solve
+from solver import NetworkError, OutputError, solve
 from solver.analysis.measures import tet_frames as karcher_tet_frames
 from solver.field.matchings import face_matchings, omega_matchings, omega_tet_frames
 from solver.io.interchange import (
@@ -361,9 +361,9 @@ def check_ovm_topology(d):
 
 
 def test_export_rejects_unknown_format(cylinder, tmp_path):
-    with pytest.raises(ValueError, match="extension"):
+    with pytest.raises(OutputError, match=r"unknown format '\.stl'; the file name must end in \.vtu or"):
         export_field(cylinder, str(tmp_path / "x.stl"))
-    with pytest.raises(ValueError, match="unknown format"):
+    with pytest.raises(OutputError, match="unknown format 'stl'"):
         export_field(cylinder, str(tmp_path / "x.vtu"), fmt="stl")
 
 
@@ -395,7 +395,8 @@ def test_tag_conventions():
 
 def test_import_loop_and_node_from_a_grid(tmp_path):
     """A closed loop and a degree-3 node on a structured grid, through OVM and
-    MEDIT: the loop comes back closed, the three arms meet in one node."""
+    MEDIT: the loop comes back closed, the three arms meet in one node.  The
+    arms' ends sum to 0 under either sign, so the sign must be given."""
     from solver.network.network import prepare_network
 
     mesh = box_mesh(4)
@@ -409,15 +410,18 @@ def test_import_loop_and_node_from_a_grid(tmp_path):
     tags = np.zeros(mesh.n_edges, np.int64)
     tags[edges_along((1, 1, 2), (2, 1, 2), (3, 1, 2), (3, 2, 2), (3, 3, 2), (2, 3, 2), (1, 3, 2), (1, 2, 2),
                      (1, 1, 2))] = 1
-    tags[np.r_[edges_along((2, 2, 1), (2, 2, 0)), edges_along((2, 2, 1), (1, 2, 1), (0, 2, 1)),
-               edges_along((2, 2, 1), (3, 2, 1), (4, 2, 1))]] = -1
+    # the arms end on the bottom face, their indices summing to 0 as its sharp edges ask
+    tags[np.r_[edges_along((2, 2, 1), (2, 2, 0)), edges_along((2, 2, 1), (1, 2, 1), (1, 2, 0))]] = -1
+    tags[edges_along((2, 2, 1), (3, 2, 1), (3, 2, 0))] = 2
     write_ovm(str(tmp_path / "grid.ovm"), mesh, edge_props={"tag": tags})
     on = np.nonzero(tags)[0]
     write_medit(str(tmp_path / "grid.mesh"), mesh.vertices, mesh.tets, boundary_triangles(mesh),
                 edges=mesh.edges[on], edge_refs=tags[on])
     for name in ("grid.ovm", "grid.mesh"):
-        V, F, net = read_tet_network(str(tmp_path / name))
-        assert sorted(c.sigma for c in net.curves) == [-0.25, -0.25, -0.25, 0.25]
+        with pytest.raises(NetworkError, match=r"fit more than one tag convention \('index' .*'negated'"):
+            read_tet_network(str(tmp_path / name), sharp_angle=30)
+        V, F, net = read_tet_network(str(tmp_path / name), "index", sharp_angle=30)
+        assert sorted(c.sigma for c in net.curves) == [-0.25, -0.25, 0.25, 0.5]
         assert net.sharp_edges is None
         pn = prepare_network(net, 1.7)
         kinds = sorted(zip(pn.start_kind, pn.end_kind))
