@@ -178,8 +178,65 @@ class TriSurface:
         """Generalised winding number of points X (k, 3): ~1 inside, ~0 outside.
 
         Sum of signed solid angles of all triangles (Van Oosterom-Strackee).
+        Many points (a dense curve) on a closed surface: ``_shared_winding``.
         """
         X = np.atleast_2d(np.asarray(X, float))
+        if len(X) > 256 and self._closed and np.all(np.isfinite(X)):
+            return self._shared_winding(X, chunk)
+        return self._winding(X, chunk)
+
+    @cached_property
+    def _closed(self) -> bool:
+        """Every edge has exactly two faces (the winding number is then an
+        integer, constant between the sheets of the surface)."""
+        E = np.sort(self.F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        _, cnt = np.unique(E, axis=0, return_counts=True)
+        return bool(len(cnt)) and bool(np.all(cnt == 2))
+
+    def _shared_winding(self, X: np.ndarray, chunk: int, batch: int = 256) -> np.ndarray:
+        """The winding number of a closed surface is constant in the ball of
+        radius d(x) (the distance to the surface) around x, so it is summed
+        over all triangles only at a few representatives, farthest from the
+        surface first, in rounds of 1, 2, 4, ... up to ``batch`` of the points
+        left, and copied to the points left in their balls: linear in the
+        points, not in points x triangles, for a dense curve."""
+        r = (1.0 - 1e-9) * self._distance_below(X)
+        out = np.full(len(X), np.nan)
+        todo = np.argsort(-r, kind="stable")
+        tree, ids = cKDTree(X), np.arange(len(X))
+        n = 1
+        while len(todo):
+            reps = todo[:n]
+            out[reps] = self._winding(X[reps], chunk)
+            balls = tree.query_ball_point(X[reps], r[reps], return_sorted=False)
+            size = np.fromiter((len(b) for b in balls), np.int64, len(balls))
+            if size.sum():
+                inside = ids[np.concatenate([np.asarray(b, np.int64) for b in balls if len(b)])]
+                src = np.repeat(reps, size)
+                new = np.isnan(out[inside])
+                out[inside[new]] = out[src[new]]
+            todo = todo[np.isnan(out[todo])]
+            if len(todo) < len(ids) // 2:  # search only the points left
+                tree, ids = cKDTree(X[todo]), todo.copy()
+            n = min(2 * n, batch)
+        return out
+
+    def _distance_below(self, X: np.ndarray) -> np.ndarray:
+        """A lower bound of the distance from each of X (k, 3) to the surface:
+        the closest of the triangles of the 16 nearest centroids, or less
+        when a farther triangle may be closer (closest_points without its
+        exact per-point fallback)."""
+        P, cent, rad, tree = self._face_tree
+        kq = min(len(self.F), 16)
+        dc, idx = tree.query(X, k=kq)
+        dc, idx = dc.reshape(len(X), kq), idx.reshape(len(X), kq)
+        best = np.full(len(X), np.inf)
+        for j in range(kq):
+            best = np.minimum(best, np.linalg.norm(closest_point_on_triangles(X, P[idx[:, j]]) - X, axis=1))
+        return np.clip(np.minimum(best, dc[:, -1] - rad.max()), 0.0, None)
+
+    def _winding(self, X: np.ndarray, chunk: int) -> np.ndarray:
+        """The winding number summed over all triangles (Van Oosterom-Strackee)."""
         P = self.V[self.F]
         out = np.zeros(len(X))
         step = max(1, chunk // max(1, len(self.F)))
