@@ -35,6 +35,9 @@ def describe(value) -> str:
         text = repr(value if not isinstance(value, np.ndarray) else value.tolist())
         kind = {"list": "a list", "tuple": "a tuple", "dict": "an object"}.get(type(value).__name__, "an array")
         return f"{text[:60]}{'...' if len(text) > 60 else ''} ({kind})"
+    if isinstance(value, (Integral, np.integer)) and abs(int(value)) >= 10**15:
+        # a huge whole number: its size, not hundreds of digits (str() of one refuses past 4,300)
+        return f"{'-' if value < 0 else ''}~10**{int(abs(int(value)).bit_length() * math.log10(2))} (a whole number)"
     return repr(value)
 
 
@@ -70,7 +73,10 @@ def real(name: str, value, error=SymFramesError, *, low=None, high=None, low_ope
         _fail(error, name, value, expected, hint)
     if not _is_real(value):
         _fail(error, name, value, expected, fix)
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # a whole number past 1.8e308
+        _fail(error, name, value, expected, fix)
     if not math.isfinite(x):
         _fail(error, name, value, expected, fix)
     if low is not None and (x < low or (low_open and x == low)):

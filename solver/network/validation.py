@@ -20,6 +20,7 @@ from ..surface.features import (
     sharp_edges_by_angle,
     sharp_edges_from_pairs,
 )
+from ..surface.thickness import check_edge_length
 from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
 from .curve_ends import END_GAP, join_loose_ends
 from .fairing import MAX_KINK
@@ -84,6 +85,8 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
 
     S = validate_surface(V, F, check_intersections=check_intersections)
     diag = S.bbox_diagonal
+    if scale is not None:  # a given edge length: refused before meshing when past the solid's size
+        check_edge_length(S, float(scale), solid_scale(S, target_tets))
     h = float(scale) if scale is not None else solid_scale(S, target_tets)
     btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
     joined = {}
