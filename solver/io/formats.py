@@ -43,7 +43,9 @@ from .. import checks
 from ..errors import NetworkError, OptionsError, SurfaceError, SymFramesError
 from ..network.network import Curve, Network
 from ..surface.polygons import triangulate_polygons
+from ..surface.trisurface import MAX_COORDINATE
 from .atomic import write_files, write_text
+from .text import read_text
 
 
 def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
@@ -55,38 +57,38 @@ def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
     refused with the file, the line and the valid range.
     """
     V, polys, lines = [], [], []
-    try:
-        fh = open(path, encoding="utf-8", errors="replace")
-    except OSError as e:
-        raise SurfaceError(f"cannot read surface file {path!r}: {e.strerror}") from None
-    with fh:
-        for k, line in enumerate(fh, 1):
-            parts = line.split()
-            if not parts:
-                continue
-            if parts[0] == "v":
-                try:
-                    xyz = [float(x) for x in parts[1:4]]
-                except ValueError:
-                    xyz = []
-                if len(xyz) != 3 or not all(np.isfinite(xyz)):
-                    raise SurfaceError(f"{path}:{k}: bad vertex line {line.strip()[:80]!r}; a vertex is 'v x y z' "
-                                       "with three finite numbers")
-                V.append(xyz)
-            elif parts[0] == "f":
-                try:
-                    idx = [int(p.split("/")[0]) for p in parts[1:]]
-                except ValueError:
-                    raise SurfaceError(f"{path}:{k}: bad face line {line.strip()[:80]!r}; a face is 'f i j k ...' "
-                                       "with 1-based vertex indices") from None
-                if len(idx) < 3:
-                    raise SurfaceError(f"{path}:{k}: a face needs at least 3 vertices, got {len(idx)}")
-                for i in idx:
-                    # 0 is no OBJ index; negative ones count back from the vertices read so far
-                    if i == 0 or i < -len(V):
-                        raise SurfaceError(_obj_index_message(path, k, i, len(V), relative=i < 0))
-                polys.append([i - 1 if i > 0 else len(V) + i for i in idx])
-                lines.append(k)
+    # UTF-8, or UTF-16/32 as some Windows tools save it (text.py)
+    text = read_text(path, SurfaceError, "surface file")
+    for k, line in enumerate(text.splitlines(), 1):
+        parts = line.split()
+        if not parts:
+            continue
+        if parts[0] == "v":
+            try:
+                xyz = [float(x) for x in parts[1:4]]
+            except ValueError:
+                xyz = []
+            if len(xyz) != 3 or not all(np.isfinite(xyz)):
+                raise SurfaceError(f"{path}:{k}: bad vertex line {line.strip()[:80]!r}; a vertex is 'v x y z' "
+                                   "with three finite numbers")
+            if max(map(abs, xyz)) > MAX_COORDINATE:
+                raise SurfaceError(f"{path}:{k}: vertex {len(V) + 1} at {xyz} is beyond +-{MAX_COORDINATE:g}; a "
+                                   "stray vertex (delete it) or a model in the wrong units (scale it)")
+            V.append(xyz)
+        elif parts[0] == "f":
+            try:
+                idx = [int(p.split("/")[0]) for p in parts[1:]]
+            except ValueError:
+                raise SurfaceError(f"{path}:{k}: bad face line {line.strip()[:80]!r}; a face is 'f i j k ...' "
+                                   "with 1-based vertex indices") from None
+            if len(idx) < 3:
+                raise SurfaceError(f"{path}:{k}: a face needs at least 3 vertices, got {len(idx)}")
+            for i in idx:
+                # 0 is no OBJ index; negative ones count back from the vertices read so far
+                if i == 0 or i < -len(V):
+                    raise SurfaceError(_obj_index_message(path, k, i, len(V), relative=i < 0))
+            polys.append([i - 1 if i > 0 else len(V) + i for i in idx])
+            lines.append(k)
     if not V or not polys:
         raise SurfaceError(f"{path}: no vertices or faces found; is it a triangle/polygon OBJ?")
     for p, k in zip(polys, lines):  # positive indices may refer to vertices listed later
@@ -192,11 +194,12 @@ def network_to_dict(net: Network, options: dict | None = None) -> dict:
 
 def read_network(path: str) -> tuple[Network, dict, str | None]:
     """(Network, options dict, surface path or None) from a JSON file."""
+    text = read_text(path, NetworkError, "network file")
     try:
-        with open(path, encoding="utf-8") as fh:
-            d = json.load(fh)
-    except OSError as e:
-        raise NetworkError(f"cannot read network file {path!r}: {e.strerror}") from None
+        d = json.loads(text)
+    except RecursionError:
+        raise NetworkError(f"{path}: the JSON is nested too deeply to be a network file (lists within lists "
+                           "thousands deep); see docs/usage.md for its layout") from None
     except json.JSONDecodeError as e:
         raise NetworkError(f"{path}: not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})") from None
     except (UnicodeDecodeError, ValueError) as e:

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import checks
 from ..errors import NetworkError, TopologyError
 from ..surface.corners import explain_failure, resolve_corners
 from ..surface.features import (
@@ -83,6 +84,9 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     repair : run the curve intake (intake.py) on the interior curves first
     """
 
+    if not isinstance(net, Network):
+        raise NetworkError(f"network = {checks.describe(net)}: must be a solver.Network (e.g. Network(curves=[...]), "
+                           "or Network() for none)")
     S = validate_surface(V, F, check_intersections=check_intersections)
     diag = S.bbox_diagonal
     if scale is not None:  # a given edge length: refused before meshing when past the solid's size
@@ -402,7 +406,8 @@ def _check_crossings(pn: PreparedNetwork, label, tol):
             k = bad[0]
             a_, b_ = own[ii[k]], own[jj[k]]
             what = f"{label(a_)} intersects itself" if a_ == b_ else f"{label(a_)} and {label(b_)} cross"
-            raise NetworkError(f"{what} near {_fmt(pt[k])}; curves may only meet at their ends, at nodes")
+            raise NetworkError(f"{what} near {_fmt(pt[k])} ({d[k]:.3g} apart, closer than {tol:.3g}); curves may "
+                               "only meet at their ends, at nodes")
 
 
 def _near_segments(S: np.ndarray, length: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:

@@ -384,18 +384,32 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     return S
 
 
+# coordinates beyond this overflow squared distances and volumes (1e200**2 = inf)
+MAX_COORDINATE = 1e100
+
+
 def _surface_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
     """(V, F) as float and int64 arrays of the right shapes, finite, with
     indices in range."""
+    if V is None or F is None:
+        raise SurfaceError(f"surface {'vertices' if V is None else 'faces'} = None: give the vertices as an (n, 3) "
+                           "array of numbers and the faces as an (m, 3) array of vertex indices")
+    if np.iscomplexobj(V) or (isinstance(V, (list, tuple)) and any(
+            isinstance(x, complex) for row in V[:1000] if isinstance(row, (list, tuple)) for x in row)):
+        raise SurfaceError("surface vertices are complex numbers; give real coordinates (an (n, 3) float array; "
+                           "the imaginary part is not dropped silently)")
     try:
         V = np.asarray(V, dtype=float)
         F = np.asarray(F)
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, OverflowError) as e:
         raise SurfaceError(f"surface vertices must be an (n, 3) array of numbers and faces an (m, 3) array of "
                            f"vertex indices ({e})") from None
     if V.ndim != 2 or V.shape[1] != 3 or len(V) < 4:
         raise SurfaceError(f"surface vertices must be an (n, 3) array with n >= 4, got shape {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or len(F) < 4:
+    if F.ndim == 2 and F.shape[1] == 3 and len(F) < 4:
+        raise SurfaceError(f"the surface has {len(F)} triangle(s): a closed surface bounding a solid has at least 4 "
+                           "(an open plane or sheet bounds no volume); give the closed surface of the solid")
+    if F.ndim != 2 or F.shape[1] != 3:
         raise SurfaceError(
             f"surface faces must be an (m, 3) array of triangles with m >= 4, got shape {F.shape}; "
             "triangulate quads and n-gons first"
@@ -403,6 +417,11 @@ def _surface_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
     if not np.all(np.isfinite(V)):
         bad = np.nonzero(~np.all(np.isfinite(V), axis=1))[0][0]
         raise SurfaceError(f"surface vertex {bad} has a non-finite coordinate")
+    far = np.nonzero(np.any(np.abs(V) > MAX_COORDINATE, axis=1))[0]
+    if len(far):
+        raise SurfaceError(f"surface vertex {far[0]} at {V[far[0]].tolist()} is beyond +-{MAX_COORDINATE:g}: "
+                           f"{len(far)} such vertex/vertices; a stray vertex (delete it) or a model in the wrong "
+                           "units (scale it)")
     if not np.issubdtype(F.dtype, np.integer):
         raise SurfaceError("surface faces must hold integer vertex indices")
     F = F.astype(np.int64)
