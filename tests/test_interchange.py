@@ -555,3 +555,75 @@ def test_cli_reads_a_tagged_tet_mesh(tmp_path, capsys):
     assert main(["--tet-network", path, "--tag-convention", "valence", "--sharp-angle", "30",
                  "--check"]) == 0
     assert "2 interior curves" in capsys.readouterr().out
+
+
+# ------------------------------------------------ tag conventions, detected
+def tet_edge_tags(V, F, net, mesh):
+    """The interior curves of net as tagged edges of mesh (testkit's tet-edge
+    routing, without its tiny segments): (edge ids, sigma per edge)."""
+    from testkit.tetedge import tet_edge_network
+
+    tn, _ = tet_edge_network(V, F, net, 0.0, tiny=False, mesh=mesh)
+    ids, sig = [], []
+    for c in tn.curves:
+        if c.role.value == "sharp":
+            continue
+        v = np.array([int(np.argmin(np.linalg.norm(mesh.vertices - x, axis=1))) for x in c.points])
+        e = mesh.edge_index(v[:-1], v[1:])
+        assert np.all(e >= 0)
+        ids.append(e)
+        sig.append(np.full(len(e), c.sigma))
+    return np.concatenate(ids), np.concatenate(sig)
+
+
+CONVENTION_TAGS = {"index": lambda s: np.rint(4 * s), "negated": lambda s: -np.rint(4 * s),
+                   "valence": lambda s: 4 - np.rint(4 * s)}
+
+
+@pytest.mark.parametrize("example", ["cylinder", "ball"])
+def test_the_tag_convention_is_detected_and_a_wrong_one_refused(example, example_input, tet_mesh, tmp_path, capsys):
+    """An example's curves routed along the edges of its session tet mesh
+    (testkit.tetedge), written with each convention as .ovm and MEDIT .mesh:
+    with no convention the one written is detected (the others break
+    Poincare-Hopf), and each wrong explicit one is refused naming it."""
+    from solver.__main__ import main
+    from solver.io.tetnetwork import import_tet_network
+
+    V, F, net = example_input(example)
+    # meshes the session has already: test_examples' ball, this module's cylinder
+    mesh = tet_mesh(example, **({"edge_length": 0.18} if example == "ball" else {"edge_length": H, "refine": 0}))
+    interior = sorted(net.curves[i].sigma for i in net.interior_curves)
+    edges, sigma = tet_edge_tags(V, F, net, mesh)
+    for name, tag in CONVENTION_TAGS.items():
+        t = tag(sigma).astype(np.int64)
+        paths = [str(tmp_path / f"{example}-{name}.ovm"), str(tmp_path / f"{example}-{name}.mesh")]
+        full = np.zeros(mesh.n_edges, np.int64)
+        full[edges] = t
+        write_ovm(paths[0], mesh, edge_props={"tag": full})
+        write_medit(paths[1], mesh.vertices, mesh.tets, edges=mesh.edges[edges], edge_refs=t)
+        for path in paths:
+            imp = import_tet_network(path)
+            assert imp.convention == name and imp.detected
+            assert sorted(c.sigma for c in imp.network.curves) == interior
+            assert f"'{name}' convention" in imp.describe() and "detected" in imp.describe()
+            for wrong in CONVENTION_TAGS:
+                if wrong != name:
+                    with pytest.raises(NetworkError, match=f"read by the '{wrong}' tag convention .* the "
+                                                           f"'{name}' convention"):
+                        import_tet_network(path, wrong)
+        assert main(["--tet-network", paths[1], "--check"]) == 0
+        assert f"tags read by the '{name}' convention" in capsys.readouterr().out
+
+
+def test_no_convention_fits_names_all_three(tmp_path):
+    """Tags that fit no convention (one valence-3 axis alone through a box:
+    its ends sum to 1/2, not the box's 2) are refused with each reading's
+    result."""
+    mesh = box_mesh(4)
+    ids = [int(np.argmin(np.linalg.norm(mesh.vertices - 0.25 * np.array([2, 2, z]), axis=1))) for z in range(5)]
+    tags = np.zeros(mesh.n_edges, np.int64)
+    tags[mesh.edge_index(np.array(ids[:-1]), np.array(ids[1:]))] = 1
+    path = str(tmp_path / "one.ovm")
+    write_ovm(path, mesh, edge_props={"tag": tags})
+    with pytest.raises(NetworkError, match=r"fit no tag convention.*'index'.*'negated'.*'valence'"):
+        read_tet_network(path, sharp_angle=30)
