@@ -47,7 +47,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..errors import NetworkError, TopologyError
+from ..errors import NetworkError, SurfaceError, TopologyError
 from ..mesh.tetmesh import TetMesh
 from ..network.network import Curve, Network
 from ..network.validation import check_topology
@@ -435,7 +435,11 @@ def import_tet_network(path: str, convention=None, edge_property: str | None = N
     sharp_angle = Network(sharp_angle=sharp_angle).sharp_angle  # checked as a Network checks it
     mesh = TetMesh(tagged.vertices, tagged.tets)
     B = mesh.boundary
-    S = validate_surface(B.V, B.F)
+    try:
+        S = validate_surface(B.V, B.F)
+    except SurfaceError as e:
+        raise SurfaceError(f"{path}: the boundary of its tets does not bound one solid (a tet missing or extra?): "
+                           f"{e}") from None
     tried = [convention] if convention is not None else list(CONVENTIONS)
     results, fits = {}, {}
     for name in tried:
