@@ -182,6 +182,26 @@ def _print_profile(result) -> None:
     print(f"  setup {lm.setup_seconds:.2f} s, total {lm.seconds:.2f} s")
 
 
+def _save_result(out: str, result) -> None:
+    """Write the result; when its folder refuses the write after the solve
+    (checked before it, but a disk can fill up or a permission change
+    meanwhile), keep the solve: write it to the temporary folder instead and
+    say where, then fail with the reason."""
+    import tempfile
+
+    try:
+        io.save_result(out, result)
+    except OutputError as e:
+        fd, spare = tempfile.mkstemp(prefix=os.path.splitext(os.path.basename(out))[0] + "-", suffix=".npz")
+        os.close(fd)
+        try:
+            io.save_result(spare, result)
+        except OutputError:
+            os.remove(spare)
+            raise e from None
+        raise OutputError(f"{e}; the result was saved to {spare} instead") from None
+
+
 def _exit_on_signals() -> None:
     """SIGTERM (kill, a job scheduler) and SIGHUP (terminal closed) end the
     command like Ctrl-C does: by an exception, so that every finally block
@@ -285,7 +305,7 @@ def main(argv: list[str] | None = None) -> int:
 
             print("\nHottest functions (cumulative time):")
             pstats.Stats(profiler, stream=sys.stdout).sort_stats("tottime").print_stats(15)
-        io.save_result(out, result)
+        _save_result(out, result)
         print(f"wrote {out}")
         for path in args.export:
             print("wrote " + ", ".join(io.export_field(result, path)))

@@ -17,8 +17,7 @@ from bpy.props import EnumProperty, FloatProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ..solver import SymFramesError
-from ..solver.io import HEX_FORMATS, export_field, export_hexmesh, read_network, read_obj
-from ..solver.io.tetnetwork import import_tet_network
+from ..solver.io import HEX_FORMATS, export_field, export_hexmesh, import_tet_network, read_network, read_obj
 from . import examples, hex_mesh, storage
 
 FORMATS = (

@@ -129,3 +129,29 @@ def test_check_output_path_names_the_format(tmp_path):
         check_output_path(None, "-o")
     assert check_output_path(str(tmp_path / "x.npz"), "-o", (".npz",)) == str(tmp_path / "x.npz")
     assert os.listdir(tmp_path) == []  # the probe file is gone
+
+
+def test_a_result_the_folder_refuses_after_the_solve_is_kept_elsewhere(tmp_path, monkeypatch, cylinder_result):
+    """The folder passed the check but refuses the write when the solve is
+    done: the result goes to the temporary folder, and the message says where."""
+    import solver.__main__ as cli
+    from solver import io
+
+    real = io.save_result
+    target = str(tmp_path / "r.npz")
+
+    def refuse(path, result):
+        if path == target:
+            raise OutputError(f"cannot write {path}: permission denied")
+        real(path, result)
+
+    monkeypatch.setattr(io, "save_result", refuse)
+    with pytest.raises(OutputError, match=r"permission denied; the result was saved to (\S+\.npz) instead") as e:
+        cli._save_result(target, cylinder_result)
+    spare = re.search(r"saved to (\S+\.npz) instead", str(e.value)).group(1)
+    try:
+        with np.load(spare) as d:
+            assert d["tets"].shape == cylinder_result.mesh.tets.shape
+    finally:
+        os.remove(spare)
+    assert os.listdir(tmp_path) == []

@@ -194,7 +194,7 @@ def network_to_dict(net: Network, options: dict | None = None) -> dict:
 
 def read_network(path: str) -> tuple[Network, dict, str | None]:
     """(Network, options dict, surface path or None) from a JSON file."""
-    text = read_text(path, NetworkError, "network file")
+    text = read_text(path, NetworkError, "network file", "JSON text")
     try:
         d = json.loads(text)
     except RecursionError:

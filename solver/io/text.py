@@ -22,12 +22,13 @@ _BOMS = ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"), (code
          (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"))
 
 
-def read_text(path, error, what: str) -> str:
+def read_text(path, error, what: str, kind: str = "text") -> str:
     """The text of a file, decoded (module docs).
 
     path  : the file
     error : the SymFramesError subclass to raise
     what  : what the file is, for messages ("surface file", "tet mesh")
+    kind  : what text it must be ("JSON text"), for messages
     """
     try:
         with open(path, "rb") as fh:
@@ -40,19 +41,19 @@ def read_text(path, error, what: str) -> str:
         raise error(f"{what} {path!r}: must be a file path (a string)") from None
     for bom, enc in _BOMS:
         if raw.startswith(bom):
-            return _decode(raw, enc, path, error, what)
+            return _decode(raw, enc, path, error, what, kind)
     if b"\0" in raw[:4096]:
         # UTF-16 without a byte-order mark: ASCII text has a NUL after (LE) or before (BE) every character
         head = raw[:4096]
         if head[1::2].count(0) > 0.4 * len(head[1::2]):
-            return _decode(raw, "utf-16-le", path, error, what)
+            return _decode(raw, "utf-16-le", path, error, what, kind)
         if head[0::2].count(0) > 0.4 * len(head[0::2]):
-            return _decode(raw, "utf-16-be", path, error, what)
-        raise error(f"{path}: not a text file (it holds binary data); the {what} must be a text file")
-    return _decode(raw, "utf-8", path, error, what)
+            return _decode(raw, "utf-16-be", path, error, what, kind)
+        raise error(f"{path}: not a {kind} file (it holds binary data); the {what} must be a {kind} file")
+    return _decode(raw, "utf-8", path, error, what, kind)
 
 
-def _decode(raw: bytes, encoding: str, path, error, what: str) -> str:
+def _decode(raw: bytes, encoding: str, path, error, what: str, kind: str = "text") -> str:
     try:
         return raw.decode(encoding)
     except UnicodeDecodeError as e:
@@ -62,8 +63,8 @@ def _decode(raw: bytes, encoding: str, path, error, what: str) -> str:
             if text.count("\ufffd") <= max(8, len(text) // 100):
                 return text
         line = raw[:e.start].count(b"\n") + 1 if encoding == "utf-8" else "?"
-        raise error(f"{path}:{line}: not a text file ({encoding} cannot decode byte {raw[e.start:e.start + 1]!r}); "
-                    f"the {what} must be a text file") from None
+        raise error(f"{path}:{line}: not a {kind} file ({encoding} cannot decode byte {raw[e.start:e.start + 1]!r}); "
+                    f"the {what} must be a {kind} file") from None
 
 
 class Tokens:

@@ -366,10 +366,14 @@ def _check_crossings(pn: PreparedNetwork, label, tol):
     tol : distance below which two segments touch.  Segments of one curve
     closer along the curve than 4 tol apart are neighbours, not a
     self-intersection (a segment shorter than tol made segments i and i + 2
-    touch).  Near-linear in the number of points (``_near_segments``)."""
+    touch).  Near-linear in the number of points (``_near_segments``);
+    points closer along the curve than tol / 8 are thinned out first (the
+    polyline moves by less than tol / 16), so that a curve sampled far
+    finer than tol does not pair every segment with hundreds of its
+    neighbours."""
     segs, owner, index = [], [], []
-    for ci, c in enumerate(pn.curves):
-        P = c.points
+    curve_points = [_thinned(c.points, tol / 8) for c in pn.curves]
+    for ci, P in enumerate(curve_points):
         segs.append(np.stack([P[:-1], P[1:]], axis=1))
         owner.append(np.full(len(P) - 1, ci))
         index.append(np.arange(len(P) - 1))
@@ -378,7 +382,7 @@ def _check_crossings(pn: PreparedNetwork, label, tol):
     S = np.concatenate(segs)
     own = np.concatenate(owner)
     idx = np.concatenate(index)
-    nseg = np.array([len(c.points) - 1 for c in pn.curves])
+    nseg = np.array([len(P) - 1 for P in curve_points])
     seg_len = np.linalg.norm(S[:, 1] - S[:, 0], axis=1)
     # arc length along its curve of each segment's ends
     s_end = np.concatenate([np.cumsum(seg_len[own == o]) for o in range(len(pn.curves))])
@@ -408,6 +412,18 @@ def _check_crossings(pn: PreparedNetwork, label, tol):
             what = f"{label(a_)} intersects itself" if a_ == b_ else f"{label(a_)} and {label(b_)} cross"
             raise NetworkError(f"{what} near {_fmt(pt[k])} ({d[k]:.3g} apart, closer than {tol:.3g}); curves may "
                                "only meet at their ends, at nodes")
+
+
+def _thinned(P: np.ndarray, step: float) -> np.ndarray:
+    """P without the points that fall in the same arc-length bin of width
+    step as the point kept before them (both ends kept)."""
+    if len(P) <= 2 or step <= 0:
+        return P
+    s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+    b = np.floor(s / step)
+    keep = np.r_[True, b[1:] != b[:-1]]
+    keep[-1] = True
+    return P[keep]
 
 
 def _near_segments(S: np.ndarray, length: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:

@@ -384,6 +384,16 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     return S
 
 
+def _is_complex(V) -> bool:
+    """Complex vertex coordinates (an array, or lists holding complex numbers)."""
+    if isinstance(V, np.ndarray):
+        return np.iscomplexobj(V)
+    if isinstance(V, (list, tuple)):
+        return any(isinstance(x, (complex, np.complexfloating)) for row in V if isinstance(row, (list, tuple))
+                   for x in row)
+    return False
+
+
 # coordinates beyond this overflow squared distances and volumes (1e200**2 = inf)
 MAX_COORDINATE = 1e100
 
@@ -394,8 +404,7 @@ def _surface_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
     if V is None or F is None:
         raise SurfaceError(f"surface {'vertices' if V is None else 'faces'} = None: give the vertices as an (n, 3) "
                            "array of numbers and the faces as an (m, 3) array of vertex indices")
-    if np.iscomplexobj(V) or (isinstance(V, (list, tuple)) and any(
-            isinstance(x, complex) for row in V[:1000] if isinstance(row, (list, tuple)) for x in row)):
+    if _is_complex(V):
         raise SurfaceError("surface vertices are complex numbers; give real coordinates (an (n, 3) float array; "
                            "the imaginary part is not dropped silently)")
     try:
