@@ -145,8 +145,10 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
 
     Raises
     ------
-    ValueError
-        for an unknown extension, or ``.hexex`` for a mesh without its map
+    OutputError
+        an unknown extension, a path that cannot be written (checked before
+        anything is made: atomic.check_output_path), ``.hexex`` for a mesh
+        without its map, or a write that fails (the old file, or none, is left)
     """
     check_output_path(path, "hex mesh", HEX_FORMATS)
     ext = os.path.splitext(path)[1].lower()

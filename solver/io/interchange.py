@@ -894,6 +894,14 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
     list of str
         The files written.
 
+    Raises
+    ------
+    OutputError
+        An unknown format or extension, or a path that cannot be written
+        (checked before any work, ``atomic.check_output_path``), or a write
+        that fails: every file is written whole or not at all, MEDIT's three
+        together (``atomic.write_files``).
+
     What is written (tet order = ``result.mesh.tets`` everywhere, so a ``.qtn``
     matches the ``.ovm``/``.mesh``/``.vtu`` of the same result):
 
