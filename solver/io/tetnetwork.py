@@ -24,7 +24,7 @@ they use, and the same tags read the wrong way give a network no field has
 (the sum of the indices at the ends on a boundary component no longer
 matches its Euler characteristic).  So when no convention is given, each is
 tried and the one under which the network satisfies Poincaré–Hopf and the
-node rules (``network.validation.check_topology``) is kept; none, or more
+node rules (``network.topology.check_topology``) is kept; none, or more
 than one, is refused with what each reading gave.  A convention that is
 given but under which the network fails those rules is refused, naming the
 one that fits if one does.
@@ -50,7 +50,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import NetworkError, SurfaceError, TopologyError
 from ..mesh.tetmesh import TetMesh
 from ..network.network import Curve, Network
-from ..network.validation import check_topology
+from ..network.topology import check_topology
 from ..surface.trisurface import validate_surface
 
 # the conventions (module docs): name -> how sigma follows from a tag t

@@ -126,42 +126,15 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     _check_crossings(pn, label, CROSSING_TOLERANCE * h)
     G = sharp_feature_graph(S, net)
     _check_end_points(S, G, end_points, label)
-    G, corners = _poincare_hopf(S, G, face_sigma, net.corner_turns)
-    size = network_feature_size(S, pn)
-    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners)
-
-
-def _poincare_hopf(S: TriSurface, G: FeatureGraph, face_sigma: np.ndarray, corner_turns):
-    """The turns of the sharp corners, then Poincare-Hopf per boundary
-    component and per sharp-edge patch; returns (G, corners) or raises
-    TopologyError."""
-    G, corners = resolve_corners(S, G, face_sigma, corner_turns)
+    # -------------------------------------------------------- Poincare-Hopf
+    G, corners = resolve_corners(S, G, face_sigma, net.corner_turns)
     try:
         check_poincare_hopf(S, G, face_sigma, "the boundary")
         G.check_patches(face_sigma)
     except TopologyError as e:
         explain_failure(S, G, corners, e, face_sigma)
-    return G, corners
-
-
-def check_topology(S: TriSurface, net: Network) -> None:
-    """Only the rules of ``check_input`` that the indices alone decide: the
-    node rules (``check_nodes``) and Poincare-Hopf on the boundary and its
-    sharp-edge patches, with the curves as given (no intake).  An import
-    that must tell how to read a file's indices (io/tetnetwork.py) asks this
-    of each reading.  Raises NetworkError or TopologyError."""
-    diag = S.bbox_diagonal
-    pn = prepare_network(net, diag)
-    check_nodes(pn, lambda ci: _label(net.curves, pn.source[ci]))
-    btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
-    face_sigma = np.zeros(len(S.F))
-    ends = [(ci, c.points[0 if end == 0 else -1]) for ci, c in enumerate(pn.curves)
-            for end, kind in ((0, pn.start_kind[ci]), (1, pn.end_kind[ci])) if kind == "boundary"]
-    if ends:
-        d, f, _ = S.closest_points(np.array([x for _, x in ends]))
-        near = d <= btol  # an end away from the surface is for check_input to refuse
-        np.add.at(face_sigma, f[near], [pn.curves[ci].sigma for (ci, _), ok in zip(ends, near) if ok])
-    _poincare_hopf(S, sharp_feature_graph(S, net), face_sigma, net.corner_turns)
+    size = network_feature_size(S, pn)
+    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners)
 
 
 def _boundary_end(S: TriSurface, P: np.ndarray, end: int, label: str, btol: float, h: float):
