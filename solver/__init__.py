@@ -25,7 +25,8 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
   needs of the field (``HexInput.from_result``; ``hex_source_arrays`` /
   ``input_from_arrays`` keep it beside a stored field); ``default_cell_size``.
 * Errors: ``SymFramesError`` and its subclasses (``HexMeshError`` when no
-  valid hex mesh exists at the settings); ``Cancelled``.
+  valid hex mesh exists at the settings, ``OutputError`` when a file
+  cannot be written); ``Cancelled``.
 
 See README.md for the sign convention of the index sigma and the file formats.
 """
@@ -44,6 +45,7 @@ from .errors import (
     MeshingError,
     NetworkError,
     OptionsError,
+    OutputError,
     SurfaceError,
     SymFramesError,
     TopologyError,
@@ -77,6 +79,7 @@ __all__ = [
     "NetworkError",
     "Options",
     "OptionsError",
+    "OutputError",
     "Report",
     "Result",
     "Role",

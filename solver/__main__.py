@@ -28,12 +28,13 @@ import sys
 import time
 
 from . import checks, io
-from .errors import Cancelled, OptionsError, SymFramesError
+from .errors import Cancelled, OptionsError, OutputError, SymFramesError
 from .examples import EXAMPLES, load_example
+from .io.atomic import check_output_path
 from .pipeline import INITS, FieldProblem
 from .precheck import check
 
-TAG_CONVENTIONS = {"index": 1, "negated": -1, "valence": "valence"}
+TAG_CONVENTIONS = ("index", "negated", "valence")
 
 
 EXIT_NOT_CONVERGED = 3
@@ -50,9 +51,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="write a built-in example as NAME.obj + NAME.json into DIR and exit")
     p.add_argument("--tet-network", metavar="FILE", help="read the domain and network from a tet mesh whose edges "
                    "carry an integer singularity tag (.ovm edge property or MEDIT .mesh Edges) instead of JSON")
-    p.add_argument("--tag-convention", choices=sorted(TAG_CONVENTIONS), default="index",
+    p.add_argument("--tag-convention", choices=TAG_CONVENTIONS, default=None,
                    help="with --tet-network: 'index' = tag in quarter turns, +1 the valence-3 edge (SymFrames' "
-                   "sign); 'negated' = the opposite sign; 'valence' = hexahedra around the edge (3 -> +1/4)")
+                   "sign); 'negated' = the opposite sign; 'valence' = hexahedra around the edge (3 -> +1/4). "
+                   "Default: detected (the one convention under which the network satisfies Poincare-Hopf)")
     p.add_argument("--tag-property", metavar="NAME", help="with --tet-network .ovm: the edge property holding "
                    "the tags (default: the only integer edge property)")
     p.add_argument("--sharp-angle", type=float, metavar="DEG", help="with --tet-network: boundary edges whose "
@@ -114,16 +116,11 @@ def _options(args, file_options: dict):
 
 def _check_exports(paths: list[str]) -> None:
     """Refuse an export the solve could not write, before the solve."""
-    from .io.interchange import FORMATS
+    from .io.interchange import FORMATS, MEDIT_SIDE_FILES
 
     for path in paths:
-        ext = os.path.splitext(path)[1].lower()
-        if ext not in FORMATS:
-            raise SymFramesError(f"--export {path}: unknown format {ext or '(no extension)'!r}; use one of "
-                                 f"{', '.join(FORMATS)}")
-        folder = os.path.dirname(os.path.abspath(path))
-        if not os.path.isdir(folder):
-            raise SymFramesError(f"--export {path}: the folder {folder} does not exist")
+        side = MEDIT_SIDE_FILES if os.path.splitext(path)[1].lower() == ".mesh" else ()
+        check_output_path(path, "--export", FORMATS, suffix_files=side)
 
 
 def _check_hex_outputs(args) -> None:
@@ -133,17 +130,7 @@ def _check_hex_outputs(args) -> None:
     from .io.hexformats import HEX_FORMATS
 
     for path in args.hex:
-        ext = os.path.splitext(path)[1].lower()
-        if ext not in HEX_FORMATS:
-            raise OptionsError(f"--hex {path}: unknown format {ext or '(no extension)'!r}; use one of "
-                               f"{', '.join(HEX_FORMATS)}")
-        if os.path.isdir(path):
-            raise OptionsError(f"--hex {path}: is a folder; give a file name such as {os.path.join(path, 'hex' + ext)}")
-        folder = os.path.dirname(os.path.abspath(path))
-        if not os.path.isdir(folder):
-            raise OptionsError(f"--hex {path}: the folder {folder} does not exist; create it first")
-        if not os.access(folder, os.W_OK):
-            raise OptionsError(f"--hex {path}: the folder {folder} is not writable")
+        check_output_path(path, "--hex", HEX_FORMATS)
     hexing = args.cell_size is not None or args.hex_cells is not None or args.no_smooth or args.from_result
     if hexing and not args.hex:
         raise OptionsError("--cell-size, --hex-cells, --no-smooth and --from-result go with --hex FILE (the hex "
@@ -199,16 +186,24 @@ def _print_profile(result) -> None:
     print(f"  setup {lm.setup_seconds:.2f} s, total {lm.seconds:.2f} s")
 
 
-def _check_output(path: str) -> None:
-    """Refuse an output path that cannot be written, before the solve."""
-    folder = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise OptionsError(f"-o {path}: is a folder; give a file name such as {os.path.join(path, 'result.npz')}")
-    if not os.path.isdir(folder):
-        raise OptionsError(f"-o {path}: the folder {folder} does not exist; create it first or choose another "
-                           "output path")
-    if not os.access(folder, os.W_OK):
-        raise OptionsError(f"-o {path}: the folder {folder} is not writable; choose another output path")
+def _save_result(out: str, result) -> None:
+    """Write the result; when its folder refuses the write after the solve
+    (checked before it, but a disk can fill up or a permission change
+    meanwhile), keep the solve: write it to the temporary folder instead and
+    say where, then fail with the reason."""
+    import tempfile
+
+    try:
+        io.save_result(out, result)
+    except OutputError as e:
+        fd, spare = tempfile.mkstemp(prefix=os.path.splitext(os.path.basename(out))[0] + "-", suffix=".npz")
+        os.close(fd)
+        try:
+            io.save_result(spare, result)
+        except OutputError:
+            os.remove(spare)
+            raise e from None
+        raise OutputError(f"{e}; the result was saved to {spare} instead") from None
 
 
 def _exit_on_signals() -> None:
@@ -237,8 +232,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.export_example:
             name, folder = args.export_example
+            if name not in EXAMPLES:
+                raise OptionsError(f"--export-example {name}: no such example; the examples are "
+                                   f"{', '.join(sorted(EXAMPLES))}")
             V, F, net = load_example(name)
-            os.makedirs(folder, exist_ok=True)
+            try:
+                os.makedirs(folder, exist_ok=True)
+            except OSError as e:
+                raise OutputError(f"--export-example: cannot make the folder {folder}: {e.strerror}") from None
             io.write_obj(os.path.join(folder, f"{name}.obj"), V, F)
             io.write_network(os.path.join(folder, f"{name}.json"), net, surface=f"{name}.obj")
             print(f"wrote {os.path.join(folder, name)}.obj and .json")
@@ -254,8 +255,11 @@ def main(argv: list[str] | None = None) -> int:
             V, F, net = load_example(args.example)
             file_opts, stem = {}, args.example
         elif args.tet_network:
-            V, F, net = io.read_tet_network(args.tet_network, TAG_CONVENTIONS[args.tag_convention],
-                                            args.tag_property, args.sharp_angle)
+            from .io.tetnetwork import import_tet_network
+
+            imp = import_tet_network(args.tet_network, args.tag_convention, args.tag_property, args.sharp_angle)
+            V, F, net = imp.V, imp.F, imp.network
+            print(f"{args.tet_network}: {imp.describe()}")
             file_opts, stem = {}, os.path.splitext(args.tet_network)[0]
         elif args.network:
             net, file_opts, surface = io.read_network(args.network)
@@ -275,7 +279,8 @@ def main(argv: list[str] | None = None) -> int:
                                "vertex)")
         out = args.output or f"{stem}.npz"
         if not args.check:
-            _check_output(out)
+            # the result is always NumPy .npz, written at exactly this path
+            check_output_path(out, "-o", (".npz",))
         _check_exports(args.export)
         if args.check:
             found = check(V, F, net, options=opts)
@@ -304,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
 
             print("\nHottest functions (cumulative time):")
             pstats.Stats(profiler, stream=sys.stdout).sort_stats("tottime").print_stats(15)
-        io.save_result(out, result)
+        _save_result(out, result)
         print(f"wrote {out}")
         for path in args.export:
             print("wrote " + ", ".join(io.export_field(result, path)))

@@ -35,6 +35,9 @@ def describe(value) -> str:
         text = repr(value if not isinstance(value, np.ndarray) else value.tolist())
         kind = {"list": "a list", "tuple": "a tuple", "dict": "an object"}.get(type(value).__name__, "an array")
         return f"{text[:60]}{'...' if len(text) > 60 else ''} ({kind})"
+    if isinstance(value, (Integral, np.integer)) and abs(int(value)) >= 10**15:
+        # a huge whole number: its size, not hundreds of digits (str() of one refuses past 4,300)
+        return f"{'-' if value < 0 else ''}~10**{int(abs(int(value)).bit_length() * math.log10(2))} (a whole number)"
     return repr(value)
 
 
@@ -70,7 +73,10 @@ def real(name: str, value, error=SymFramesError, *, low=None, high=None, low_ope
         _fail(error, name, value, expected, hint)
     if not _is_real(value):
         _fail(error, name, value, expected, fix)
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # a whole number past 1.8e308
+        _fail(error, name, value, expected, fix)
     if not math.isfinite(x):
         _fail(error, name, value, expected, fix)
     if low is not None and (x < low or (low_open and x == low)):
@@ -108,6 +114,8 @@ def integer(name: str, value, error=SymFramesError, *, low=None, high=None, allo
         _fail(error, name, value, expected, fix)
     if (low is not None and k < low) or (high is not None and k > high):
         _fail(error, name, value, expected, fix)
+    if abs(k) >= 2**63:  # no count or index of a solve comes near; float(k) could overflow
+        _fail(error, name, value, expected + " (below 2**63)", fix)
     return k
 
 
@@ -163,6 +171,10 @@ def points3(name: str, value, error=SymFramesError, *, min_points=2) -> np.ndarr
     bad = np.nonzero(~np.all(np.isfinite(P), axis=1))[0]
     if len(bad):
         raise error(f"{name}: point {bad[0]} {P[bad[0]].tolist()} has a non-finite coordinate")
+    bad = np.nonzero(np.any(np.abs(P) > 1e100, axis=1))[0]
+    if len(bad):  # squared distances would overflow
+        raise error(f"{name}: point {bad[0]} {P[bad[0]].tolist()} is beyond +-1e+100; a stray point, or a curve in "
+                    "other units than the surface")
     return P
 
 
@@ -180,11 +192,16 @@ def index_pairs(name: str, value, error=SymFramesError) -> np.ndarray:
                                  for x in vals):
                 raise error(f"{name}: entry {k} is {describe(row)}; each entry must be a pair of vertex indices "
                             "[i, j] (whole numbers, 0-based)")
+            big = [x for x in vals if abs(int(x)) >= 2**63]
+            if big:
+                raise error(f"{name}: entry {k} has the vertex index {describe(big[0])}, past any vertex; indices "
+                            "are 0-based vertex numbers of the surface")
         value = np.asarray(rows, dtype=np.int64).reshape(-1, 2) if rows else np.zeros((0, 2), np.int64)
     elif value.size == 0:
         value = np.zeros((0, 2), np.int64)
     elif value.size % 2 or not (np.issubdtype(value.dtype, np.integer) or (np.issubdtype(value.dtype, np.floating)
-                                and np.all(np.isfinite(value)) and np.all(value == np.round(value)))):
+                                and np.all(np.isfinite(value)) and np.all(value == np.round(value))
+                                and np.all(np.abs(value) < 2.0**63))):
         _fail(error, name, value, expected)
     A = np.asarray(value, dtype=np.int64).reshape(-1, 2)
     if len(A) and A.min() < 0:

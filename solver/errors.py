@@ -33,6 +33,13 @@ class OptionsError(SymFramesError):
     file's "options") has the wrong type or a value no solve can use."""
 
 
+class OutputError(SymFramesError):
+    """An output file cannot be written: its folder is missing or refuses
+    the write, the path is a folder or a device, its extension is not a
+    format SymFrames writes, or the disk filled up while writing (then the
+    old file, or none, is left: never a partial one)."""
+
+
 class Cancelled(Exception):
     """Raised inside a solve when the caller's cancel callback returns True."""
 

@@ -218,6 +218,18 @@ class Options:
                             node_radius=self.node_radius, epsilon=self.epsilon, snap_features=self.snap_features)
 
 
+def as_options(options) -> Options:
+    """``options`` checked: None gives the defaults; anything but an Options
+    (a dict from a JSON file, say) is refused before any work."""
+    if options is None:
+        return Options()
+    if not isinstance(options, Options):
+        fix = " (from a dict d: Options(**d))" if isinstance(options, dict) else ""
+        raise OptionsError(f"options = {checks.describe(options)}: must be a solver.Options, e.g. "
+                           f"Options(edge_length=0.1), or None for the defaults{fix}")
+    return options
+
+
 # the share of a typical solve each stage takes, for the progress fraction
 STAGE_WEIGHTS = {"validate": 0.03, "tetmesh": 0.3, "embed": 0.04, "boundary2d": 0.05, "constraints": 0.03,
                  "volume3d": 0.5, "integrate": 0.05}
@@ -286,7 +298,7 @@ class FieldProblem:
 
     def __init__(self, V, F, network: Network, options: Options | None = None, progress=None, cancel=None,
                  mesh: TetMesh | MeshOutcome | None = None):
-        self.options = opts = options or Options()
+        self.options = opts = as_options(options)
         self.report = Report()
         st = Stages(STAGE_WEIGHTS, self.report.stage_seconds, progress, cancel)
         # the curve intake (intake.py) repairs the network at the scale of
@@ -536,7 +548,7 @@ def solve(V, F, network: Network, options: Options | None = None, progress=None,
     Cancelled
         When ``cancel()`` returned True.
     """
-    opts = options or Options()
+    opts = as_options(options)
     if kw:
         opts = Options(**{**asdict(opts), **kw})
     problem = FieldProblem(V, F, network, opts, progress=progress, cancel=cancel)

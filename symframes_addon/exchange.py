@@ -17,7 +17,7 @@ from bpy.props import EnumProperty, FloatProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ..solver import SymFramesError
-from ..solver.io import HEX_FORMATS, export_field, export_hexmesh, read_network, read_obj, read_tet_network
+from ..solver.io import HEX_FORMATS, export_field, export_hexmesh, import_tet_network, read_network, read_obj
 from . import examples, hex_mesh, storage
 
 FORMATS = (
@@ -33,11 +33,13 @@ HEX_FILE_FORMATS = tuple((ext[1:].upper(), f"{name} ({ext})", f"The hex mesh as 
                          for ext, name in HEX_FORMATS.items())
 HEX_EXTENSION = {key: ext for key, _, _, ext in HEX_FILE_FORMATS}
 TAG_CONVENTIONS = (
+    ("AUTO", "Detect", "Try each convention and keep the one under which the network satisfies Poincare-Hopf "
+     "(refused, with each result, when none or several do)"),
     ("INDEX", "Index", "Tag in quarter turns, +1 the valence-3 edge (SymFrames' sign)"),
     ("NEGATED", "Negated Index", "Tag in quarter turns counted the other way: -1 the valence-3 edge"),
     ("VALENCE", "Valence", "Tag = hexahedra around the edge: 3 -> +1/4, 5 -> -1/4 (0 and 4: untagged)"),
 )
-TAG_SIGN = {"INDEX": 1, "NEGATED": -1, "VALENCE": "valence"}
+TAG_SIGN = {"AUTO": None, "INDEX": "index", "NEGATED": "negated", "VALENCE": "valence"}
 TET_MESH_ROLE = "tet_mesh"
 
 
@@ -215,8 +217,9 @@ class SYMFRAMES_OT_import_network(bpy.types.Operator, ImportHelper):
     bl_options = {"REGISTER", "UNDO"}
 
     filter_glob: StringProperty(default="*.json;*.ovm;*.mesh", options={"HIDDEN"})
-    tag_convention: EnumProperty(name="Tags", items=TAG_CONVENTIONS, default="INDEX",
-                                 description="What an edge's integer tag means (tet-mesh files)")
+    tag_convention: EnumProperty(name="Tags", items=TAG_CONVENTIONS, default="AUTO",
+                                 description="What an edge's integer tag means (tet-mesh files); Detect tries "
+                                             "each and checks Poincare-Hopf before the import succeeds")
     tag_property: StringProperty(name="Edge Property", default="",
                                  description="OpenVolumeMesh: the edge property holding the tags (empty: the only "
                                              "integer edge property)")
@@ -227,6 +230,7 @@ class SYMFRAMES_OT_import_network(bpy.types.Operator, ImportHelper):
     def execute(self, context):
         path = self.filepath
         name = os.path.splitext(os.path.basename(path))[0] or "Imported"
+        how = ""
         try:
             if path.lower().endswith(".json"):
                 net, _opts, surface = read_network(path)
@@ -237,13 +241,16 @@ class SYMFRAMES_OT_import_network(bpy.types.Operator, ImportHelper):
                 V, F = read_obj(surface)
             else:
                 angle = np.degrees(self.sharp_angle) if self.sharp_angle > 0 else None
-                V, F, net = read_tet_network(path, TAG_SIGN[self.tag_convention], self.tag_property or None, angle)
+                # the same check as the command line: the network must satisfy Poincare-Hopf under the
+                # convention (detected or given) before the import reports success
+                imp = import_tet_network(path, TAG_SIGN[self.tag_convention], self.tag_property or None, angle)
+                V, F, net, how = imp.V, imp.F, imp.network, f"; {imp.describe()}"
         except (SymFramesError, ValueError, OSError) as e:
             self.report({"ERROR"}, f"SymFrames: cannot import {os.path.basename(path)}: {e}")
             return {"CANCELLED"}
         examples.add_domain_and_network(context.scene, name, V, F, net)
         self.report({"INFO"}, f"SymFrames: imported '{name}' with {len(net.curves)} curve(s); set the resolution "
-                              "and Compute Field")
+                              f"and Compute Field{how}")
         return {"FINISHED"}
 
 

@@ -100,6 +100,9 @@ def read_domain(obj, depsgraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     F = F.reshape(-1, 3).astype(np.int64)
     if len(F) == 0:
         raise InputError(f"domain '{obj.name}' has no faces; it must be a closed surface bounding a solid")
+    if len(F) < 4:  # a plane or a single polygon: open, whatever its polygons
+        raise InputError(f"domain '{obj.name}' has {len(F)} triangle(s), an open sheet such as a plane: it must be a "
+                         "closed surface bounding a solid (at least 4 triangles); pick or model a closed mesh")
     M = np.array(obj.matrix_world, dtype=float)
     V = co.reshape(-1, 3).astype(float) @ M[:3, :3].T + M[:3, 3]
     if np.linalg.det(M[:3, :3]) < 0:  # a mirroring transform turns the surface inside out

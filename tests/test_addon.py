@@ -328,6 +328,14 @@ def test_error_domain_not_closed():
     _fails("not closed and manifold.*open boundary")
 
 
+def test_error_domain_open_plane():
+    """An open plane as the domain: named as an open sheet, not as quads to triangulate (issue 43)."""
+    s = add_example("cube")
+    bpy.ops.mesh.primitive_plane_add(size=2)
+    s.domain = bpy.context.active_object
+    _fails("has 2 triangle\\(s\\), an open sheet such as a plane: it must be a closed surface")
+
+
 def test_error_curve_outside_domain():
     add_example("cylinder")
     bpy.data.objects["axial 0"].location.x += 3.0

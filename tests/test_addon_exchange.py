@@ -139,6 +139,27 @@ def test_import_a_tagged_tet_mesh(tmp_path):
     assert bpy.ops.symframes.check_network() == {"FINISHED"}
 
 
+def test_import_detects_the_convention_and_refuses_a_wrong_one(tmp_path):
+    """The same axes tagged by valence: Detect finds 'valence' and says so;
+    an explicit wrong convention is refused before anything is added, naming
+    the detected one (the check the command line runs, issue 43)."""
+    mesh = box_mesh(4)
+    tags = np.full(mesh.n_edges, 4, np.int64)
+    for x, valence in ((1, 3), (3, 5)):
+        ids = np.array([np.argmin(np.linalg.norm(mesh.vertices - 0.25 * np.array([x, 2, z]), axis=1))
+                        for z in range(5)])
+        tags[mesh.edge_index(ids[:-1], ids[1:])] = valence
+    path = str(tmp_path / "axes.ovm")
+    write_ovm(path, mesh, edge_props={"valence": tags})
+    before = scene_objects()
+    with pytest.raises(RuntimeError, match="'index' tag convention.*the 'valence' convention"):
+        bpy.ops.symframes.import_network(filepath=path, tag_convention="INDEX")
+    assert scene_objects() == before
+    assert bpy.ops.symframes.import_network(filepath=path) == {"FINISHED"}
+    curves = [o for o in bpy.context.scene.symframes.network.all_objects if o.type == "CURVE"]
+    assert sorted(o.symframes.index for o in curves) == [-1, 1]
+
+
 def test_a_failed_import_leaves_the_scene_unchanged(tmp_path):
     add_example("cube", 0.4)
     before = scene_objects()

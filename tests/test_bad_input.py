@@ -582,3 +582,49 @@ def test_sharp_edges_arrays():
     assert Network(sharp_edges=np.array([[1.0, 2.0]])).sharp_edges.tolist() == [[1, 2]]
     with pytest.raises(NetworkError, match=r"sharp_edges = \[\[1\.5, 2\.0\]\]"):
         Network(sharp_edges=np.array([[1.5, 2.0]]))
+
+
+# ------------------------------------------------------------ issue 43
+def test_utf16_obj_and_far_vertex_and_deep_json(tmp_path):
+    """A UTF-16 OBJ (Windows tools) reads as the UTF-8 one; a vertex at
+    1e200 is refused naming its line; JSON nested thousands deep is a
+    NetworkError, not a RecursionError."""
+    V, F = box(n=2)
+    text = "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V) + "".join(f"f {a + 1} {b + 1} {c + 1}\n"
+                                                                            for a, b, c in F)
+    for enc in ("utf-16", "utf-16-le", "utf-32"):
+        (tmp_path / "u.obj").write_bytes(text.encode(enc))
+        W, G = io.read_obj(str(tmp_path / "u.obj"))
+        assert np.allclose(W, V) and np.array_equal(G, F)
+    (tmp_path / "far.obj").write_text(text + "v 1e200 0 0\n")
+    with pytest.raises(SurfaceError, match=rf"far\.obj:{len(V) + len(F) + 1}: vertex {len(V) + 1} at \[1e\+200"):
+        io.read_obj(str(tmp_path / "far.obj"))
+    (tmp_path / "deep.json").write_text("[" * 100000 + "]" * 100000)
+    with pytest.raises(NetworkError, match="nested too deeply"):
+        io.read_network(str(tmp_path / "deep.json"))
+
+
+def test_api_arguments_of_the_wrong_kind():
+    """solve(V, F, None), complex or None vertices, 10**30 indices and
+    10**400 numbers, and curve fields set after construction: the CLI's
+    error classes, not AttributeError, TypeError or OverflowError."""
+    V, F = box(n=2)
+    with pytest.raises(NetworkError, match="network = null/None: must be a solver.Network"):
+        solve(V, F, None)
+    with pytest.raises(SurfaceError, match="complex numbers"):
+        check_input(V + 1j, F, Network())
+    with pytest.raises(SurfaceError, match="surface vertices = None"):
+        check_input(None, F, Network())
+    with pytest.raises(OptionsError, match=r"'edge_length' = ~10\*\*400"):
+        Options(edge_length=10**400)
+    with pytest.raises(NetworkError, match=r"vertex index ~10\*\*30"):
+        Network(sharp_edges=[[10**30, 1]])
+    c = Curve(np.array([[0.0, 0, -1], [0, 0, 1]]), 0.25, name="axis")
+    for field, value in (("sigma", "x"), ("points", None), ("role", "bogus"), ("closed", 2)):
+        with pytest.raises(NetworkError, match=f"curve 'axis': {field}"):
+            setattr(c, field, value)
+    assert c.sigma == 0.25 and c.points.shape == (2, 3)  # the old values are kept
+    net = Network(curves=[c])
+    with pytest.raises(NetworkError, match="curves\\[1\\] is"):
+        net.curves = [c, "not a curve"]
+    assert len(net.curves) == 1

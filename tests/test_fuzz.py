@@ -374,6 +374,193 @@ def test_fuzz_random_networks(solids, seed):
     run_case(f"random network seed {3000 + seed} in the {name}", lambda: check_input(V, F, net))
 
 
+# ------------------------------------------- tagged tet meshes (.mesh, .ovm)
+@pytest.fixture(scope="module")
+def tagged_files(tmp_path_factory):
+    """Two valence-3/5 axes through a structured box, as OVM and MEDIT text."""
+    from solver.io.interchange import write_medit, write_ovm
+    from tests.meshes import box_mesh
+
+    d = tmp_path_factory.mktemp("tagged")
+    mesh = box_mesh(3)
+    tags = np.full(mesh.n_edges, 4, np.int64)
+    for x, valence in ((1, 3), (2, 5)):
+        ids = np.array([int(np.argmin(np.linalg.norm(mesh.vertices - np.array([x, 1.5, z]) / 3, axis=1)))
+                        for z in range(4)])
+        tags[mesh.edge_index(ids[:-1], ids[1:])] = valence
+    write_ovm(str(d / "t.ovm"), mesh, edge_props={"valence": tags})
+    on = np.nonzero(tags != 4)[0]
+    write_medit(str(d / "t.mesh"), mesh.vertices, mesh.tets, edges=mesh.edges[on], edge_refs=tags[on])
+    return d, (d / "t.ovm").read_text(), (d / "t.mesh").read_text()
+
+
+TAG_WORDS = ["0", "-1", "1.5", "2**70", "1180591620717411303424", "1e30", "nan", "x", "-7", "9", "99999999", "",
+             "3.0", "End"]
+
+
+def mutate_tet_text(rng, text):
+    """Truncate, drop or repeat lines, change a count, an index or a tag."""
+    lines = text.splitlines()
+    for _ in range(int(rng.integers(1, 4))):
+        i = int(rng.integers(len(lines)))
+        parts = lines[i].split()
+        r = rng.random()
+        if r < 0.12:
+            lines = lines[:i]  # truncated
+        elif r < 0.22:
+            del lines[i]
+        elif r < 0.3:
+            lines.insert(i, lines[i])  # a repeated entry (tet, edge, vertex)
+        elif r < 0.45 and len(parts) == 1 and parts[0].lstrip("-").isdigit():  # a count
+            lines[i] = str(int(parts[0]) + int(rng.choice([-2, -1, 1, 5, 10**6])))
+        elif r < 0.8 and parts and parts[0][:1].isdigit() or parts[:1] and parts[0][:1] == "-":
+            j = int(rng.integers(len(parts)))
+            parts[j] = str(rng.choice(TAG_WORDS)) if rng.random() < 0.6 else str(int(rng.integers(-3, 80)))
+            lines[i] = " ".join(parts)
+        elif r < 0.9:
+            lines.insert(i, str(rng.choice(["Tetrahedra", "Edges", "Vertices", "Dimension 2", "Triangles", "End",
+                                            "bogus", "EProp int \"t\"", "# comment"])))
+        else:
+            lines[i] = lines[i][: int(rng.integers(len(lines[i]) + 1))]
+    return "\n".join(lines) + ("\n" if rng.random() < 0.8 else "")
+
+
+@pytest.mark.parametrize("seed", range(70))
+def test_fuzz_tagged_tet_mesh(tagged_files, seed):
+    from solver.io.tetnetwork import import_tet_network
+
+    rng = np.random.default_rng(5000 + seed)
+    folder, ovm, medit = tagged_files
+    ext, text = (".ovm", ovm) if seed % 2 else (".mesh", medit)
+    path = folder / f"m{seed}{ext}"
+    if rng.random() < 0.05:
+        path.write_bytes(bytes(rng.integers(0, 256, 300, dtype=np.uint8)))
+    elif rng.random() < 0.05:
+        path = folder / f"missing{seed}{ext}"
+    else:
+        path.write_text(mutate_tet_text(rng, text))
+    convention = [None, "index", "negated", "valence", 1, -1, 7, "bogus"][int(rng.integers(8))]
+    label = f"tagged tet mesh seed {5000 + seed} ({convention!r}): " + (
+        repr(path.read_bytes()[:300]) if path.exists() else "missing file")
+    run_case(label, lambda: import_tet_network(str(path), convention, sharp_angle=30))
+
+
+def test_fuzz_tagged_tet_mesh_refusals_name_the_line(tagged_files, tmp_path):
+    """The silent misreadings of issue 43: 0-based MEDIT indices, a fractional
+    or huge tag, a repeated tet, a truncated section; each refused naming
+    the file and the line."""
+    from solver import NetworkError
+    from solver.io.tetnetwork import import_tet_network
+
+    _, ovm, medit = tagged_files
+    lines = medit.splitlines()
+    t = lines.index("Tetrahedra") + 2
+    e = lines.index("Edges") + 2
+
+    def refused(text, match, ext=".mesh"):
+        path = tmp_path / f"x{ext}"
+        path.write_text(text)
+        with pytest.raises(NetworkError, match=match):
+            import_tet_network(str(path))
+
+    zero = lines.copy()
+    zero[t] = " ".join(["0"] + zero[t].split()[1:])
+    refused("\n".join(zero), rf"x\.mesh:{t + 1}: Tetrahedra entry 1 refers to vertex 0.*0-based")
+    frac = lines.copy()
+    frac[e] = " ".join(frac[e].split()[:2] + ["1.5"])
+    refused("\n".join(frac), rf"x\.mesh:{e + 1}: 1\.5 in the Edges section: must be a whole number")
+    big = lines.copy()
+    big[e] = " ".join(big[e].split()[:2] + [str(2**70)])
+    refused("\n".join(big), rf"x\.mesh:{e + 1}: .*out of range")
+    rep = lines[:t + 1] + lines[t:]
+    rep[t - 1] = str(int(rep[t - 1]) + 1)
+    refused("\n".join(rep), rf"x\.mesh:{t + 2}: tet 1 .* repeats tet 0 \(.*x\.mesh:{t + 1}\)")
+    refused("\n".join(lines[:t + 3]), r"x\.mesh:\d+: .*(truncated|ends inside)")
+    refused(ovm.replace("\nEProp", "\nEProp")[: len(ovm) // 2], r"x\.ovm:\d+: ", ".ovm")
+
+
+# ------------------------------------------------------ the API's arguments
+API_VALUES = [None, 0, 1.5, "abc", [], {}, {"edge_length": 0.5}, [[0, 0, 0]], np.zeros((4, 3), complex),
+              np.full((4, 3), np.nan), np.zeros((0, 3)), np.zeros((5, 2)), object(), 10**400]
+
+
+@pytest.fixture
+def stop_before_meshing(monkeypatch):
+    """Arguments that get as far as meshing are accepted: stop there."""
+    import solver.pipeline
+
+    class Reached(Exception):
+        pass
+
+    def stop(*a, **k):
+        raise Reached
+
+    monkeypatch.setattr(solver.pipeline, "mesh_domain", stop)
+    return Reached
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_fuzz_api_arguments(seed, stop_before_meshing):
+    """solve, FieldProblem and check with wrong types in each place: the
+    same SymFramesError classes as the command line, options given as a
+    dict or another type included."""
+    from solver import FieldProblem, Options, check, solve
+
+    rng = np.random.default_rng(6000 + seed)
+    V, F, net = _small_cylinder()
+    args = [V, F, net]
+    for k in rng.choice(3, int(rng.integers(1, 3)), replace=False):
+        args[k] = API_VALUES[int(rng.integers(len(API_VALUES)))]
+    if rng.random() < 0.3 and len(net.curves):
+        c = net.curves[0]
+        field_, value = [("sigma", "x"), ("points", None), ("role", 3), ("closed", "yes"), ("sigma", 10**400),
+                         ("points", np.ones((3, 3), complex))][int(rng.integers(6))]
+        try:
+            setattr(c, field_, value)
+            pytest.fail(f"curve field {field_} = {value!r} accepted after construction")
+        except SymFramesError:
+            pass
+    opt = API_VALUES[int(rng.integers(len(API_VALUES)))] if rng.random() < 0.5 else None
+    if rng.random() < 0.3:
+        opt = {"edge_length": 0.3}  # options as a dict, as read from a JSON file
+    fn = [lambda: solve(*args), lambda: FieldProblem(*args), lambda: check(*args, options=opt),
+          lambda: solve(*args, edge_length=opt), lambda: Options(edge_length=opt, target_tets=opt),
+          lambda: solve(*args, options=opt), lambda: FieldProblem(*args, options=opt)][seed % 7]
+    try:
+        run_case(f"API seed {6000 + seed}: {[type(a).__name__ for a in args]}, {opt!r}"[:300], fn)
+    except stop_before_meshing:
+        pass
+
+
+# ------------------------------------------------ dense curves, edge lengths
+@pytest.mark.parametrize("n", [10_000, 30_000, 100_000])
+def test_fuzz_dense_curve(n):
+    """One curve of 1e4-1e5 points (a Blender curve at a high resolution),
+    wiggling and noisy: checked in near-linear time and memory (issue 43)."""
+    rng = np.random.default_rng(n)
+    V, F, net = _small_cylinder()
+    z = np.linspace(-1.0, 1.0, n)
+    P = np.c_[-0.35 + 0.03 * np.sin(float(rng.uniform(5, 40)) * z), np.full(n, -0.35), z]
+    P[1:-1] += rng.normal(scale=1e-5, size=(n - 2, 3))
+    curves = [Curve(P, 0.25, name="dense")] + net.curves[1:]
+    run_case(f"dense curve of {n} points", lambda: check_input(V, F, Network(curves, sharp_angle=30)))
+
+
+@pytest.mark.parametrize("factor", [1e-3, 1e-2, 0.1, 0.3, 0.4, 1.0, 3.0, 10.0, 1e3])
+def test_fuzz_edge_length_against_the_solid(factor):
+    """Edge lengths from 1e-3 to 1e3 times the solid's size: a plan or a
+    refusal before meshing (too fine: the tet budget; too coarse: fewer than
+    2 edges across), never a mesher run away."""
+    from solver import Options, check
+
+    V, F, net = _small_cylinder()
+    outcome = run_case(f"edge length {factor} x 2", lambda: check(V, F, net, options=Options(edge_length=2 * factor)))
+    # ResolutionError: a MeshingError, the tet budget's
+    expected = {1e-3: "ResolutionError", 1e-2: "ResolutionError", 1.0: "OptionsError", 3.0: "OptionsError",
+                10.0: "OptionsError", 1e3: "OptionsError"}.get(factor, "ok")
+    assert outcome == expected, (factor, outcome)
+
+
 def test_fuzz_covers_enough_cases():
     """The issue's bar: >= 200 cases."""
     mod = sys.modules[__name__]

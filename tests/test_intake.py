@@ -371,6 +371,23 @@ def test_a_curve_drawn_in_pieces_is_joined(cylinder):
         check_input(V, F, Network(curves=curves, sharp_angle=net.sharp_angle))
 
 
+def test_close_curves_are_never_joined_silently(cylinder):
+    """Two curves side by side whose ends lie within node_tolerance (issue
+    43): not joined into one hairpin curve refused for another cause, but
+    refused naming both curves and their distance; curves whose interiors
+    come that close are named as crossing, with the distance."""
+    V, F, net = cylinder
+    a = axial(0.0, 0.0, 9)
+    for b in (a + [0.002, 0.0, 0.0], (a + [0.002, 0.0, 0.0])[:7]):
+        curves = [Curve(a, 0.25, name="A"), Curve(b, 0.25, name="B")]
+        with pytest.raises(NetworkError, match=r"curves 'A', 'B' have ends 0\.002 apart at .*closer than "
+                                               r"node_tolerance .*do not continue each other"):
+            check_input(V, F, Network(curves=curves))
+    across = np.c_[np.linspace(-0.9, 0.9, 9), np.full(9, 0.001), np.zeros(9)]
+    with pytest.raises(NetworkError, match=r"'A' and curve 1 'B' cross near .* \(0\.001 apart, closer than"):
+        check_input(V, F, Network(curves=[Curve(a, 0.25, name="A"), Curve(across, 0.0, "feature", name="B")]))
+
+
 # ------------------------------------------------ real defects still refused
 def test_a_real_self_intersection_is_still_refused(cylinder):
     V, F, net = cylinder

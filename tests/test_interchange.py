@@ -16,7 +16,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from solver import solve
+from solver import NetworkError, OutputError, solve
 from solver.analysis.measures import tet_frames as karcher_tet_frames
 from solver.field.matchings import face_matchings, omega_matchings, omega_tet_frames
 from solver.io.interchange import (
@@ -361,9 +361,9 @@ def check_ovm_topology(d):
 
 
 def test_export_rejects_unknown_format(cylinder, tmp_path):
-    with pytest.raises(ValueError, match="extension"):
+    with pytest.raises(OutputError, match=r"unknown format '\.stl'; the file name must end in \.vtu or"):
         export_field(cylinder, str(tmp_path / "x.stl"))
-    with pytest.raises(ValueError, match="unknown format"):
+    with pytest.raises(OutputError, match="unknown format 'stl'"):
         export_field(cylinder, str(tmp_path / "x.vtu"), fmt="stl")
 
 
@@ -395,7 +395,8 @@ def test_tag_conventions():
 
 def test_import_loop_and_node_from_a_grid(tmp_path):
     """A closed loop and a degree-3 node on a structured grid, through OVM and
-    MEDIT: the loop comes back closed, the three arms meet in one node."""
+    MEDIT: the loop comes back closed, the three arms meet in one node.  The
+    arms' ends sum to 0 under either sign, so the sign must be given."""
     from solver.network.network import prepare_network
 
     mesh = box_mesh(4)
@@ -409,15 +410,18 @@ def test_import_loop_and_node_from_a_grid(tmp_path):
     tags = np.zeros(mesh.n_edges, np.int64)
     tags[edges_along((1, 1, 2), (2, 1, 2), (3, 1, 2), (3, 2, 2), (3, 3, 2), (2, 3, 2), (1, 3, 2), (1, 2, 2),
                      (1, 1, 2))] = 1
-    tags[np.r_[edges_along((2, 2, 1), (2, 2, 0)), edges_along((2, 2, 1), (1, 2, 1), (0, 2, 1)),
-               edges_along((2, 2, 1), (3, 2, 1), (4, 2, 1))]] = -1
+    # the arms end on the bottom face, their indices summing to 0 as its sharp edges ask
+    tags[np.r_[edges_along((2, 2, 1), (2, 2, 0)), edges_along((2, 2, 1), (1, 2, 1), (1, 2, 0))]] = -1
+    tags[edges_along((2, 2, 1), (3, 2, 1), (3, 2, 0))] = 2
     write_ovm(str(tmp_path / "grid.ovm"), mesh, edge_props={"tag": tags})
     on = np.nonzero(tags)[0]
     write_medit(str(tmp_path / "grid.mesh"), mesh.vertices, mesh.tets, boundary_triangles(mesh),
                 edges=mesh.edges[on], edge_refs=tags[on])
     for name in ("grid.ovm", "grid.mesh"):
-        V, F, net = read_tet_network(str(tmp_path / name))
-        assert sorted(c.sigma for c in net.curves) == [-0.25, -0.25, -0.25, 0.25]
+        with pytest.raises(NetworkError, match=r"fit more than one tag convention \('index' .*'negated'"):
+            read_tet_network(str(tmp_path / name), sharp_angle=30)
+        V, F, net = read_tet_network(str(tmp_path / name), "index", sharp_angle=30)
+        assert sorted(c.sigma for c in net.curves) == [-0.25, -0.25, 0.25, 0.5]
         assert net.sharp_edges is None
         pn = prepare_network(net, 1.7)
         kinds = sorted(zip(pn.start_kind, pn.end_kind))
@@ -551,3 +555,75 @@ def test_cli_reads_a_tagged_tet_mesh(tmp_path, capsys):
     assert main(["--tet-network", path, "--tag-convention", "valence", "--sharp-angle", "30",
                  "--check"]) == 0
     assert "2 interior curves" in capsys.readouterr().out
+
+
+# ------------------------------------------------ tag conventions, detected
+def tet_edge_tags(V, F, net, mesh):
+    """The interior curves of net as tagged edges of mesh (testkit's tet-edge
+    routing, without its tiny segments): (edge ids, sigma per edge)."""
+    from testkit.tetedge import tet_edge_network
+
+    tn, _ = tet_edge_network(V, F, net, 0.0, tiny=False, mesh=mesh)
+    ids, sig = [], []
+    for c in tn.curves:
+        if c.role.value == "sharp":
+            continue
+        v = np.array([int(np.argmin(np.linalg.norm(mesh.vertices - x, axis=1))) for x in c.points])
+        e = mesh.edge_index(v[:-1], v[1:])
+        assert np.all(e >= 0)
+        ids.append(e)
+        sig.append(np.full(len(e), c.sigma))
+    return np.concatenate(ids), np.concatenate(sig)
+
+
+CONVENTION_TAGS = {"index": lambda s: np.rint(4 * s), "negated": lambda s: -np.rint(4 * s),
+                   "valence": lambda s: 4 - np.rint(4 * s)}
+
+
+@pytest.mark.parametrize("example", ["cylinder", "ball"])
+def test_the_tag_convention_is_detected_and_a_wrong_one_refused(example, example_input, tet_mesh, tmp_path, capsys):
+    """An example's curves routed along the edges of its session tet mesh
+    (testkit.tetedge), written with each convention as .ovm and MEDIT .mesh:
+    with no convention the one written is detected (the others break
+    Poincare-Hopf), and each wrong explicit one is refused naming it."""
+    from solver.__main__ import main
+    from solver.io.tetnetwork import import_tet_network
+
+    V, F, net = example_input(example)
+    # meshes the session has already: test_examples' ball, this module's cylinder
+    mesh = tet_mesh(example, **({"edge_length": 0.18} if example == "ball" else {"edge_length": H, "refine": 0}))
+    interior = sorted(net.curves[i].sigma for i in net.interior_curves)
+    edges, sigma = tet_edge_tags(V, F, net, mesh)
+    for name, tag in CONVENTION_TAGS.items():
+        t = tag(sigma).astype(np.int64)
+        paths = [str(tmp_path / f"{example}-{name}.ovm"), str(tmp_path / f"{example}-{name}.mesh")]
+        full = np.zeros(mesh.n_edges, np.int64)
+        full[edges] = t
+        write_ovm(paths[0], mesh, edge_props={"tag": full})
+        write_medit(paths[1], mesh.vertices, mesh.tets, edges=mesh.edges[edges], edge_refs=t)
+        for path in paths:
+            imp = import_tet_network(path)
+            assert imp.convention == name and imp.detected
+            assert sorted(c.sigma for c in imp.network.curves) == interior
+            assert f"'{name}' convention" in imp.describe() and "detected" in imp.describe()
+            for wrong in CONVENTION_TAGS:
+                if wrong != name:
+                    with pytest.raises(NetworkError, match=f"read by the '{wrong}' tag convention .* the "
+                                                           f"'{name}' convention"):
+                        import_tet_network(path, wrong)
+        assert main(["--tet-network", paths[1], "--check"]) == 0
+        assert f"tags read by the '{name}' convention" in capsys.readouterr().out
+
+
+def test_no_convention_fits_names_all_three(tmp_path):
+    """Tags that fit no convention (one valence-3 axis alone through a box:
+    its ends sum to 1/2, not the box's 2) are refused with each reading's
+    result."""
+    mesh = box_mesh(4)
+    ids = [int(np.argmin(np.linalg.norm(mesh.vertices - 0.25 * np.array([2, 2, z]), axis=1))) for z in range(5)]
+    tags = np.zeros(mesh.n_edges, np.int64)
+    tags[mesh.edge_index(np.array(ids[:-1]), np.array(ids[1:]))] = 1
+    path = str(tmp_path / "one.ovm")
+    write_ovm(path, mesh, edge_props={"tag": tags})
+    with pytest.raises(NetworkError, match=r"fit no tag convention.*'index'.*'negated'.*'valence'"):
+        read_tet_network(path, sharp_angle=30)

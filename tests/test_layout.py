@@ -134,3 +134,20 @@ def test_the_solver_never_imports_bpy():
     out = subprocess.run([sys.executable, "-c", "import sys, solver, solver.io, solver.__main__; "
                           "print('bpy' in sys.modules)"], cwd=ROOT, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_errors_doc_lists_every_refusal_class():
+    """docs/errors.md has a row, with an example message, for every error
+    class of solver.errors (issue 43)."""
+    import inspect
+    import pathlib
+    import re
+
+    import solver.errors as errors
+
+    doc = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "errors.md").read_text(encoding="utf-8")
+    rows = {m.group(1): m.group(0) for m in re.finditer(r"^\| `(\w+)`[^\n]*$", doc, re.M)}
+    for name, cls in inspect.getmembers(errors, inspect.isclass):
+        if issubclass(cls, (errors.SymFramesError, errors.Cancelled)) and cls is not errors.SymFramesError:
+            assert name in rows, f"docs/errors.md has no row for {name}"
+            assert name == "Cancelled" or rows[name].count("`") >= 4, f"{name}: no example message"

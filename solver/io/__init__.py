@@ -18,7 +18,7 @@ from .formats import (
 )
 from .hexformats import HEX_FORMATS, export_hexmesh, read_hexex
 from .interchange import FieldData, export_field, field_data, quaternion_frames
-from .tetnetwork import read_tet_network
+from .tetnetwork import TetNetworkImport, import_tet_network, read_tet_network
 
 __all__ = [
     "HEX_FORMATS",
@@ -28,6 +28,7 @@ __all__ = [
     "FieldData",
     "export_field",
     "field_data",
+    "import_tet_network",
     "load_result",
     "network_from_dict",
     "network_to_dict",
@@ -37,6 +38,7 @@ __all__ = [
     "read_obj",
     "read_tet_network",
     "save_result",
+    "TetNetworkImport",
     "write_network",
     "write_obj",
 ]

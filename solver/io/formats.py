@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import asdict, fields
+from io import BytesIO
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from .. import checks
 from ..errors import NetworkError, OptionsError, SurfaceError, SymFramesError
 from ..network.network import Curve, Network
 from ..surface.polygons import triangulate_polygons
+from ..surface.trisurface import MAX_COORDINATE
+from .atomic import write_files, write_text
+from .text import read_text
 
 
 def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
@@ -69,38 +73,38 @@ def read_obj(path: str) -> tuple[np.ndarray, np.ndarray]:
         degenerate polygon, with the file and line.
     """
     V, polys, lines = [], [], []
-    try:
-        fh = open(path, encoding="utf-8", errors="replace")
-    except OSError as e:
-        raise SurfaceError(f"cannot read surface file {path!r}: {e.strerror}") from None
-    with fh:
-        for k, line in enumerate(fh, 1):
-            parts = line.split()
-            if not parts:
-                continue
-            if parts[0] == "v":
-                try:
-                    xyz = [float(x) for x in parts[1:4]]
-                except ValueError:
-                    xyz = []
-                if len(xyz) != 3 or not all(np.isfinite(xyz)):
-                    raise SurfaceError(f"{path}:{k}: bad vertex line {line.strip()[:80]!r}; a vertex is 'v x y z' "
-                                       "with three finite numbers")
-                V.append(xyz)
-            elif parts[0] == "f":
-                try:
-                    idx = [int(p.split("/")[0]) for p in parts[1:]]
-                except ValueError:
-                    raise SurfaceError(f"{path}:{k}: bad face line {line.strip()[:80]!r}; a face is 'f i j k ...' "
-                                       "with 1-based vertex indices") from None
-                if len(idx) < 3:
-                    raise SurfaceError(f"{path}:{k}: a face needs at least 3 vertices, got {len(idx)}")
-                for i in idx:
-                    # 0 is no OBJ index; negative ones count back from the vertices read so far
-                    if i == 0 or i < -len(V):
-                        raise SurfaceError(_obj_index_message(path, k, i, len(V), relative=i < 0))
-                polys.append([i - 1 if i > 0 else len(V) + i for i in idx])
-                lines.append(k)
+    # UTF-8, or UTF-16/32 as some Windows tools save it (text.py)
+    text = read_text(path, SurfaceError, "surface file")
+    for k, line in enumerate(text.splitlines(), 1):
+        parts = line.split()
+        if not parts:
+            continue
+        if parts[0] == "v":
+            try:
+                xyz = [float(x) for x in parts[1:4]]
+            except ValueError:
+                xyz = []
+            if len(xyz) != 3 or not all(np.isfinite(xyz)):
+                raise SurfaceError(f"{path}:{k}: bad vertex line {line.strip()[:80]!r}; a vertex is 'v x y z' "
+                                   "with three finite numbers")
+            if max(map(abs, xyz)) > MAX_COORDINATE:
+                raise SurfaceError(f"{path}:{k}: vertex {len(V) + 1} at {xyz} is beyond +-{MAX_COORDINATE:g}; a "
+                                   "stray vertex (delete it) or a model in the wrong units (scale it)")
+            V.append(xyz)
+        elif parts[0] == "f":
+            try:
+                idx = [int(p.split("/")[0]) for p in parts[1:]]
+            except ValueError:
+                raise SurfaceError(f"{path}:{k}: bad face line {line.strip()[:80]!r}; a face is 'f i j k ...' "
+                                   "with 1-based vertex indices") from None
+            if len(idx) < 3:
+                raise SurfaceError(f"{path}:{k}: a face needs at least 3 vertices, got {len(idx)}")
+            for i in idx:
+                # 0 is no OBJ index; negative ones count back from the vertices read so far
+                if i == 0 or i < -len(V):
+                    raise SurfaceError(_obj_index_message(path, k, i, len(V), relative=i < 0))
+            polys.append([i - 1 if i > 0 else len(V) + i for i in idx])
+            lines.append(k)
     if not V or not polys:
         raise SurfaceError(f"{path}: no vertices or faces found; is it a triangle/polygon OBJ?")
     for p, k in zip(polys, lines):  # positive indices may refer to vertices listed later
@@ -124,7 +128,7 @@ def _obj_index_message(path, line, index, n, relative):
 
 
 def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
-    """Write a triangle surface as OBJ.
+    """Write a triangle surface as OBJ (whole or not at all, atomic.py).
 
     Parameters
     ----------
@@ -133,9 +137,8 @@ def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
     F : (m, 3) int array
         0-based (written 1-based).
     """
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V))
-        fh.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F))
+    write_text(path, "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
+               + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F))
 
 
 _NETWORK_KEYS = {"surface", "sharp_angle", "sharp_edges", "node_tolerance", "boundary_tolerance", "curves",
@@ -266,11 +269,12 @@ def read_network(path: str) -> tuple[Network, dict, str | None]:
         An unreadable file, invalid JSON, or what ``network_from_dict``
         refuses.
     """
+    text = read_text(path, NetworkError, "network file", "JSON text")
     try:
-        with open(path, encoding="utf-8") as fh:
-            d = json.load(fh)
-    except OSError as e:
-        raise NetworkError(f"cannot read network file {path!r}: {e.strerror}") from None
+        d = json.loads(text)
+    except RecursionError:
+        raise NetworkError(f"{path}: the JSON is nested too deeply to be a network file (lists within lists "
+                           "thousands deep); see docs/usage.md for its layout") from None
     except json.JSONDecodeError as e:
         raise NetworkError(f"{path}: not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})") from None
     except (UnicodeDecodeError, ValueError) as e:
@@ -299,8 +303,7 @@ def write_network(path: str, net: Network, surface: str | None = None, options: 
     d = network_to_dict(net, options)
     if surface is not None:
         d = {"surface": surface, **d}
-    with open(path, "w", encoding="utf-8") as fh:
-        json.dump(d, fh, indent=1)
+    write_text(path, json.dumps(d, indent=1))
 
 
 def options_from_dict(d: dict):
@@ -338,7 +341,9 @@ def _flat(parts: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 def save_result(path: str, result) -> None:
     """Write a solved field to an ``.npz`` file (the module docs list its
-    arrays), with what hex meshing needs to mesh it again.
+    arrays), with what hex meshing needs to mesh it again, at exactly
+    ``path`` (numpy would add '.npz' to a name without it) and whole or not
+    at all (atomic.py).
 
     Parameters
     ----------
@@ -353,14 +358,19 @@ def save_result(path: str, result) -> None:
     report["options"] = asdict(result.problem.options)
     from ..hexmesh import HexInput, hex_source_arrays
 
-    np.savez_compressed(
-        path, vertices=mesh.vertices, tets=mesh.tets, edges=mesh.edges, faces=mesh.faces, omega=result.omega,
+    arrays = dict(
+        vertices=mesh.vertices, tets=mesh.tets, edges=mesh.edges, faces=mesh.faces, omega=result.omega,
         frames=result.frames, quaternions=result.quaternions(), root=np.int64(result.root),
         curve_faces=cf, curve_faces_offsets=cfo, curve_tets=ct, curve_tets_offsets=cto,
         report=np.array(json.dumps(report, default=float)),
         # what hex meshing needs to mesh this field again (hexmesh/source.py)
         **hex_source_arrays(HexInput.from_result(result)),
     )
+    # compressed in memory: numpy leaves its zip file open when a write
+    # fails, and it would complain again when collected
+    buf = BytesIO()
+    np.savez_compressed(buf, **arrays)
+    write_files({path: buf.getbuffer()})
 
 
 def load_hex_input(path: str):

@@ -12,42 +12,24 @@
             parameters of its corners (the format of the HexEx paper's
             additional material)
 
-Every file is written to a temporary name in its folder and renamed when
-complete, so a failure leaves the old file or none, never a partial one.
+Every file is written whole or not at all (atomic.py: a temporary name in
+its folder, renamed when complete), so a failure leaves the old file or
+none, never a partial one.
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
 
 import numpy as np
 
+from ..errors import OutputError
+from .atomic import check_output_path, write_text
 from .interchange import _fmt_rows, _vtu_array
 
 _VTK_HEXAHEDRON = 12
 
 HEX_FORMATS = {".vtu": "VTK XML", ".vtk": "legacy VTK", ".mesh": "MEDIT", ".hexex": "HexEx integer-grid map"}
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _atomic_text(path: str, text: str) -> None:
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".symframes-", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "w", encoding="ascii") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it private
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
 
 
 def write_hex_vtu(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None,
@@ -69,7 +51,7 @@ def write_hex_vtu(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data:
         out.extend(_vtu_array(k, v, binary) for k, v in cell_data.items())
         out.append("</CellData>\n")
     out += ["</Piece>\n", "</UnstructuredGrid>\n", "</VTKFile>\n"]
-    _atomic_text(path, "".join(out))
+    write_text(path, "".join(out))
 
 
 def write_hex_vtk(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None) -> None:
@@ -87,7 +69,7 @@ def write_hex_vtk(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data:
         for name, a in cell_data.items():
             out += [f"SCALARS {name} double 1\n", "LOOKUP_TABLE default\n",
                     _fmt_rows(np.asarray(a, float).reshape(-1, 1), "%.9g")]
-    _atomic_text(path, "".join(out))
+    write_text(path, "".join(out))
 
 
 def write_hex_medit(path: str, vertices: np.ndarray, hexes: np.ndarray, refs=None) -> None:
@@ -99,7 +81,7 @@ def write_hex_medit(path: str, vertices: np.ndarray, hexes: np.ndarray, refs=Non
     out = ["MeshVersionFormatted 2\n", "Dimension 3\n", f"Vertices\n{len(V)}\n",
            _fmt_rows(np.c_[V, np.zeros(len(V))], "%.17g"),
            f"Hexahedra\n{len(H)}\n", _fmt_rows(np.c_[H + 1, r], "%d"), "End\n"]
-    _atomic_text(path, "".join(out))
+    write_text(path, "".join(out))
 
 
 def write_hexex(path: str, vertices: np.ndarray, tets: np.ndarray, params: np.ndarray) -> None:
@@ -113,7 +95,7 @@ def write_hexex(path: str, vertices: np.ndarray, tets: np.ndarray, params: np.nd
     U = np.asarray(params, float).reshape(len(T), 12)
     out = [f"{len(V)}\n", _fmt_rows(V, "%.17g"), f"{len(T)}\n",
            _fmt_rows(np.c_[T, U], "%.17g")]  # %g writes the vertex ids as integers
-    _atomic_text(path, "".join(out))
+    write_text(path, "".join(out))
 
 
 def read_hexex(path: str):
@@ -163,9 +145,12 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
 
     Raises
     ------
-    ValueError
-        for an unknown extension, or ``.hexex`` for a mesh without its map
+    OutputError
+        an unknown extension, a path that cannot be written (checked before
+        anything is made: atomic.check_output_path), ``.hexex`` for a mesh
+        without its map, or a write that fails (the old file, or none, is left)
     """
+    check_output_path(path, "hex mesh", HEX_FORMATS)
     ext = os.path.splitext(path)[1].lower()
     V, H = hex_mesh.vertices, hex_mesh.hexes
     sj = np.asarray(hex_mesh.scaled_jacobian, float)
@@ -178,9 +163,6 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     elif ext == ".hexex":
         gm = hex_mesh.grid_map
         if gm is None:
-            raise ValueError(f"{path}: this hex mesh carries no integer-grid map to write")
+            raise OutputError(f"{path}: this hex mesh carries no integer-grid map to write")
         write_hexex(path, *gm)
-    else:
-        raise ValueError(f"{path}: unknown hex mesh format {ext or '(no extension)'!r}; use one of "
-                         f"{', '.join(HEX_FORMATS)}")
     return [path]

@@ -30,9 +30,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..analysis.measures import matched_singular_faces, monodromy_angles, omega_singular_faces
+from ..errors import NetworkError, OutputError
 from ..field.matchings import FaceMatchings, TetFrames, face_matchings, omega_tet_frames
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.tetmesh import TetMesh
+from .atomic import check_output_path, write_files, write_text
+from .text import Tokens, read_text
 
 # ================================================================ signed permutations
 
@@ -278,8 +281,7 @@ def write_vtu(path: str, points: np.ndarray, tets: np.ndarray, point_data: dict 
             out.extend(_vtu_array(k, v, binary) for k, v in data.items())
             out.append(f"</{tag}>\n")
     out += ["</Piece>\n", "</UnstructuredGrid>\n", "</VTKFile>\n"]
-    with open(path, "w", encoding="ascii") as fh:
-        fh.write("".join(out))
+    write_text(path, "".join(out))
 
 
 def vtu_field_data(fe: FieldExport) -> tuple[dict, dict]:
@@ -307,7 +309,15 @@ def vtu_field_data(fe: FieldExport) -> tuple[dict, dict]:
 def write_medit(path: str, vertices: np.ndarray, tets: np.ndarray, triangles: np.ndarray | None = None,
                 edges: np.ndarray | None = None, tet_refs=None, triangle_refs=None, edge_refs=None,
                 vertex_refs=None) -> None:
-    """Write a MEDIT ASCII mesh (.mesh), 1-based indices::
+    """Write a MEDIT ASCII mesh (.mesh); the text is ``medit_text``'s (same
+    parameters)."""
+    write_text(path, medit_text(vertices, tets, triangles, edges, tet_refs, triangle_refs, edge_refs, vertex_refs))
+
+
+def medit_text(vertices: np.ndarray, tets: np.ndarray, triangles: np.ndarray | None = None,
+               edges: np.ndarray | None = None, tet_refs=None, triangle_refs=None, edge_refs=None,
+               vertex_refs=None) -> str:
+    """A MEDIT ASCII mesh (.mesh), 1-based indices::
 
         MeshVersionFormatted 2
         Dimension 3
@@ -344,8 +354,101 @@ def write_medit(path: str, vertices: np.ndarray, tets: np.ndarray, triangles: np
         out.append(f"{name}\n{len(X)}\n")
         out.append(_fmt_rows(np.c_[X + 1, refs(r, len(X))], "%d"))
     out.append("End\n")
-    with open(path, "w", encoding="ascii") as fh:
-        fh.write("".join(out))
+    return "".join(out)
+
+
+# MEDIT sections: values per entry (Dimension 3); the element sections end in a reference number
+MEDIT_SECTIONS = {"vertices": 4, "edges": 3, "triangles": 4, "quadrilaterals": 5, "tetrahedra": 5, "prisms": 7,
+                  "pyramids": 6, "hexahedra": 9, "corners": 1, "ridges": 1, "requiredvertices": 1,
+                  "requirededges": 1, "requiredtriangles": 1, "requiredquadrilaterals": 1,
+                  "requiredtetrahedra": 1, "requiredhexahedra": 1, "normals": 3, "tangents": 3,
+                  "normalatvertices": 2, "tangentatedges": 2, "normalattrianglevertices": 3,
+                  "normalatquadrilateralvertices": 3, "tangentatvertices": 2}
+# sections of vertex indices (1-based), by the number of them per entry
+MEDIT_INDEXED = {"edges": 2, "triangles": 3, "quadrilaterals": 4, "tetrahedra": 4, "prisms": 6, "pyramids": 5,
+                 "hexahedra": 8, "corners": 1, "requiredvertices": 1}
+
+
+@dataclass
+class MeditData:
+    """A MEDIT ASCII mesh as ``read_medit`` reads it.
+
+    vertices : (n, 3); tets : (m, 4) 0-based; edges : (k, 2) 0-based;
+    edge_refs : (k,) int, the reference number of each edge;
+    tet_lines, edge_lines : the line of each entry in the file
+    """
+
+    vertices: np.ndarray
+    tets: np.ndarray
+    edges: np.ndarray
+    edge_refs: np.ndarray
+    tet_lines: np.ndarray
+    edge_lines: np.ndarray
+
+
+def read_medit(path: str, error=NetworkError) -> MeditData:
+    """Read a MEDIT ASCII mesh (format in ``write_medit``), checking
+    everything it reads.
+
+    Keywords are case-insensitive; ``#`` starts a comment.  Sections other
+    than Vertices, Edges and Tetrahedra are read by their counts and
+    checked, then left out.  ``error`` is raised naming the file, the line
+    and the value of: an unknown keyword, a Dimension other than 3, a count
+    that is not a whole number or more entries than the file holds, a
+    coordinate that is not a finite number, a vertex index or reference
+    number that is not a whole number, an index outside 1..#vertices
+    (MEDIT counts from 1), a missing Vertices or Tetrahedra section.
+    ``MeshVersionFormatted`` 1 and 2 are read; ``End`` ends the file.
+    """
+    tok = Tokens(read_text(path, error, "MEDIT mesh"), path, error)
+    out, first = {}, {}
+    while not tok.done:
+        i = tok.pos
+        word = tok.next("a keyword")
+        key = word.lower()
+        if key == "end":
+            break
+        if key in ("meshversionformatted", "dimension"):
+            v = tok.next(f"the value of {word}")
+            if key == "dimension" and v != "3":
+                tok.fail(f"Dimension {v!r}: only 3D meshes (Dimension 3) are read", i + 1)
+            if key == "meshversionformatted" and v not in ("1", "2", "3", "4"):
+                tok.fail(f"MeshVersionFormatted {v!r}: expected 1 or 2 (an ASCII MEDIT file; a binary .meshb is "
+                         "not read)", i + 1)
+            continue
+        if key not in MEDIT_SECTIONS:
+            tok.fail(f"{word!r} is no MEDIT keyword" + (" (a number here means the count of the section before is "
+                                                        "too small)" if word[:1].isdigit() or word[:1] in "+-."
+                                                        else f"; the sections read are "
+                                                        f"{', '.join(k.title() for k in MEDIT_SECTIONS)}"), i)
+        if key in out:
+            tok.fail(f"a second {word} section (the first at line {tok.line(first[key])})", i)
+        w = MEDIT_SECTIONS[key]
+        n = tok.count(f"entries of the {word} section", w)
+        start = tok.pos
+        kind = "float" if key in ("vertices", "normals", "tangents") else "int"
+        out[key] = tok.block(n, w, f"{word} section", kind)
+        first[key] = start
+        if key in MEDIT_INDEXED:
+            out[key + "_lines"] = tok.lines[start:tok.pos:w] if n else np.zeros(0, np.int64)
+    for key in ("vertices", "tetrahedra"):
+        if key not in out:
+            raise error(f"{path}: no {key.title()} section; a MEDIT tet mesh needs Vertices and Tetrahedra")
+    nV = len(out["vertices"])
+    for key, k in MEDIT_INDEXED.items():
+        if key not in out or not len(out[key]):
+            continue
+        idx = out[key][:, :k]
+        bad = np.nonzero(np.any((idx < 1) | (idx > nV), axis=1))[0]
+        if len(bad):
+            r = bad[0]
+            v = idx[r][(idx[r] < 1) | (idx[r] > nV)][0]
+            hint = " (0: the indices look 0-based; MEDIT counts vertices from 1)" if v == 0 else ""
+            raise error(f"{path}:{out[key + '_lines'][r]}: {key.title()} entry {r + 1} refers to vertex {v}, but the "
+                        f"file has {nV:,} vertices (valid: 1..{nV}){hint}")
+    E = out.get("edges", np.zeros((0, 3), np.int64))
+    return MeditData(out["vertices"][:, :3], out["tetrahedra"][:, :4] - 1, E[:, :2] - 1, E[:, 2],
+                     out["tetrahedra_lines"], out.get("edges_lines", np.zeros(0, np.int64)))
 
 
 def boundary_triangles(mesh: TetMesh) -> np.ndarray:
@@ -355,7 +458,12 @@ def boundary_triangles(mesh: TetMesh) -> np.ndarray:
 
 
 def write_fra(path: str, frames: np.ndarray) -> None:
-    """Write per-tet frames in CubeCover's ``.fra`` format::
+    """Write per-tet frames as ``fra_text`` makes them."""
+    write_text(path, fra_text(frames))
+
+
+def fra_text(frames: np.ndarray) -> str:
+    """Per-tet frames in CubeCover's ``.fra`` format::
 
         FRA 1
         ntets 3 1
@@ -372,9 +480,7 @@ def write_fra(path: str, frames: np.ndarray) -> None:
     """
     F = np.asarray(frames, float)
     rows = np.transpose(F, (0, 2, 1)).reshape(-1, 3)  # axis k of tet t on row 3t + k
-    with open(path, "w", encoding="ascii") as fh:
-        fh.write(f"FRA 1\n{len(F)} 3 1\n")
-        fh.write(_fmt_rows(rows, "%.17g"))
+    return f"FRA 1\n{len(F)} 3 1\n" + _fmt_rows(rows, "%.17g")
 
 
 def read_fra(path: str) -> np.ndarray:
@@ -393,7 +499,12 @@ def read_fra(path: str) -> np.ndarray:
 
 
 def write_perm(path: str, n_tets: int, tets: np.ndarray, perms: np.ndarray, keep_identity: bool = False) -> None:
-    """Write face matchings in CubeCover's ``.perm`` format::
+    """Write face matchings as ``perm_text`` makes them."""
+    write_text(path, perm_text(n_tets, tets, perms, keep_identity))
+
+
+def perm_text(n_tets: int, tets: np.ndarray, perms: np.ndarray, keep_identity: bool = False) -> str:
+    """Face matchings in CubeCover's ``.perm`` format::
 
         PERM 1
         ntets nfaces 3
@@ -416,9 +527,7 @@ def write_perm(path: str, n_tets: int, tets: np.ndarray, perms: np.ndarray, keep
     if not keep_identity:
         keep = np.any(perms != [1, 2, 3], axis=1)
         tets, perms = tets[keep], perms[keep]
-    with open(path, "w", encoding="ascii") as fh:
-        fh.write(f"PERM 1\n{int(n_tets)} {len(tets)} 3\n")
-        fh.write(_fmt_rows(np.c_[tets, perms], "%d"))
+    return f"PERM 1\n{int(n_tets)} {len(tets)} 3\n" + _fmt_rows(np.c_[tets, perms], "%d")
 
 
 def read_perm(path: str) -> tuple[int, np.ndarray, np.ndarray]:
@@ -451,8 +560,7 @@ def write_qtn(path: str, quaternions: np.ndarray) -> None:
     and src/AlgoHex/SingularGraphExtractionT_impl.hh).  AlgoHex's frame axis i
     is ``q * e_i``, the i-th column of the rotation matrix, as here.  The cell
     order is the tet order of the ``.ovm``/``.mesh``/``.vtu`` written with it."""
-    with open(path, "w", encoding="ascii") as fh:
-        fh.write(_fmt_rows(np.asarray(quaternions, float), "%.17g"))
+    write_text(path, _fmt_rows(np.asarray(quaternions, float), "%.17g"))
 
 
 def read_qtn(path: str) -> np.ndarray:
@@ -581,8 +689,7 @@ def write_ovm(path: str, mesh: TetMesh, vertex_props: dict | None = None, edge_p
             out.append(f'{_OVM_ENTITIES[ent]} {t} "{name}"\n')
             out.append(_fmt_rows(a.astype(np.int64) if a.dtype.kind == "b" else a,
                                  "%.17g" if a.dtype.kind == "f" else "%d"))
-    with open(path, "w", encoding="ascii") as fh:
-        fh.write("".join(out))
+    write_text(path, "".join(out))
 
 
 @dataclass
@@ -602,82 +709,164 @@ class OVMData:
     cell_halffaces: np.ndarray
     tets: np.ndarray
     props: dict
+    props_line: dict = field(default_factory=dict)
 
 
-def read_ovm(path: str) -> OVMData:
+def read_ovm(path: str, error=NetworkError) -> OVMData:
     """Read an OpenVolumeMesh ASCII tet mesh with its properties (format in
-    ``write_ovm``).  Comment lines (#) and blank lines are skipped, keywords are
-    case-insensitive.  Properties of types other than the scalars and vec2/3/4
-    are skipped (one line per entity assumed)."""
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        lines = [s.strip() for s in fh]
-    lines = [s for s in lines if s and not s.startswith("#")]
-    pos = 0
-    if lines and lines[0].split()[0].upper() == "OVM":
-        if len(lines[0].split()) > 1 and lines[0].split()[1].upper() == "BINARY":
-            raise ValueError(f"{path}: binary OVM is not supported; save it as OVM ASCII")
-        pos = 1
+    ``write_ovm``), checking everything it reads.
 
-    def section(name, width):
-        nonlocal pos
-        if pos >= len(lines) or lines[pos].upper() != name:
-            raise ValueError(f"{path}: expected the {name.title()} section at line {pos + 1} of content")
-        n = int(lines[pos + 1])
-        block = lines[pos + 2:pos + 2 + n]
-        pos += 2 + n
-        if n == 0:
-            return np.zeros((0, width))
-        vals = np.asarray(" ".join(block).split(), dtype=float)
-        if len(vals) != n * width:
-            raise ValueError(f"{path}: the {name.title()} section is not {width} numbers per line"
-                             + (" (only tetrahedral meshes are supported)" if name in ("FACES", "POLYHEDRA") else ""))
-        return vals.reshape(n, width)
+    Comments (#) and blank lines are skipped, keywords are case-insensitive.
+    Numeric properties (``int``, ``uint``, ``short``, ``long``, ``char``,
+    ``bool``, ``float``, ``double`` and ``vec{2,3,4}{d,f,i,ui}``) are read;
+    others are skipped, one line per entity.  Every count, index and value
+    is checked (``error`` is raised naming the file, the line and the value):
+    counts are whole numbers the file holds that many entries for, vertices
+    finite, faces triangles of halfedges that close a loop, cells
+    tetrahedra of four halffaces that close one, integer properties whole
+    numbers.  ``props_line[entity][name]`` is the line of a property's first
+    value (one entity per line, as OpenVolumeMesh writes them).
+    """
+    tok = Tokens(read_text(path, error, "OpenVolumeMesh file"), path, error)
+    if not tok.done and tok.words[0].upper() == "OVM":
+        tok.next("OVM")
+        kind = tok.next("ASCII").upper() if not tok.done else "ASCII"
+        if kind == "BINARY":
+            tok.fail("binary OVM is not supported; save it as OVM ASCII", 1)
+        if kind != "ASCII":
+            tok.fail(f"'OVM {kind}': expected 'OVM ASCII'", 1)
 
-    V = section("VERTICES", 3)
-    E = section("EDGES", 2).astype(np.int64)
-    Fh = section("FACES", 4).astype(np.int64)
-    Ch = section("POLYHEDRA", 5).astype(np.int64)
-    if np.any(Fh[:, 0] != 3) or np.any(Ch[:, 0] != 4):
-        raise ValueError(f"{path}: only tetrahedral meshes are supported (faces of 3 halfedges, cells of 4)")
+    def section(name, width, kind):
+        i = tok.pos
+        word = tok.next(f"the {name} section")
+        if word.upper() != name.upper():
+            tok.fail(f"{word!r} where the {name} section was expected (sections: Vertices, Edges, Faces, "
+                     "Polyhedra, in this order)", i)
+        n = tok.count(name.lower(), width)
+        return tok.block(n, width, f"{name} section", kind), i
+
+    V, _ = section("Vertices", 3, "float")
+    E, _ = section("Edges", 2, "int")
+    Fh, f0 = section("Faces", 4, "int")
+    Ch, c0 = section("Polyhedra", 5, "int")
+    nV, nE, nF = len(V), len(E), len(Fh)
+    _entries_in_range(tok, E, 0, nV, 0, "edge", "vertex", f"0..{nV - 1}")
+    for X, first, what, valence, sub in ((Fh, f0, "face", 3, "halfedges"), (Ch, c0, "cell", 4, "halffaces")):
+        bad = np.nonzero(X[:, 0] != valence)[0]
+        if len(bad):
+            tok.fail(f"{what} {bad[0]} has {X[bad[0], 0]} {sub}; only tetrahedral meshes are supported ({what}s of "
+                     f"{valence} {sub})", _entry_word(tok, first, X.shape[1], bad[0]))
+    _entries_in_range(tok, Fh, f0, 2 * nE, 1, "face", "halfedge", f"0..{2 * nE - 1}")
+    _entries_in_range(tok, Ch, c0, 2 * nF, 1, "cell", "halfface", f"0..{2 * nF - 1}")
     he, hf = Fh[:, 1:], Ch[:, 1:]
-    counts = {"vertex": len(V), "edge": len(E), "halfedge": 2 * len(E), "face": len(he),
-              "halfface": 2 * len(he), "cell": len(hf), "mesh": 1}
+    loose = np.nonzero(E[:, 0] == E[:, 1])[0]
+    if len(loose):
+        tok.fail(f"edge {loose[0]} joins vertex {E[loose[0], 0]} to itself", _entry_word(tok, 0, 2, loose[0]))
+    # halfedge h runs from hv[h]; a face's halfedges must close a loop
+    hv = E.reshape(-1)
+    hv_to = E[:, ::-1].reshape(-1)
+    loop = hv[he]
+    open_ = np.nonzero(np.any(hv_to[he] != np.roll(loop, -1, axis=1), axis=1))[0]
+    if len(open_):
+        f = open_[0]
+        tok.fail(f"face {f}: its halfedges {he[f].tolist()} do not close a loop (each must start where the one "
+                 "before it ends)", _entry_word(tok, f0, 4, f))
+    T = _ovm_tets(tok, loop, hf, c0)
+    counts = {"vertex": nV, "edge": nE, "halfedge": 2 * nE, "face": nF, "halfface": 2 * nF, "cell": len(hf), "mesh": 1}
     props: dict = {k: {} for k in counts}
-    while pos < len(lines):
-        head = lines[pos]
+    props_line: dict = {k: {} for k in counts}
+    while not tok.done:
+        i = tok.pos
+        line = tok.line(i)
+        ent = _OVM_READ_ENTITIES.get(tok.words[i].lower())
+        if ent is None:
+            tok.fail(f"{tok.words[i]!r} where a property (VProp, EProp, FProp, CProp, ... type \"name\") or the "
+                     "end of the file was expected", i)
+        head = tok.raw_line(line)
+        while not tok.done and tok.line() == line:
+            tok.pos += 1
         parts = head.split()
-        ent = _OVM_READ_ENTITIES.get(parts[0].lower()) if parts else None
-        if ent is None or len(parts) < 2:
-            pos += 1
-            continue
+        if len(parts) < 2:
+            tok.fail(f"property line {head.strip()!r}: expected '{parts[0]} <type> \"<name>\"'", i)
         typ = parts[1].lower()
         name = head[head.find('"') + 1:head.rfind('"')] if head.count('"') >= 2 else ""
         n = counts[ent]
-        block = lines[pos + 1:pos + 1 + n]
-        pos += 1 + n
-        if typ in _OVM_SCALARS:
-            vals = np.asarray([b.split()[0] for b in block], dtype=float)
-            props[ent][name] = vals.astype(_OVM_SCALARS[typ]) if _OVM_SCALARS[typ] is not float else vals
-        elif typ.startswith("vec") and typ[3:4] in "234" and typ[4:] in ("d", "f", "i", "ui"):
-            k = int(typ[3])
-            vals = np.asarray(" ".join(block).split(), dtype=float).reshape(n, k)
-            props[ent][name] = vals if typ[4:] in ("d", "f") else vals.astype(np.int64)
-    # vertices of every halfface: from-vertices of the face loop, reversed for odd halffaces
-    hv = np.stack([E[:, 0], E[:, 1]], axis=1).reshape(-1)  # from-vertex of halfedge h: hv[h]
-    loop = hv[he]  # (#F, 3)
-    first = hf[:, 0]
-    tri = loop[first // 2]
-    tri = np.where((first % 2 == 1)[:, None], tri[:, ::-1], tri)
-    other = loop[hf[:, 1] // 2]
+        what = f"{ent} property {name!r}"
+        if typ in _OVM_SCALARS or (typ.startswith("vec") and typ[3:4] in ("2", "3", "4")
+                                   and typ[4:] in ("d", "f", "i", "ui")):
+            k = 1 if typ in _OVM_SCALARS else int(typ[3])
+            if n * k > len(tok) - tok.pos:
+                tok.fail(f"{what} ({typ}) needs {n:,} values of {k} number(s), one per {ent}, but the file holds "
+                         f"only {len(tok) - tok.pos:,} more values (truncated?)", i)
+            props_line[ent][name] = tok.line()
+            integer = typ in _OVM_SCALARS and _OVM_SCALARS[typ] is not float or typ[4:] in ("i", "ui")
+            if typ == "bool":
+                words = tok.words[tok.pos:tok.pos + n]
+                tok.words[tok.pos:tok.pos + n] = [{"true": "1", "false": "0"}.get(w.lower(), w) for w in words]
+            vals = tok.block(n, k, f"values of the {what}", "int" if integer else "float")
+            props[ent][name] = vals[:, 0] if k == 1 else vals
+            if typ == "bool":
+                if np.any((vals != 0) & (vals != 1)):
+                    j = int(np.argmax(((vals != 0) & (vals != 1))[:, 0]))
+                    tok.fail(f"{what} (bool): value {vals[j, 0]} for {ent} {j}; must be 0 or 1",
+                             tok.pos - n + j)
+                props[ent][name] = vals[:, 0].astype(bool)
+        else:
+            # an unknown type: its values take one line per entity
+            while not tok.done and tok.line() <= line + n:
+                tok.pos += 1
+    return OVMData(V, E, he, hf, T, props, props_line)
+
+
+def _entry_word(tok: Tokens, first: int, width: int, k: int) -> int:
+    """Index of the first word of entry k of a section whose keyword is word
+    ``first`` (then its count, then the entries)."""
+    return first + 2 + k * width
+
+
+def _entries_in_range(tok: Tokens, X: np.ndarray, first: int, n: int, skip: int, what: str, sub: str,
+                      valid: str) -> None:
+    """Refuse an index outside [0, n) in the columns of X after ``skip``."""
+    A = X[:, skip:]
+    bad = np.nonzero(np.any((A < 0) | (A >= n), axis=1))[0]
+    if len(bad):
+        k = bad[0]
+        v = A[k][(A[k] < 0) | (A[k] >= n)][0]
+        tok.fail(f"{what} {k} refers to {sub} {v}, but the file has {n:,} {sub}s (valid: {valid}; indices are "
+                 "0-based)", _entry_word(tok, first, X.shape[1], k))
+
+
+def _ovm_tets(tok: Tokens, loop: np.ndarray, hf: np.ndarray, first: int) -> np.ndarray:
+    """Vertex quadruples of the cells, oriented like the file (the first
+    halfface's loop, then the remaining vertex); a cell whose four
+    halffaces are not the four faces of one tetrahedron is refused."""
+    if not len(hf):
+        return np.zeros((0, 4), np.int64)
+    f = hf // 2
+    tris = loop[f]  # (#C, 4, 3)
+    tri = np.where((hf[:, 0] % 2 == 1)[:, None], tris[:, 0, ::-1], tris[:, 0])
+    other = tris[:, 1]
     on_tri = (other[:, :, None] == tri[:, None, :]).any(axis=2)
     fourth = other[np.arange(len(other)), np.argmin(on_tri, axis=1)]
     T = np.c_[tri, fourth]
-    return OVMData(V, E, he, hf, T, props)
+    # each of the four faces: three distinct vertices of T; the faces distinct
+    in_T = (tris[:, :, :, None] == T[:, None, None, :]).any(axis=3).all(axis=2)
+    Ts = np.sort(T, axis=1)
+    distinct = np.all(Ts[:, 1:] != Ts[:, :-1], axis=1)
+    fs = np.sort(f, axis=1)
+    faces_distinct = np.all(fs[:, 1:] != fs[:, :-1], axis=1)
+    bad = np.nonzero(~(in_T.all(axis=1) & distinct & faces_distinct))[0]
+    if len(bad):
+        c = bad[0]
+        tok.fail(f"cell {c}: its halffaces {hf[c].tolist()} are not the four faces of one tetrahedron",
+                 _entry_word(tok, first, 5, c))
+    return T
 
 
 # ============================================================ export dispatch
 
 FORMATS = {".vtu": "vtu", ".mesh": "medit", ".ovm": "ovm", ".qtn": "qtn"}
+MEDIT_SIDE_FILES = (".fra", ".perm")  # written beside a .mesh export
 
 
 def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
@@ -705,6 +894,14 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
     list of str
         The files written.
 
+    Raises
+    ------
+    OutputError
+        An unknown format or extension, or a path that cannot be written
+        (checked before any work, ``atomic.check_output_path``), or a write
+        that fails: every file is written whole or not at all, MEDIT's three
+        together (``atomic.write_files``).
+
     What is written (tet order = ``result.mesh.tets`` everywhere, so a ``.qtn``
     matches the ``.ovm``/``.mesh``/``.vtu`` of the same result):
 
@@ -722,13 +919,15 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
     * qtn: the tet quaternions w, x, y, z.
     """
     if fmt is None:
-        ext = os.path.splitext(path)[1].lower()
+        ext = os.path.splitext(os.fspath(path))[1].lower() if isinstance(path, (str, os.PathLike)) else ""
         if ext not in FORMATS:
-            raise ValueError(f"cannot tell the format of {path!r} from its extension; use one of "
-                             f"{', '.join(FORMATS)} or pass fmt= ('vtu', 'medit', 'ovm', 'qtn')")
+            check_output_path(path, "export", FORMATS)  # refuses, naming the extension
         fmt = FORMATS[ext]
-    if fmt not in FORMATS.values():
-        raise ValueError(f"unknown format {fmt!r}; choose one of {', '.join(FORMATS.values())}")
+    elif fmt not in FORMATS.values():
+        raise OutputError(f"export {path}: unknown format {fmt!r}; choose one of {', '.join(FORMATS.values())}")
+    if fmt == "medit":
+        path = os.path.splitext(path)[0] + ".mesh"
+    check_output_path(path, "export", suffix_files=MEDIT_SIDE_FILES if fmt == "medit" else ())
     if on_edges is None:
         on_edges = fmt != "vtu" and not isinstance(result, FieldData)
     if data is not None:
@@ -754,10 +953,11 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
                   face_props={"matching": g}, cell_props=cell)
         return [path]
     stem = os.path.splitext(path)[0]
-    paths = [stem + ".mesh", stem + ".fra", stem + ".perm"]
-    write_medit(paths[0], mesh.vertices, mesh.tets, boundary_triangles(mesh), tet_refs=fe.curve + 1,
-                triangle_refs=1)
-    write_fra(paths[1], fe.tet.frames)
     fm = fe.matchings
-    write_perm(paths[2], mesh.n_tets, fm.tets, signed_permutation(fm.symmetry), keep_identity=all_faces)
-    return paths
+    # the three files go together: all are written or none
+    return write_files({
+        stem + ".mesh": medit_text(mesh.vertices, mesh.tets, boundary_triangles(mesh), tet_refs=fe.curve + 1,
+                                   triangle_refs=1),
+        stem + ".fra": fra_text(fe.tet.frames),
+        stem + ".perm": perm_text(mesh.n_tets, fm.tets, signed_permutation(fm.symmetry), keep_identity=all_faces),
+    }, f"export {path}")

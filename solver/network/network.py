@@ -62,12 +62,41 @@ class Torsion(str, Enum):
     FIXED = "fixed"  # Eq. 22: total torsion of the least-twist reference frame
 
 
+_UNSET = object()
+
+
+class _Checked:
+    """A dataclass whose fields, set after construction, are checked again
+    as at construction (``_check``): a value refused there is refused here,
+    with the same NetworkError, and the old value is kept."""
+
+    def __setattr__(self, name, value):
+        d = self.__dict__
+        if not d.get("_ready") or d.get("_checking") or name.startswith("_"):
+            object.__setattr__(self, name, value)
+            return
+        old = d.get(name, _UNSET)
+        object.__setattr__(self, name, value)
+        object.__setattr__(self, "_checking", True)
+        try:
+            self._check()
+        except BaseException:
+            if old is _UNSET:
+                object.__delattr__(self, name)
+            else:
+                object.__setattr__(self, name, old)
+            raise
+        finally:
+            object.__setattr__(self, "_checking", False)
+
+
 @dataclass
-class Curve:
+class Curve(_Checked):
     """A polyline of the network.
 
-    The fields are checked when the curve is made (``NetworkError`` names
-    the field and the fix).
+    The fields are checked when the curve is made and again when one is set
+    later (``NetworkError`` names the field and the fix; a refused value
+    leaves the old one).
 
     Parameters
     ----------
@@ -100,6 +129,10 @@ class Curve:
     closed: bool = False
 
     def __post_init__(self):
+        self._check()
+        object.__setattr__(self, "_ready", True)
+
+    def _check(self):
         # types and ranges in one place (checks.py); geometry is checked
         # against the solid in validation.py
         E = NetworkError
@@ -133,7 +166,7 @@ def _corner_turns(turns) -> dict:
 
 
 @dataclass
-class Network:
+class Network(_Checked):
     """The curve network and the sharp-feature settings of a domain.
 
     Parameters
@@ -170,6 +203,10 @@ class Network:
     corner_turns: dict | None = None
 
     def __post_init__(self):
+        self.validate()
+        object.__setattr__(self, "_ready", True)
+
+    def _check(self):
         self.validate()
 
     def validate(self) -> None:
@@ -341,8 +378,18 @@ def prepare_network(net: Network, diag: float) -> PreparedNetwork:
                 )
             if len(members) == 2:
                 a, b = (curves[i] for i, _ in m_ends)
+                gap = float(np.linalg.norm(X[members[0]] - X[members[1]]))
+                if (a.sigma, a.role, a.torsion) == (b.sigma, b.role, b.torsion):
+                    # not joined by _join_chains: they turn back on each other
+                    raise NetworkError(
+                        f"curves {names} have ends {gap:.3g} apart at {_fmt(pos)}, closer than node_tolerance "
+                        f"({tol:.3g}), but they do not continue each other (they turn back there): ends this "
+                        "close are one point, and curves are joined only where one continues the other. Move "
+                        "the ends apart (more than node_tolerance), make them one curve, or end them at a node "
+                        "of 3-4 curves")
                 raise NetworkError(
-                    f"curves {names} meet end to end at {_fmt(pos)} (a node of degree 2) with different "
+                    f"curves {names} meet end to end at {_fmt(pos)} (ends {gap:.3g} apart, within "
+                    f"node_tolerance {tol:.3g}; a node of degree 2) with different "
                     f"indices, roles or torsions (sigma {a.sigma:+g} / {b.sigma:+g}, {a.role.value} / "
                     f"{b.role.value}, torsion {a.torsion.value} / {b.torsion.value}); one curve needs one of "
                     "each: make them equal, or end them at a node of 3-4 curves"
@@ -375,6 +422,18 @@ def cluster_points(X: np.ndarray, tol: float) -> np.ndarray:
                                 directed=False)[1]
 
 
+def _end_direction(P: np.ndarray, end: int) -> np.ndarray:
+    """Unit direction in which an open polyline leaves through its end (0:
+    the start, 1: the end): the chord from the point a quarter of its length
+    in, which a hand-drawn wiggle at the end does not turn."""
+    Q = P if end == 1 else P[::-1]
+    s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))]
+    k = min(int(np.searchsorted(s, 0.75 * s[-1])), len(Q) - 2)
+    d = Q[-1] - Q[k]
+    n = np.linalg.norm(d)
+    return d / n if n > 0 else d
+
+
 def _join_chains(curves: list, idx: list, tol: float) -> tuple[list, list, dict]:
     """Curves that meet end to end, two ends alone within tol with the same
     index, role and torsion (a curve drawn in several strokes), become one
@@ -395,6 +454,10 @@ def _join_chains(curves: list, idx: list, tol: float) -> tuple[list, list, dict]
         (i, si), (j, sj) = ends[m[0]], ends[m[1]]
         a, b = curves[i], curves[j]
         if i == j or (a.sigma, a.role, a.torsion) != (b.sigma, b.role, b.torsion):
+            continue
+        if _end_direction(a.points, si) @ _end_direction(b.points, sj) >= 0:
+            # the pieces turn back on each other (two curves side by side, not one drawn in strokes): left
+            # apart, for the refusal that names both and their distance
             continue
         link[(i, si)], link[(j, sj)] = (j, sj), (i, si)
     if not link:

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import checks
 from ..errors import NetworkError, TopologyError
 from ..surface.corners import explain_failure, resolve_corners
 from ..surface.features import (
@@ -20,6 +21,7 @@ from ..surface.features import (
     sharp_edges_by_angle,
     sharp_edges_from_pairs,
 )
+from ..surface.thickness import check_edge_length
 from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
 from .curve_ends import END_GAP, join_loose_ends
 from .fairing import MAX_KINK
@@ -86,8 +88,13 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     repair : run the curve intake (intake.py) on the interior curves first
     """
 
+    if not isinstance(net, Network):
+        raise NetworkError(f"network = {checks.describe(net)}: must be a solver.Network (e.g. Network(curves=[...]), "
+                           "or Network() for none)")
     S = validate_surface(V, F, check_intersections=check_intersections)
     diag = S.bbox_diagonal
+    if scale is not None:  # a given edge length: refused before meshing when past the solid's size
+        check_edge_length(S, float(scale), solid_scale(S, target_tets))
     h = float(scale) if scale is not None else solid_scale(S, target_tets)
     btol = net.boundary_tolerance if net.boundary_tolerance is not None else 1e-2 * diag
     joined = {}
@@ -376,10 +383,14 @@ def _check_crossings(pn: PreparedNetwork, label, tol):
     tol : distance below which two segments touch.  Segments of one curve
     closer along the curve than 4 tol apart are neighbours, not a
     self-intersection (a segment shorter than tol made segments i and i + 2
-    touch)."""
+    touch).  Near-linear in the number of points (``_near_segments``);
+    points closer along the curve than tol / 8 are thinned out first (the
+    polyline moves by less than tol / 16), so that a curve sampled far
+    finer than tol does not pair every segment with hundreds of its
+    neighbours."""
     segs, owner, index = [], [], []
-    for ci, c in enumerate(pn.curves):
-        P = c.points
+    curve_points = [_thinned(c.points, tol / 8) for c in pn.curves]
+    for ci, P in enumerate(curve_points):
         segs.append(np.stack([P[:-1], P[1:]], axis=1))
         owner.append(np.full(len(P) - 1, ci))
         index.append(np.arange(len(P) - 1))
@@ -388,39 +399,71 @@ def _check_crossings(pn: PreparedNetwork, label, tol):
     S = np.concatenate(segs)
     own = np.concatenate(owner)
     idx = np.concatenate(index)
-    nseg = np.array([len(c.points) - 1 for c in pn.curves])
-    mid = S.mean(axis=1)
-    half = 0.5 * np.linalg.norm(S[:, 1] - S[:, 0], axis=1)
-    pairs = cKDTree(mid).query_pairs(2 * half.max() + tol + 1e-12, output_type="ndarray")
-    if len(pairs) == 0:
-        return
-    i, j = pairs[:, 0], pairs[:, 1]
-    same = own[i] == own[j]
-    # arc length between the two segments along their curve
+    nseg = np.array([len(P) - 1 for P in curve_points])
     seg_len = np.linalg.norm(S[:, 1] - S[:, 0], axis=1)
+    # arc length along its curve of each segment's ends
     s_end = np.concatenate([np.cumsum(seg_len[own == o]) for o in range(len(pn.curves))])
     s_start = s_end - seg_len
+    closed = np.array([c.closed for c in pn.curves])
+    node_pts = np.array([nd.position for nd in pn.nodes]) if pn.nodes else np.zeros((0, 3))
+    node_tree = cKDTree(node_pts) if len(node_pts) else None
+    i, j = _near_segments(S, seg_len, tol)
+    same = own[i] == own[j]
     first, second = np.where(idx[i] < idx[j], i, j), np.where(idx[i] < idx[j], j, i)
     gap = np.where(same, s_start[second] - s_end[first], np.inf)
     adjacent = same & ((np.abs(idx[i] - idx[j]) == 1) | (gap < 4 * tol))
-    closed = np.array([c.closed for c in pn.curves])
     wrap = same & closed[own[i]] & (np.abs(idx[i] - idx[j]) == nseg[own[i]] - 1)
-    keep = ~adjacent & ~wrap
+    keep = np.nonzero(~adjacent & ~wrap)[0]
     i, j = i[keep], j[keep]
-    d, pt = _segment_distance(S[i], S[j])
-    # segments meeting at a shared node are allowed to touch there
-    node_pts = np.array([nd.position for nd in pn.nodes]) if pn.nodes else np.zeros((0, 3))
-    if len(node_pts):
-        dn = np.min(np.linalg.norm(pt[:, None] - node_pts[None], axis=2), axis=1)
-        at_node = dn < 10 * tol
-    else:
-        at_node = np.zeros(len(d), bool)
-    bad = np.nonzero((d < tol) & ~at_node)[0]
-    if len(bad):
-        k = bad[0]
-        a, b = own[i[k]], own[j[k]]
-        what = f"{label(a)} intersects itself" if a == b else f"{label(a)} and {label(b)} cross"
-        raise NetworkError(f"{what} near {_fmt(pt[k])}; curves may only meet at their ends, at nodes")
+    for a in range(0, len(i), 1 << 20):  # bounded memory whatever the number of candidates
+        ii, jj = i[a:a + (1 << 20)], j[a:a + (1 << 20)]
+        d, pt = _segment_distance(S[ii], S[jj])
+        bad = np.nonzero(d < tol)[0]
+        if len(bad) and node_tree is not None:
+            # segments meeting at a shared node are allowed to touch there
+            dn, _ = node_tree.query(pt[bad])
+            bad = bad[dn >= 10 * tol]
+        if len(bad):
+            k = bad[0]
+            a_, b_ = own[ii[k]], own[jj[k]]
+            what = f"{label(a_)} intersects itself" if a_ == b_ else f"{label(a_)} and {label(b_)} cross"
+            raise NetworkError(f"{what} near {_fmt(pt[k])} ({d[k]:.3g} apart, closer than {tol:.3g}); curves may "
+                               "only meet at their ends, at nodes")
+
+
+def _thinned(P: np.ndarray, step: float) -> np.ndarray:
+    """P without the points that fall in the same arc-length bin of width
+    step as the point kept before them (both ends kept)."""
+    if len(P) <= 2 or step <= 0:
+        return P
+    s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+    b = np.floor(s / step)
+    keep = np.r_[True, b[1:] != b[:-1]]
+    keep[-1] = True
+    return P[keep]
+
+
+def _near_segments(S: np.ndarray, length: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs (i, j), i < j, of segments S ((n, 2, 3)) that may come
+    closer than tol: a superset of them, found among pieces of the segments.
+
+    Every segment is cut into pieces no longer than L, and two pieces closer
+    than tol have midpoints closer than L + tol.  The search radius so
+    follows the local segment length, not the longest one: L is the median
+    length (or the mean over 4, so that at most 5 n pieces are made, or
+    tol), and a long segment among short ones adds pieces, not a radius
+    that pairs every short segment with all its neighbours."""
+    n = len(S)
+    L = max(float(np.median(length)), float(length.sum()) / (4 * n), tol, 1e-300)
+    k = np.maximum(1, np.ceil(length / L)).astype(np.int64)
+    seg = np.repeat(np.arange(n), k)
+    t = (np.arange(len(seg)) - np.repeat(np.cumsum(k) - k, k) + 0.5) / k[seg]
+    mid = S[seg, 0] + t[:, None] * (S[seg, 1] - S[seg, 0])
+    pairs = cKDTree(mid).query_pairs(L + tol + 1e-12 * L, output_type="ndarray")
+    i, j = seg[pairs[:, 0]], seg[pairs[:, 1]]
+    keep = i != j
+    code = np.unique(np.minimum(i[keep], j[keep]) * n + np.maximum(i[keep], j[keep]))
+    return code // n, code % n
 
 
 def _segment_distance(A, B):

@@ -188,9 +188,67 @@ class TriSurface:
         Sum of signed solid angles of all triangles (Van Oosterom-Strackee).
         On surfaces of over FAST_WINDING_FACES triangles, groups of
         triangles far from a point count by their dipole (issue 41e:
-        _winding_fast).
+        _winding_fast); many points (a dense curve) on a closed surface
+        share sums (``_shared_winding``).
         """
         X = np.atleast_2d(np.asarray(X, float))
+        if len(X) > 256 and self._closed and np.all(np.isfinite(X)):
+            return self._shared_winding(X, chunk)
+        return self._winding(X, chunk)
+
+    @cached_property
+    def _closed(self) -> bool:
+        """Every edge has exactly two faces (the winding number is then an
+        integer, constant between the sheets of the surface)."""
+        E = np.sort(self.F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        _, cnt = np.unique(E, axis=0, return_counts=True)
+        return bool(len(cnt)) and bool(np.all(cnt == 2))
+
+    def _shared_winding(self, X: np.ndarray, chunk: int, batch: int = 256) -> np.ndarray:
+        """The winding number of a closed surface is constant in the ball of
+        radius d(x) (the distance to the surface) around x, so it is summed
+        over all triangles only at a few representatives, farthest from the
+        surface first, in rounds of 1, 2, 4, ... up to ``batch`` of the points
+        left, and copied to the points left in their balls: linear in the
+        points, not in points x triangles, for a dense curve."""
+        r = (1.0 - 1e-9) * self._distance_below(X)
+        out = np.full(len(X), np.nan)
+        todo = np.argsort(-r, kind="stable")
+        tree, ids = cKDTree(X), np.arange(len(X))
+        n = 1
+        while len(todo):
+            reps = todo[:n]
+            out[reps] = self._winding(X[reps], chunk)
+            balls = tree.query_ball_point(X[reps], r[reps], return_sorted=False)
+            size = np.fromiter((len(b) for b in balls), np.int64, len(balls))
+            if size.sum():
+                inside = ids[np.concatenate([np.asarray(b, np.int64) for b in balls if len(b)])]
+                src = np.repeat(reps, size)
+                new = np.isnan(out[inside])
+                out[inside[new]] = out[src[new]]
+            todo = todo[np.isnan(out[todo])]
+            if len(todo) < len(ids) // 2:  # search only the points left
+                tree, ids = cKDTree(X[todo]), todo.copy()
+            n = min(2 * n, batch)
+        return out
+
+    def _distance_below(self, X: np.ndarray) -> np.ndarray:
+        """A lower bound of the distance from each of X (k, 3) to the surface:
+        the closest of the triangles of the 16 nearest centroids, or less
+        when a farther triangle may be closer (closest_points without its
+        exact per-point fallback)."""
+        P, cent, rad, tree = self._face_tree
+        kq = min(len(self.F), 16)
+        dc, idx = tree.query(X, k=kq)
+        dc, idx = dc.reshape(len(X), kq), idx.reshape(len(X), kq)
+        best = np.full(len(X), np.inf)
+        for j in range(kq):
+            best = np.minimum(best, np.linalg.norm(closest_point_on_triangles(X, P[idx[:, j]]) - X, axis=1))
+        return np.clip(np.minimum(best, dc[:, -1] - rad.max()), 0.0, None)
+
+    def _winding(self, X: np.ndarray, chunk: int) -> np.ndarray:
+        """The winding number summed over all triangles (Van Oosterom-Strackee),
+        far groups by their dipole on large surfaces (_winding_fast)."""
         if len(self.F) > FAST_WINDING_FACES and len(X):
             return self._winding_fast(X, chunk)
         return _solid_angle_sum(self.V[self.F], X, chunk)
@@ -406,18 +464,41 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
     return S
 
 
+def _is_complex(V) -> bool:
+    """Complex vertex coordinates (an array, or lists holding complex numbers)."""
+    if isinstance(V, np.ndarray):
+        return np.iscomplexobj(V)
+    if isinstance(V, (list, tuple)):
+        return any(isinstance(x, (complex, np.complexfloating)) for row in V if isinstance(row, (list, tuple))
+                   for x in row)
+    return False
+
+
+# coordinates beyond this overflow squared distances and volumes (1e200**2 = inf)
+MAX_COORDINATE = 1e100
+
+
 def _surface_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
     """(V, F) as float and int64 arrays of the right shapes, finite, with
     indices in range."""
+    if V is None or F is None:
+        raise SurfaceError(f"surface {'vertices' if V is None else 'faces'} = None: give the vertices as an (n, 3) "
+                           "array of numbers and the faces as an (m, 3) array of vertex indices")
+    if _is_complex(V):
+        raise SurfaceError("surface vertices are complex numbers; give real coordinates (an (n, 3) float array; "
+                           "the imaginary part is not dropped silently)")
     try:
         V = np.asarray(V, dtype=float)
         F = np.asarray(F)
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, OverflowError) as e:
         raise SurfaceError(f"surface vertices must be an (n, 3) array of numbers and faces an (m, 3) array of "
                            f"vertex indices ({e})") from None
     if V.ndim != 2 or V.shape[1] != 3 or len(V) < 4:
         raise SurfaceError(f"surface vertices must be an (n, 3) array with n >= 4, got shape {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or len(F) < 4:
+    if F.ndim == 2 and F.shape[1] == 3 and len(F) < 4:
+        raise SurfaceError(f"the surface has {len(F)} triangle(s): a closed surface bounding a solid has at least 4 "
+                           "(an open plane or sheet bounds no volume); give the closed surface of the solid")
+    if F.ndim != 2 or F.shape[1] != 3:
         raise SurfaceError(
             f"surface faces must be an (m, 3) array of triangles with m >= 4, got shape {F.shape}; "
             "triangulate quads and n-gons first"
@@ -425,6 +506,11 @@ def _surface_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
     if not np.all(np.isfinite(V)):
         bad = np.nonzero(~np.all(np.isfinite(V), axis=1))[0][0]
         raise SurfaceError(f"surface vertex {bad} has a non-finite coordinate")
+    far = np.nonzero(np.any(np.abs(V) > MAX_COORDINATE, axis=1))[0]
+    if len(far):
+        raise SurfaceError(f"surface vertex {far[0]} at {V[far[0]].tolist()} is beyond +-{MAX_COORDINATE:g}: "
+                           f"{len(far)} such vertex/vertices; a stray vertex (delete it) or a model in the wrong "
+                           "units (scale it)")
     if not np.issubdtype(F.dtype, np.integer):
         raise SurfaceError("surface faces must hold integer vertex indices")
     F = F.astype(np.int64)
