@@ -121,6 +121,48 @@ def repairs_text(repairs: list[CurveRepair], h: float) -> str:
     return "\n".join(lines)
 
 
+def _repair_without_kinks(repair_at, h: float, c: Curve):
+    """The repair of curve c at scale h, or at a finer local scale where the
+    repair turns faster than the kink check allows: (the scale, repair_at's
+    result at it).
+
+    A repair must never make what the kink check refuses (issue 41a): the
+    check judges a singular curve over the mesh scale, and an end bent onto
+    the normal on a curve a few h long can turn faster than that (a curve
+    3.4 h long with its start 30 degrees off turned by 79 degrees over h).
+    The kink check judges the curve as given and the repair apart: a turn at
+    a corner the fairing held is the user's (validation refuses it, naming
+    the corner); one the repair made is repaired again at a local scale
+    h / 2, h / 4, ..., and the mesh is made that fine around the curve
+    (CheckedInput.curve_scales, resolution.py); only a turn no scale down to
+    h / 2**LOCAL_LEVELS removes is left to validation, which says it is the
+    repair's.
+    """
+    hc = h
+    out = repair_at(hc)
+    Q, corners = out[0], out[6]
+    if c.sigma == 0 or len(Q) <= 2:
+        return hc, out
+    for _ in range(LOCAL_LEVELS):
+        k, turn = _worst_turn(Q, hc, c.closed)
+        if turn <= REPAIR_KINK or _near(Q[k], corners, 0.5 * hc):
+            break
+        finer = repair_at(0.5 * hc)
+        _, turn2 = _worst_turn(finer[0], 0.5 * hc, c.closed)
+        hc *= 0.5
+        out = finer
+        Q, corners = out[0], out[6]
+        if turn2 <= REPAIR_KINK:
+            break
+    if hc < h:
+        Q, merged, faired, note, ends, ncorner, corners = out
+        note = (note + "; " if note else "") + (
+            f"repaired at a local scale {hc:.3g} = {hc / h:.2g} h (its end bend turns too fast for h; the "
+            "mesh is made that fine around it)")
+        out = (Q, merged, faired, note, ends, ncorner, corners)
+    return hc, out
+
+
 def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                    boundary_tolerance: float, joined: dict | None = None) -> tuple[PreparedNetwork, list[CurveRepair]]:
     """Repair every prepared interior curve at scale h (module docstring).
@@ -212,34 +254,7 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                         ends.append(bend)
             return Q, merged, faired, note, ends, ncorner, _corner_points(Q, fixed, c.closed)
 
-        # A repair must never make what the kink check refuses (issue 41a):
-        # the check judges a singular curve over the mesh scale, and an end
-        # bent onto the normal on a curve a few h long can turn faster than
-        # that (a curve 3.4 h long with its start 30 degrees off turned by 79
-        # degrees over h).  The kink check judges the curve as given and
-        # the repair apart: a turn at a corner the fairing held is the
-        # user's (validation refuses it, naming the corner); one the repair
-        # made is repaired again at a local scale h / 2, h / 4, ..., and the
-        # mesh is made that fine around the curve (CheckedInput.curve_scales,
-        # resolution.py); only a turn no scale down to h / 2**LOCAL_LEVELS
-        # removes is left to validation, which says it is the repair's.
-        hc = h
-        Q, merged, faired, note, ends, ncorner, corners = repair_at(hc)
-        if c.sigma != 0 and len(Q) > 2:
-            for _ in range(LOCAL_LEVELS):
-                k, turn = _worst_turn(Q, hc, c.closed)
-                if turn <= REPAIR_KINK or _near(Q[k], corners, 0.5 * hc):
-                    break
-                finer = repair_at(0.5 * hc)
-                k2, turn2 = _worst_turn(finer[0], 0.5 * hc, c.closed)
-                hc *= 0.5
-                Q, merged, faired, note, ends, ncorner, corners = finer
-                if turn2 <= REPAIR_KINK:
-                    break
-            if hc < h:
-                note = (note + "; " if note else "") + (
-                    f"repaired at a local scale {hc:.3g} = {hc / h:.2g} h (its end bend turns too fast for h; the "
-                    "mesh is made that fine around it)")
+        hc, (Q, merged, faired, note, ends, ncorner, corners) = _repair_without_kinks(repair_at, h, c)
         scales.append(hc)
         turn_in = float(turning(merge_close(P0, 1e-9 * h, c.closed), 0.5 * h, c.closed).max()) if len(P0) > 2 else 0.0
         turn_out = float(turning(Q, 0.5 * h, c.closed).max()) if len(Q) > 2 else 0.0
