@@ -1,4 +1,4 @@
-"""The house's imports run one way, downward (CONTRIBUTING.md).
+"""The house's imports run one way, downward (CONTRIBUTING.md), and its functions stay short.
 
 Every import of the solver and the add-on, module-level or inside a
 function, is read from the source: no module may import itself through a
@@ -151,3 +151,19 @@ def test_errors_doc_lists_every_refusal_class():
         if issubclass(cls, (errors.SymFramesError, errors.Cancelled)) and cls is not errors.SymFramesError:
             assert name in rows, f"docs/errors.md has no row for {name}"
             assert name == "Cancelled" or rows[name].count("`") >= 4, f"{name}: no example message"
+
+
+def test_functions_stay_short_and_the_pipeline_keeps_only_the_order():
+    """No function or method in solver/ is over 120 lines, and FieldProblem
+    (the stages' order and the LM set-up) stays within 200 (issue 42): a
+    long one is split into named steps."""
+    long, problem = [], None
+    for path in sorted((ROOT / "solver").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            n = getattr(node, "end_lineno", 0) - getattr(node, "lineno", 0) + 1
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and n > 120:
+                long.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name} ({n} lines)")
+            if isinstance(node, ast.ClassDef) and node.name == "FieldProblem":
+                problem = n
+    assert not long, long
+    assert problem is not None and problem <= 200, problem
