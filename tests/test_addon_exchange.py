@@ -120,10 +120,9 @@ def test_import_a_json_network(tmp_path):
     assert bpy.ops.symframes.check_network() == {"FINISHED"}
 
 
-def test_import_a_tagged_tet_mesh(tmp_path):
-    """Two straight valence-3 and valence-5 axes through a box, tagged on the
-    edges of a structured tet mesh: two curves of index +1 and -1 quarter
-    turns with the valence convention, the box's edges sharp by angle."""
+def _tagged_axes(tmp_path) -> str:
+    """A structured box tet mesh with a valence-3 and a valence-5 axis tagged
+    on its edges (OVM, the valence convention); its path."""
     mesh = box_mesh(4)
     tags = np.full(mesh.n_edges, 4, np.int64)
     for x, valence in ((1, 3), (3, 5)):
@@ -132,6 +131,14 @@ def test_import_a_tagged_tet_mesh(tmp_path):
         tags[mesh.edge_index(ids[:-1], ids[1:])] = valence
     path = str(tmp_path / "axes.ovm")
     write_ovm(path, mesh, edge_props={"valence": tags})
+    return path
+
+
+def test_import_a_tagged_tet_mesh(tmp_path):
+    """Two straight valence-3 and valence-5 axes through a box, tagged on the
+    edges of a structured tet mesh: two curves of index +1 and -1 quarter
+    turns with the valence convention, the box's edges sharp by angle."""
+    path = _tagged_axes(tmp_path)
     assert bpy.ops.symframes.import_network(filepath=path, tag_convention="VALENCE") == {"FINISHED"}
     s = bpy.context.scene.symframes
     curves = [o for o in s.network.all_objects if o.type == "CURVE"]
@@ -143,14 +150,7 @@ def test_import_detects_the_convention_and_refuses_a_wrong_one(tmp_path):
     """The same axes tagged by valence: Detect finds 'valence' and says so;
     an explicit wrong convention is refused before anything is added, naming
     the detected one (the check the command line runs, issue 43)."""
-    mesh = box_mesh(4)
-    tags = np.full(mesh.n_edges, 4, np.int64)
-    for x, valence in ((1, 3), (3, 5)):
-        ids = np.array([np.argmin(np.linalg.norm(mesh.vertices - 0.25 * np.array([x, 2, z]), axis=1))
-                        for z in range(5)])
-        tags[mesh.edge_index(ids[:-1], ids[1:])] = valence
-    path = str(tmp_path / "axes.ovm")
-    write_ovm(path, mesh, edge_props={"valence": tags})
+    path = _tagged_axes(tmp_path)
     before = scene_objects()
     with pytest.raises(RuntimeError, match="'index' tag convention.*the 'valence' convention"):
         bpy.ops.symframes.import_network(filepath=path, tag_convention="INDEX")
