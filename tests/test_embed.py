@@ -235,7 +235,10 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     V, F, net = ball_example()
     S = np.array([2.0, 1.0, 0.6])
     net = Network(curves=[Curve(c.points * S, sigma=c.sigma, name=c.name) for c in net.curves])
-    p = FieldProblem(V * S, F, net, Options())
+    # the budget held and graded at 0.5, as the meshes this was seen on (the
+    # default now spends more tets on this network and grades more gently,
+    # which leaves only a few faces for the per-vertex measure to get wrong)
+    p = FieldProblem(V * S, F, net, Options(target_tets=15000, grading=0.5))
     assert p.report.sizes.get("graded_tets", 0) > 0
     mesh, emb, cons = p.mesh, p.embedding, p.constraints
     faces = _all_tube_faces(p)
@@ -253,4 +256,5 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     per_vertex[tube] = omega0[tube] + (sigma * theta[tube])[:, None] * T[tube]
     before, after = wrong(per_vertex), wrong(cons.tube_reference)
     assert len(faces) > 300
+    print(f"tube faces {len(faces)}: wrong per vertex {before}, settled {after}")
     assert after <= 0.3 * before + 2, (before, after)
