@@ -190,25 +190,23 @@ def oriented_scaled_jacobians(points: np.ndarray, vsets, esets) -> np.ndarray:
     and edge sets (an .ovmb): each cell in VTK order, in the orientation
     whose corner determinants sum higher (the mirror order negates them all)."""
     H = np.array([vtk_order(v, e) for v, e in zip(vsets, esets)], dtype=np.int64).reshape(-1, 8)
-    out = []
-    for order in (H, H[:, [0, 3, 2, 1, 4, 7, 6, 5]]):
-        P = points[order]
-        E = P[:, _VTK_CORNER_NBRS] - P[:, :, None, :]
-        E /= np.maximum(np.linalg.norm(E, axis=3, keepdims=True), 1e-300)
-        out.append(np.einsum("...i,...i->...", E[..., 0, :], np.cross(E[..., 1, :], E[..., 2, :])))
-    a, b = out
+    a, b = corner_scaled_jacobians(points, H), corner_scaled_jacobians(points, H[:, [0, 3, 2, 1, 4, 7, 6, 5]])
     return np.where(b.sum(axis=1) > a.sum(axis=1), b.min(axis=1), a.min(axis=1))
+
+
+def corner_scaled_jacobians(points: np.ndarray, hexes: np.ndarray) -> np.ndarray:
+    """(m, 8): per corner the det of the 3 unit edges there (VTK order)."""
+    P = points[hexes]
+    E = P[:, _VTK_CORNER_NBRS] - P[:, :, None, :]
+    E /= np.maximum(np.linalg.norm(E, axis=3, keepdims=True), 1e-300)
+    return np.einsum("...i,...i->...", E[..., 0, :], np.cross(E[..., 1, :], E[..., 2, :]))
 
 
 def min_scaled_jacobian(points: np.ndarray, hexes: np.ndarray) -> float:
     """Smallest corner scaled Jacobian (det of the 3 unit edges at a corner)."""
     if not len(hexes):
         return float("nan")
-    P = points[hexes]
-    E = P[:, _VTK_CORNER_NBRS] - P[:, :, None, :]
-    E /= np.maximum(np.linalg.norm(E, axis=3, keepdims=True), 1e-300)
-    det = np.einsum("...i,...i->...", E[..., 0, :], np.cross(E[..., 1, :], E[..., 2, :]))
-    return float(det.min())
+    return float(corner_scaled_jacobians(points, hexes).min())
 
 
 # --------------------------------------------------------------------------

@@ -128,6 +128,12 @@ def extension_zip(variant: str, mesher: str | None = None, log=print) -> str:
     return zips[0]
 
 
+def clean_env() -> dict:
+    """This process's environment without what would point another Python
+    at this venv's packages."""
+    return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
+
+
 # Without SymFrames: a property with an update callback, registered and
 # unregistered.  The bpy 4.2 module segfaults at interpreter exit after this
 # (5.0.1 does not); a row whose smoke crashes on exit runs it to tell the
@@ -144,9 +150,9 @@ BPY_EXIT_CRASH = "crash on exit: the bpy module's own"
 
 def exit_control_crashes(python: str) -> bool:
     """Whether this bpy module crashes on exit without SymFrames (EXIT_CONTROL)."""
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
     with tempfile.TemporaryDirectory(prefix="symframes-control-") as tmp:
-        proc = subprocess.run([python, "-c", EXIT_CONTROL], cwd=tmp, env=env, capture_output=True, timeout=300)
+        proc = subprocess.run([python, "-c", EXIT_CONTROL], cwd=tmp, env=clean_env(), capture_output=True,
+                              timeout=300)
     return proc.returncode != 0
 
 
@@ -174,8 +180,7 @@ def smoke(python: str, zip_path: str, example: str = "cube", timeout: float = 12
     with tempfile.TemporaryDirectory(prefix="symframes-matrix-") as tmp:
         res = os.path.join(tmp, "blender-user")
         os.makedirs(res)
-        env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
-        env["BLENDER_USER_RESOURCES"] = res
+        env = {**clean_env(), "BLENDER_USER_RESOURCES": res}
         t0 = time.perf_counter()
         proc = subprocess.run([python, os.path.join(HERE, "extension_smoke.py"), zip_path, example], cwd=tmp,
                               env=env, capture_output=True, text=True, timeout=timeout)

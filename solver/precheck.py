@@ -11,12 +11,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .errors import OptionsError
 from .mesh.resolution import Plan
 from .network.intake import repairs_text
 from .network.network import Network
 from .network.validation import CheckedInput, check_input
-from .pipeline import Options, resolution_plan
+from .pipeline import Options, as_options, resolution_plan
 from .surface.corners import corners_text
 
 
@@ -108,9 +107,7 @@ def check(V, F, network: Network, *, options: Options | None = None) -> CheckRes
     OptionsError
         options is not an Options.
     """
-    opts = Options() if options is None else options
-    if not isinstance(opts, Options):
-        raise OptionsError(f"options = {opts!r}: must be a solver.Options (e.g. Options(edge_length=0.1)) or None")
+    opts = as_options(options)
     checked = check_input(V, F, network, check_intersections=opts.check_intersections, scale=opts.edge_length,
                           repair=True, target_tets=opts.budget)
     return CheckResult(checked=checked, plan=resolution_plan(checked, opts))
