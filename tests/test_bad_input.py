@@ -628,3 +628,35 @@ def test_api_arguments_of_the_wrong_kind():
     with pytest.raises(NetworkError, match="curves\\[1\\] is"):
         net.curves = [c, "not a curve"]
     assert len(net.curves) == 1
+
+
+def test_the_plane_side_early_out_never_hides_a_crossing():
+    """_crossing drops pairs whose unshared corners lie strictly on one side
+    of the other's plane before its six edge tests; on 3,000 random pairs
+    (a third sharing a corner, many nearly coplanar) it finds a crossing
+    exactly where the six edge tests alone do."""
+    from solver.surface.trisurface import TriSurface, _crossing, segment_crosses_triangle
+
+    rng = np.random.default_rng(7)
+    n = 3000
+    A = rng.normal(size=(n, 3, 3))
+    B = A.mean(axis=1)[:, None] + rng.normal(size=(n, 3, 3)) * rng.choice([1.0, 0.3, 1e-3], size=(n, 1, 1))
+    B[rng.random(n) < 0.3, 2] *= 1e-9  # some nearly flat against the first's neighbourhood
+    share = rng.random(n) < 0.33
+    B[share, 0] = A[share, 0]
+    V = np.concatenate([A.reshape(-1, 3), B.reshape(-1, 3)])
+    F = np.arange(6 * n).reshape(2 * n, 3)
+    F[n:][share, 0] = F[:n][share, 0]
+    S = TriSurface(V, F)
+    f, g = np.arange(n), np.arange(n, 2 * n)
+    tol = 1e-9 * S.bbox_diagonal
+    P = V[F]
+    want = np.zeros(n, bool)
+    for X, Y in ((f, g), (g, f)):
+        for k in range(3):
+            a, b = F[X, k], F[X, (k + 1) % 3]
+            touches = (a[:, None] == F[Y]).any(1) | (b[:, None] == F[Y]).any(1)
+            want |= segment_crosses_triangle(V[a], V[b], P[Y], tol) & ~touches
+    got = np.array([_crossing(S, f[i : i + 1], g[i : i + 1]) is not None for i in range(n)])
+    assert 100 < want.sum() < n - 100
+    assert np.array_equal(got, want)

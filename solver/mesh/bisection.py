@@ -75,12 +75,18 @@ def bisect(mesh: TetMesh, mark: np.ndarray, surface: TriSurface | None = None, c
         lg = _longest(P, T)
         lkey = keys[np.arange(len(T)), lg]
         # closure: a tet holding a marked edge marks its own longest edge
+        # (on the round's edge ids: one sort, then boolean passes)
+        ukeys, eid = np.unique(keys, return_inverse=True)
+        eid = eid.reshape(keys.shape)
+        leid = eid[np.arange(len(T)), lg]
+        on = np.isin(ukeys, marked, assume_unique=True)
         while True:
-            has = np.isin(keys, marked).any(axis=1)
-            new = np.setdiff1d(lkey[has], marked)
+            has = on[eid].any(axis=1)
+            new = leid[has][~on[leid[has]]]
             if len(new) == 0:
                 break
-            marked = np.union1d(marked, new)
+            on[new] = True
+        marked = ukeys[on]
         cut = np.unique(lkey[has])
         fresh = np.setdiff1d(cut, mid_keys)
         a, b = fresh // _BIG, fresh % _BIG

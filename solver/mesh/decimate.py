@@ -6,15 +6,19 @@ smooth sphere of 81,920 triangles (the ball's network, h = 0.16) had not
 finished meshing after 600 s, the same sphere with 1,280 meshed in 5 s.
 Blender users' sculpted or subdivided objects commonly have 1e5-1e6
 triangles.  So a surface with over ``DENSE_FACTOR`` times the triangles of
-an h-mesh of it (and at least ``MIN_DENSE_TRIANGLES``) is simplified first, to about ``CELL_FRACTION`` h, by
-vertex clustering with quadric placement (Lindstrom 2000, "Out-of-core
+an h-mesh of it (and at least ``MIN_DENSE_TRIANGLES``) is simplified first, to about
+``CELL_FRACTION`` h, by vertex clustering with quadric placement (Lindstrom 2000, "Out-of-core
 simplification of large polygonal models"): every vertex falls in a cell
 of a grid of that size, each cell becomes one vertex placed where the sum
 of the squared distances to the planes of its triangles is least (the
 quadric error: it keeps creases and corners the cell contains, where the
 mean of the vertices would round them), and triangles whose corners fall
 in fewer than three cells vanish.  It is one pass of numpy, linear in the
-input (1.3M triangles in seconds), and needs no compiled library.
+input (1.3M triangles in seconds), and needs no compiled library.  The
+clusters' triangles are then made well shaped, as fTetWild wants them:
+rounds of Delaunay edge flips between nearly coplanar triangles (never
+across a crease) and of smoothing of the vertices of smooth cells,
+projected back onto the input.
 
 The clustering is a simplicial map, so the result is a closed 2-chain like
 the input: fTetWild (which takes triangle soups) and the winding numbers
@@ -31,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..surface.features import FeatureGraph
 from ..surface.trisurface import TriSurface
 
 # simplify when the surface has this many times the triangles of an h-mesh
@@ -46,18 +51,22 @@ MIN_DENSE_TRIANGLES = 10_000
 # grid cell of the clustering, as a fraction of the mesh's edge length h.
 # fTetWild's time grows with the input's triangles and falls with their
 # quality, and the field suffers from a boundary of coarse chords: the
-# ball's network on the 81,920-triangle sphere at h = 0.161 (one run each,
-# 2 cores, another job running),
-#   cell h:     1,350 triangles, meshing 10-14 s, penalty 5.4-13 (bound ~6.7)
-#   cell 0.6 h: 3,738 triangles, meshing 68 s,    penalty 3.98
-#   cell 0.5 h: 5,256 triangles, meshing 46 s,    penalty 1.48, converged
-# against 0.20 for an unsimplified 5,120-triangle sphere (24 s) and 0.23
-# for the 1,280-triangle example: h / 2, the field first
-CELL_FRACTION = 0.5
-# passes of tangential smoothing of the smooth clusters (onto the input):
-# fTetWild takes poorly shaped input triangles slowly (the 81,920-triangle
-# sphere clustered at h into 1,404 triangles: 15.5 s raw, 7.8 s smoothed,
-# minimum triangle quality 0.08 -> 0.23; 0.7 h: 2,772 triangles, 24.6 -> 13.1 s)
+# ball's network on the 81,920-triangle sphere at h = 0.161 (2 cores),
+#   cell 0.5 h, 5,256 triangles: meshing 28-46 s, penalty 0.18-1.67
+#                (clusters only smoothed); 14 s, penalty 0.28 (flipped)
+#   cell 0.6 h, 3,738 triangles, flipped: meshing 6.4 s, penalty 0.26
+#                (327,680 triangles: 3,912, 7.5 s, penalty 0.26)
+#   cell 0.7 h, 2,746 triangles, flipped: meshing 3.8-5.3 s, penalty 2.2
+#   cell h,     1,350 triangles, flipped: meshing 9 s, penalty 4.2,
+#                10 LM iterations (smoothed only: penalty 5.4-25)
+# against 0.23 for the 1,280-triangle example (its facets ~0.8 h)
+CELL_FRACTION = 0.6
+# rounds of (Delaunay edge flips, one pass of smoothing of the smooth
+# clusters projected onto the input): fTetWild takes poorly shaped input
+# triangles slowly.  The 81,920-triangle sphere clustered at 0.7 h into
+# 2,746 triangles: minimum / mean triangle quality 0.28 / 0.78 raw, 0.35 /
+# 0.86 smoothed, 0.78 / 0.96 flipped and smoothed; fTetWild (no curve
+# tubes) 11.7 s smoothed, 3.1 s flipped and smoothed
 SMOOTH_PASSES = 5
 RANK_RATIO = 0.03
 
@@ -92,13 +101,23 @@ def is_dense(surface: TriSurface, h: float) -> bool:
     return n >= MIN_DENSE_TRIANGLES and n > DENSE_FACTOR * max(h_mesh_faces(surface, h), 1.0)
 
 
-def cluster_surface(V: np.ndarray, F: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+def cluster_surface(V: np.ndarray, F: np.ndarray, cell: float, feature: np.ndarray | None = None,
+                    corners: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertex clustering of the triangle mesh (V, F) on a grid of size cell,
     each cluster placed at the minimum of its quadric error (module
     docstring).  Returns (V', F', smooth): degenerate triangles dropped,
     pairs of the same triangle with opposite orientations cancelled, and
     smooth (#V',): the cluster's triangles span one plane (no crease or
-    corner in it)."""
+    corner in it).
+
+    feature : (#V,) bool, the vertices on sharp edges of the input; a
+              cluster holding one is placed on the one nearest its quadric
+              point, so the creases run through input vertices on them
+              (a crease weak against the cell's other triangles, below
+              RANK_RATIO, would otherwise be cut across)
+    corners : ids of the input's sharp corners; a cluster holding one is
+              placed on it
+    """
     V = np.asarray(V, float)
     F = np.asarray(F, np.int64)
     lo = V.min(axis=0)
@@ -140,6 +159,17 @@ def cluster_surface(V: np.ndarray, F: np.ndarray, cell: float) -> tuple[np.ndarr
     # to the mean
     far = np.linalg.norm(X - mean, axis=1) > cell
     X[far] = mean[far]
+    pinned = np.zeros(m, bool)
+    for ids in (None if feature is None else np.nonzero(feature)[0], corners):
+        if ids is None or not len(ids):
+            continue
+        # per cluster, its vertex of the set nearest the placement so far
+        ids = np.asarray(ids, np.int64)
+        d = np.linalg.norm(V[ids] - X[lab[ids]], axis=1)
+        order = np.lexsort((d, lab[ids]))
+        first = order[np.r_[True, lab[ids][order][1:] != lab[ids][order][:-1]]]
+        X[lab[ids[first]]] = V[ids[first]]
+        pinned[lab[ids[first]]] = True
     G = lab[F]
     ok = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 0] != G[:, 2])
     G = G[ok]
@@ -164,7 +194,7 @@ def cluster_surface(V: np.ndarray, F: np.ndarray, cell: float) -> tuple[np.ndarr
         keep_f[rows[want][: int(abs(net[j]))]] = True
     G = G[keep_f]
     used, Gn = np.unique(G, return_inverse=True)
-    return X[used], Gn.reshape(-1, 3), keep.sum(axis=1)[used] <= 1
+    return X[used], Gn.reshape(-1, 3), (keep.sum(axis=1) <= 1)[used] & ~pinned[used]
 
 
 def _orientation_parity(G: np.ndarray) -> np.ndarray:
@@ -193,21 +223,111 @@ def _smooth_onto(surface: TriSurface, V: np.ndarray, F: np.ndarray, smooth: np.n
     return V
 
 
-def simplify_for_meshing(surface: TriSurface, h: float, say=None) -> Simplified | None:
+def simplify_for_meshing(surface: TriSurface, h: float, say=None, features: FeatureGraph | None = None
+                         ) -> Simplified | None:
     """The surface fTetWild meshes at edge length h: None where the input
     is not dense (is_dense), else its clustering at CELL_FRACTION h
-    (module docstring).  say: a function of a message, for progress."""
+    (module docstring).  say: a function of a message, for progress.
+    features: the input's sharp edges and corners, kept (cluster_surface)."""
     if not is_dense(surface, h):
         return None
     cell = CELL_FRACTION * h
     if say is not None:
         say(f"tetmesh: simplifying the surface ({len(surface.F):,} triangles, ~{h_mesh_faces(surface, h):,.0f} "
             f"at the mesh scale {h:.3g})...")
-    V, F, smooth = cluster_surface(surface.V, surface.F, cell)
-    V = _smooth_onto(surface, V, F, smooth, SMOOTH_PASSES)
+    feature = corners = None
+    if features is not None and np.any(features.sharp):
+        feature, corners = features.degree > 0, features.corners
+    V, F, smooth = cluster_surface(surface.V, surface.F, cell, feature, corners)
+    for _ in range(SMOOTH_PASSES):
+        F = flip_to_delaunay(V, F)
+        V = _smooth_onto(surface, V, F, smooth, 1)
+    F = flip_to_delaunay(V, F)
     out = TriSurface(V, F)
     v0 = float(surface.signed_volumes().sum())
     res = Simplified(out, len(surface.F), len(F), cell, float(out.signed_volumes().sum()) / v0 - 1.0)
     if say is not None:
         say(f"tetmesh: {res.text()}")
     return res
+
+
+# edge flips towards a Delaunay triangulation of the clusters: only between
+# triangles whose normals are within FLIP_DIHEDRAL degrees (creases stay),
+# rounds of independent flips until none is left or FLIP_ROUNDS
+FLIP_DIHEDRAL = 20.0
+FLIP_ROUNDS = 30
+
+
+def _manifold_edges(F: np.ndarray):
+    """The edges shared by exactly two triangles, in opposite directions:
+    (a, b, c, d, f1, f2) with f1 = (a, b, c) and f2 = (b, a, d) up to
+    rotation."""
+    m = len(F)
+    a = F.reshape(-1)
+    b = F[:, [1, 2, 0]].reshape(-1)
+    c = F[:, [2, 0, 1]].reshape(-1)
+    f = np.repeat(np.arange(m), 3)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    key = lo * (int(F.max()) + 1) + hi
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    cut = np.r_[0, np.nonzero(np.diff(k))[0] + 1, len(k)]
+    two = np.nonzero(np.diff(cut) == 2)[0]
+    i, j = order[cut[two]], order[cut[two] + 1]
+    ok = (a[i] == b[j]) & (b[i] == a[j])
+    i, j = i[ok], j[ok]
+    return a[i], b[i], c[i], c[j], f[i], f[j]
+
+
+def flip_to_delaunay(V: np.ndarray, F: np.ndarray, dihedral: float = FLIP_DIHEDRAL,
+                     rounds: int = FLIP_ROUNDS) -> np.ndarray:
+    """Flip edges whose opposite angles sum to more than pi (the Delaunay
+    criterion on the two triangles' hinge), between nearly coplanar
+    triangles only, in rounds of flips that share no triangle.  Returns
+    the new triangles (same vertices)."""
+    F = F.copy()
+    cos_max = np.cos(np.radians(dihedral))
+
+    def unit(x):
+        return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-300)
+
+    def angle(p, q, r):  # angle at p of triangle p q r
+        return np.arccos(np.clip(np.einsum("ij,ij->i", unit(q - p), unit(r - p)), -1.0, 1.0))
+
+    for _ in range(rounds):
+        a, b, c, d, f1, f2 = _manifold_edges(F)
+        if not len(a):
+            break
+        A, B, C, D = V[a], V[b], V[c], V[d]
+        n1 = unit(np.cross(B - A, C - A))
+        n2 = unit(np.cross(A - B, D - B))
+        excess = angle(C, A, B) + angle(D, A, B) - np.pi
+        # the flipped pair: (a, d, c) and (b, c, d), facing as the old pair
+        m1 = np.cross(D - A, C - A)
+        m2 = np.cross(C - B, D - B)
+        nm = n1 + n2
+        cand = ((excess > 1e-6) & (c != d) & (np.einsum("ij,ij->i", n1, n2) > cos_max)
+                & (np.einsum("ij,ij->i", m1, nm) > 0) & (np.einsum("ij,ij->i", m2, nm) > 0))
+        # not where the edge (c, d) exists already
+        E = np.sort(np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
+        n = int(F.max()) + 1
+        have = np.unique(E[:, 0] * n + E[:, 1])
+        new = np.minimum(c, d) * n + np.maximum(c, d)
+        cand &= ~np.isin(new, have)
+        idx = np.nonzero(cand)[0]
+        if not len(idx):
+            break
+        # independent: each triangle flips with its best candidate only, and
+        # no two flips make the same edge
+        idx = idx[np.argsort(-excess[idx], kind="stable")]
+        rank = np.arange(len(idx))
+        first = np.full(len(F), len(idx))
+        np.minimum.at(first, np.r_[f1[idx], f2[idx]], np.r_[rank, rank])
+        win = idx[(first[f1[idx]] == rank) & (first[f2[idx]] == rank)]
+        _, u = np.unique(new[win], return_index=True)
+        win = win[u]
+        if not len(win):
+            break
+        F[f1[win]] = np.stack([a[win], d[win], c[win]], axis=1)
+        F[f2[win]] = np.stack([b[win], c[win], d[win]], axis=1)
+    return F

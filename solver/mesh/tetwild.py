@@ -363,7 +363,7 @@ def _inside_tets(mesh: TetMesh, surface: TriSurface, eps: float) -> np.ndarray:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    d, _, _ = surface.closest_points(mesh.vertices)
+    d, _, _ = surface.closest_points(mesh.vertices, within=4.0 * eps)
     near = d <= 4.0 * eps
     blocking = near[mesh.faces].all(axis=1)
     ft = mesh.face_tets

@@ -81,7 +81,7 @@ def build_tubes(
     # from it (one closest-point query for all of them)
     dense = np.linspace(0.0, 1.0, 400)
     samples = [g.point(*_locate(g, dense * g.arclength[-1])) for g in geos]
-    d_dense = _distances(surface, samples)
+    d_dense = _distances(surface, samples, spacing)
     layout = []
     for ci, (c, geo) in enumerate(zip(net.curves, geos)):
         L = geo.arclength[-1]
@@ -101,7 +101,7 @@ def build_tubes(
         s = np.linspace(0.0, L, m, endpoint=False) if c.closed else np.linspace(s0, s1, m + 1)
         layout.append((ci, s))
     centres = [geos[ci].point(*_locate(geos[ci], s)) for ci, s in layout]
-    d_st = _distances(surface, centres)
+    d_st = _distances(surface, centres, spacing)
     V: list[np.ndarray] = []
     F: list[np.ndarray] = []
     nv = 0
@@ -139,11 +139,12 @@ def build_tubes(
     return TubeSurfaces(Vall, Fall)
 
 
-def _distances(surface: TriSurface, groups: list[np.ndarray]) -> list[np.ndarray]:
-    """Distance to the surface of every point in each group, in one query."""
+def _distances(surface: TriSurface, groups: list[np.ndarray], within: float) -> list[np.ndarray]:
+    """Distance to the surface of every point in each group, in one query;
+    inf beyond within (only nearness is asked: cheap on a dense surface)."""
     if not groups:
         return []
-    d = surface.closest_points(np.vstack(groups))[0]
+    d = surface.closest_points(np.vstack(groups), within=within)[0]
     return np.split(d, np.cumsum([len(g) for g in groups])[:-1])
 
 

@@ -294,13 +294,11 @@ def _check_segments_inside(S: TriSurface, P, label, pn, ci):
     a, b = P[:-1], P[1:]
     mid = 0.5 * (a + b)
     half = 0.5 * np.linalg.norm(b - a, axis=1)
-    T = S.V[S.F]
-    cent = T.mean(axis=1)
-    rad = np.max(np.linalg.norm(T - cent[:, None], axis=2), axis=1)
-    tree = cKDTree(cent)
+    T, cent, rad, tree = S.face_tree
     tol = 1e-9 * S.bbox_diagonal
+    near = tree.query_ball_point(mid, half + rad.max())
     for k in range(len(a)):
-        cand = tree.query_ball_point(mid[k], half[k] + rad.max())
+        cand = near[k]
         if not cand:
             continue
         cand = np.asarray(cand)
@@ -507,7 +505,8 @@ def network_needs(S: TriSurface, pn: PreparedNetwork) -> tuple[np.ndarray, np.nd
             to_end = np.minimum(to_end, L - s)
         keep = to_end > 0.1 * L
         if np.any(keep):
-            d, _, _ = S.closest_points(X[keep])
+            # only distances below both bounds count: the query may stop there
+            d, _, _ = S.closest_points(X[keep], within=float(np.max(np.minimum(0.5 * to_end[keep], need[keep]))))
             close = d < 0.5 * to_end[keep]
             idx = np.nonzero(keep)[0][close]
             need[idx] = np.minimum(need[idx], d[close])

@@ -237,7 +237,7 @@ class TriSurface:
         the closest of the triangles of the 16 nearest centroids, or less
         when a farther triangle may be closer (closest_points without its
         exact per-point fallback)."""
-        P, cent, rad, tree = self._face_tree
+        P, cent, rad, tree = self.face_tree
         kq = min(len(self.F), 16)
         dc, idx = tree.query(X, k=kq)
         dc, idx = dc.reshape(len(X), kq), idx.reshape(len(X), kq)
@@ -288,7 +288,7 @@ class TriSurface:
         Every use thresholds at 0.5; the first-order error at that distance
         is ~1e-3 of a group's solid angle."""
         order, starts, c, rad, dip = self._winding_groups
-        P = self.V[self.F]
+        P = self.face_tree[0]
         out = np.zeros(len(X))
         step = max(1, chunk // max(1, len(c)))
         near_pairs = []
@@ -315,7 +315,7 @@ class TriSurface:
 
 
     @cached_property
-    def _face_tree(self):
+    def face_tree(self):
         """(triangle corners, centroids, radii, k-d tree of the centroids)
         for closest_points, built once per surface."""
         P = self.V[self.F]
@@ -323,40 +323,79 @@ class TriSurface:
         rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
         return P, cent, rad, cKDTree(cent)
 
-    def closest_points(self, X: np.ndarray):
+    def closest_points(self, X: np.ndarray, within: float | None = None):
         """Closest surface point to each of X (k, 3).
+
+        within: only points at most this far from the surface are wanted;
+        the others come back with distance inf, face -1 and point nan, at
+        little cost (a dense surface seen from deep inside the solid).
 
         Returns (distance (k,), face index (k,), closest point (k, 3)).
         """
         X = np.atleast_2d(np.asarray(X, float))
-        P, cent, rad, tree = self._face_tree
-        kq = min(len(self.F), 16)
+        P, cent, rad, tree = self.face_tree
+        nf, rmax = len(self.F), float(rad.max())
+        kq = min(nf, 16)
+        bound = np.inf if within is None else float(within) + rmax
+        dc, idx = tree.query(X, k=kq, distance_upper_bound=bound)
+        dc = np.asarray(dc, float).reshape(len(X), kq)
+        idx = np.asarray(idx).reshape(len(X), kq)
         best_d = np.full(len(X), np.inf)
-        best_f = np.zeros(len(X), int)
-        best_p = np.zeros((len(X), 3))
-        _, idx = tree.query(X, k=kq)
-        idx = np.atleast_2d(idx).reshape(len(X), kq)
+        best_f = np.full(len(X), -1)
+        best_p = np.full((len(X), 3), np.nan)
         for j in range(kq):
-            f = idx[:, j]
-            q = closest_point_on_triangles(X, P[f])
-            d = np.linalg.norm(q - X, axis=1)
-            better = d < best_d
-            best_d[better], best_f[better], best_p[better] = d[better], f[better], q[better]
-        # exact fallback for points whose 16 nearest centroids may not contain the
-        # closest face (large triangles): check all faces within reach
-        dc = np.linalg.norm(cent[idx[:, -1]] - X, axis=1)
-        unsure = np.nonzero(best_d > dc - rad.max())[0]
-        for i in unsure:
-            cand = tree.query_ball_point(X[i], best_d[i] + rad.max())
-            if not cand:
-                continue
-            cand = np.asarray(cand)
-            q = closest_point_on_triangles(np.repeat(X[i][None], len(cand), 0), P[cand])
-            d = np.linalg.norm(q - X[i], axis=1)
-            j = np.argmin(d)
-            if d[j] < best_d[i]:
-                best_d[i], best_f[i], best_p[i] = d[j], cand[j], q[j]
+            has = idx[:, j] < nf
+            if not has.any():
+                break
+            rows = np.nonzero(has)[0]
+            f = idx[rows, j]
+            q = closest_point_on_triangles(X[rows], P[f])
+            d = np.linalg.norm(q - X[rows], axis=1)
+            better = d < best_d[rows]
+            r = rows[better]
+            best_d[r], best_f[r], best_p[r] = d[better], f[better], q[better]
+        # a face beyond the kq nearest centroids may still be closer (large
+        # triangles, or a point far from a dense surface): every face whose
+        # centroid lies within the best distance + its own radius is
+        # checked, for all such points at once.  With kq faces found, no
+        # other lies nearer than dc[:, -1] - rmax
+        reach = np.minimum(best_d, bound - rmax)
+        unsure = np.nonzero((dc[:, -1] - rmax < reach) & np.isfinite(dc[:, -1]))[0]
+        if len(unsure):
+            self._closest_exhaustive(X, unsure, reach[unsure] + rmax, best_d, best_f, best_p)
+        if within is not None:
+            far = best_d > within
+            best_d[far], best_f[far], best_p[far] = np.inf, -1, np.nan
         return best_d, best_f, best_p
+
+    def _closest_exhaustive(self, X, rows, radius, best_d, best_f, best_p, pairs_per_chunk: int = 1_000_000):
+        """closest_points for the points X[rows] over every face with its
+        centroid within radius of the point (improving best_* in place)."""
+        P, cent, rad, tree = self.face_tree
+        lists = tree.query_ball_point(X[rows], radius, return_sorted=False)
+        counts = np.fromiter((len(c) for c in lists), np.int64, len(lists))
+        start = 0
+        while start < len(rows):
+            stop = start + 1 + int(np.searchsorted(np.cumsum(counts[start:]), pairs_per_chunk))
+            stop = min(stop, len(rows))
+            part = lists[start:stop]
+            f = np.fromiter(itertools.chain.from_iterable(part), np.int64, int(counts[start:stop].sum()))
+            k = np.repeat(rows[start:stop], counts[start:stop])
+            # a face cannot be nearer than its centroid's distance less its radius
+            lb = np.linalg.norm(cent[f] - X[k], axis=1) - rad[f]
+            keep = lb < best_d[k]
+            f, k = f[keep], k[keep]
+            if len(f):
+                q = closest_point_on_triangles(X[k], P[f])
+                d = np.linalg.norm(q - X[k], axis=1)
+                order = np.lexsort((d, k))
+                k, f, q, d = k[order], f[order], q[order], d[order]
+                first = np.r_[True, k[1:] != k[:-1]]
+                k, f, q, d = k[first], f[first], q[first], d[first]
+                better = d < best_d[k]
+                r = k[better]
+                best_d[r], best_f[r], best_p[r] = d[better], f[better], q[better]
+            start = stop
 
 
 def _solid_angle_sum(P: np.ndarray, X: np.ndarray, chunk: int = 2_000_000) -> np.ndarray:
@@ -792,11 +831,23 @@ def find_self_intersection(S: TriSurface):
 
 def _crossing(S: TriSurface, f, g):
     V, F = S.V, S.F
-    P = V[F]
+    P = S.face_tree[0]
     tol = 1e-9 * S.bbox_diagonal
-    shared = (F[f][:, :, None] == F[g][:, None, :]).sum(axis=(1, 2))
-    keep = shared <= 1
-    f, g = f[keep], g[keep]
+    same = F[f][:, :, None] == F[g][:, None, :]
+    keep = same.sum(axis=(1, 2)) <= 1
+    f, g, same = f[keep], g[keep], same[keep]
+    # no proper crossing where the corners of one triangle not shared with
+    # the other lie strictly on one side of the other's plane (as
+    # segment_crosses_triangle decides sides): most pairs of a smooth
+    # surface, dropped before the six edge tests
+    apart = np.zeros(len(f), bool)
+    for A, B, shared in ((f, g, same.any(axis=2)), (g, f, same.any(axis=1))):
+        a, b, c = P[B, 0], P[B, 1], P[B, 2]
+        n = np.cross(b - a, c - a)
+        scale = np.linalg.norm(n, axis=1) * tol
+        d = np.einsum("ikj,ij->ik", P[A] - a[:, None], n)
+        apart |= np.all((d > scale[:, None]) | shared, axis=1) | np.all((d < -scale[:, None]) | shared, axis=1)
+    f, g = f[~apart], g[~apart]
     hits = np.zeros(len(f), bool)
     for A, B in ((f, g), (g, f)):
         for k in range(3):
