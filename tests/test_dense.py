@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from solver import FieldProblem, Options
-from solver.examples import ball_example, box, icosphere
+from solver.examples import ball_example, box, cylinder_example, icosphere
 from solver.mesh.decimate import _manifold_edges, cluster_surface, flip_to_delaunay, is_dense, simplify_for_meshing
 from solver.surface.trisurface import TriSurface, closest_point_on_triangles
 
@@ -178,3 +178,27 @@ def test_a_dense_creased_solid_keeps_its_creases_and_solves():
     assert r.report.sizes["mesher_surface_triangles"] < 6000
     assert m["omega_spurious_singular_faces"] == 0 and m["omega_missing_singular_faces"] == 0
     assert m["normal_adaptation_mean_deg"] < 0.5 and m["tangent_adaptation_mean_deg"] < 1.0
+
+
+def test_chords_deeper_than_the_envelope():
+    """The clustering is checked against the mesher's envelope: the
+    cylinder's 4,480 triangles at h = 0.4 (8x an h-mesh) would be cut
+    0.01 deep, past its envelope of 0.0035, and go to fTetWild as they
+    are; a box of 3,072 flat triangles is clustered with nothing cut off;
+    a 20,480-triangle sphere at h = 0.6 is clustered all the same
+    (fTetWild on it would take minutes), and the report says how deep."""
+    V, F, _ = cylinder_example()
+    S = TriSurface(np.asarray(V, float), np.asarray(F))
+    env = 1e-3 * S.bbox_diagonal
+    said = []
+    assert simplify_for_meshing(S, 0.4, said.append, None, env) is None
+    assert "kept as it is (4,480 triangles)" in said[-1] and "envelope (0.00346)" in said[-1]
+    V, F = box(n=16)  # 3,072 flat triangles: clustered, nothing cut off
+    S = TriSurface(np.asarray(V, float), np.asarray(F))
+    flat = simplify_for_meshing(S, 0.4, None, None, 1e-3 * S.bbox_diagonal)
+    assert flat is not None and flat.faces_out < 1000 and flat.deviation < 1e-9
+    V, F = icosphere(5)
+    S = TriSurface(np.asarray(V, float), np.asarray(F))
+    out = simplify_for_meshing(S, 0.6, None, None, 1e-3 * S.bbox_diagonal)
+    assert out is not None and out.deviation > 1e-3 * S.bbox_diagonal
+    assert "past the mesher's envelope" in out.text()

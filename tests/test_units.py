@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solver import Curve, Network, solve
+from solver import Curve, Network, Options, solve
 from solver.examples import cylinder_example
 
 
@@ -19,8 +19,13 @@ def test_cylinder_at_micrometre_scale_solves():
                   sharp_angle=net.sharp_angle)
     r = solve(V * s, F, net, edge_length=0.4 * s)  # meshed here: fTetWild at this scale is the point
     X = r.mesh.vertices
-    assert np.allclose(X.min(axis=0), V.min(axis=0) * s, atol=1e-3 * s)
-    assert np.allclose(X.max(axis=0), V.max(axis=0) * s, atol=1e-3 * s)
+    # the boundary within the mesher's envelope of the surface (epsilon of
+    # its diagonal): the 4,480-triangle surface, 3.3x denser than a 0.4-mesh
+    # of it, is simplified first (mesh/decimate.py), its chords up to 0.0012
+    # inside the polygon's extreme vertices
+    env = Options().epsilon * np.linalg.norm(np.ptp(V, axis=0)) * s
+    assert np.allclose(X.min(axis=0), V.min(axis=0) * s, atol=env)
+    assert np.allclose(X.max(axis=0), V.max(axis=0) * s, atol=env)
     assert np.isclose(np.sum(r.mesh.tet_volumes), np.pi * 2.0 * s**3, rtol=0.03)
     m = r.report.metrics
     assert r.report.lm.converged, r.report.lm.reason

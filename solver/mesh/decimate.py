@@ -6,9 +6,10 @@ smooth sphere of 81,920 triangles (the ball's network, h = 0.16) had not
 finished meshing after 600 s, the same sphere with 1,280 meshed in 5 s.
 Blender users' sculpted or subdivided objects commonly have 1e5-1e6
 triangles.  So a surface with over ``DENSE_FACTOR`` times the triangles of
-an h-mesh of it (and at least ``MIN_DENSE_TRIANGLES``) is simplified first, to about
-``CELL_FRACTION`` h, by vertex clustering with quadric placement (Lindstrom 2000, "Out-of-core
-simplification of large polygonal models"): every vertex falls in a cell
+an h-mesh of it (and at least ``MIN_DENSE_TRIANGLES``) is simplified first,
+to about ``CELL_FRACTION`` h, by vertex clustering with quadric placement
+(Lindstrom 2000, "Out-of-core simplification of large polygonal models"):
+every vertex falls in a cell
 of a grid of that size, each cell becomes one vertex placed where the sum
 of the squared distances to the planes of its triangles is least (the
 quadric error: it keeps creases and corners the cell contains, where the
@@ -25,8 +26,10 @@ the input: fTetWild (which takes triangle soups) and the winding numbers
 of the inside test see the same solid.  It need not be manifold where a
 part thinner than the cell collapses; the mesh's boundary is checked
 against the input's topology after meshing (meshing.topology_change), as
-always.  The input surface stays the reference for everything else
-(snapping onto sharp features, the curves, the measures).
+always.  Its chords may cut into curved parts: how deep is measured and
+reported, and checked against the mesher's envelope (simplify_for_meshing).
+The input surface stays the reference for everything else (snapping onto
+sharp features, the curves, the measures).
 """
 
 from __future__ import annotations
@@ -39,15 +42,18 @@ from ..surface.features import FeatureGraph
 from ..surface.trisurface import TriSurface
 
 # simplify when the surface has this many times the triangles of an h-mesh
-# of it (an h-mesh of area A has about A / (sqrt(3)/4 h^2) triangles);
-# below it fTetWild's own simplification (tetwild.wants_simplify) does
-DENSE_FACTOR = 8.0
-# ... and has at least this many triangles: below it fTetWild meshes the
-# input as it is in seconds (the 4,480-triangle cylinder 5 s, a
-# 5,120-triangle sphere 24 s), and the boundary keeps the input's own
-# vertices (a clustering at h/2 leaves chords: the cylinder at h = 0.4 lost
-# 0.5% of its radius at the polygon's extremes)
-MIN_DENSE_TRIANGLES = 10_000
+# of it (an h-mesh of area A has about A / (sqrt(3)/4 h^2) triangles):
+# fTetWild is slow on inputs finer than its mesh even at a few thousand
+# triangles -- the cylinder example (4,480 triangles, 3.3x an h-mesh at the
+# default h = 0.18) meshed in 7-8 s as it is, in 2.5 s from its 2,988
+# clusters, with the same field (penalty 0.002, 5 LM iterations)
+DENSE_FACTOR = 2.5
+# ... and has at least this many triangles (a coarse surface gains nothing)
+MIN_DENSE_TRIANGLES = 2_000
+# ... and from this many triangles it is clustered even where the chords
+# cut deeper than the mesher's envelope (simplify_for_meshing): fTetWild on
+# the input itself would take minutes (an 81,920-triangle sphere: over 600 s)
+ALWAYS_TRIANGLES = 10_000
 # grid cell of the clustering, as a fraction of the mesh's edge length h.
 # fTetWild's time grows with the input's triangles and falls with their
 # quality, and the field suffers from a boundary of coarse chords: the
@@ -74,19 +80,24 @@ RANK_RATIO = 0.03
 @dataclass
 class Simplified:
     """What ``simplify_for_meshing`` did: the surface fTetWild gets, the
-    triangle counts before and after, the cell size and the relative
-    change of the enclosed volume (its vertices lie on the input: chordal
-    error only)."""
+    triangle counts before and after, the cell size, the relative change
+    of the enclosed volume and the depth of its chords (its vertices lie on
+    the input: chordal error only)."""
 
     surface: TriSurface
     faces_in: int
     faces_out: int
     cell: float
     volume_change: float
+    deviation: float = 0.0  # the farthest input vertex from it
+    envelope: float | None = None  # the mesher's
 
     def text(self) -> str:
+        past = ("" if self.envelope is None or self.deviation <= self.envelope else
+                f", past the mesher's envelope ({self.envelope:.2g}): a smaller edge length follows the input closer")
         return (f"the surface simplified from {self.faces_in:,} to {self.faces_out:,} triangles for the mesher "
-                f"(clusters of {self.cell:.3g}, vertices on the input; volume {100 * self.volume_change:+.2g}%)")
+                f"(clusters of {self.cell:.3g}, vertices on the input, chords within {self.deviation:.2g} of it"
+                f"{past}; volume {100 * self.volume_change:+.2g}%)")
 
 
 def h_mesh_faces(surface: TriSurface, h: float) -> float:
@@ -223,32 +234,64 @@ def _smooth_onto(surface: TriSurface, V: np.ndarray, F: np.ndarray, smooth: np.n
     return V
 
 
-def simplify_for_meshing(surface: TriSurface, h: float, say=None, features: FeatureGraph | None = None
-                         ) -> Simplified | None:
+def simplify_for_meshing(surface: TriSurface, h: float, say=None, features: FeatureGraph | None = None,
+                         envelope: float | None = None) -> Simplified | None:
     """The surface fTetWild meshes at edge length h: None where the input
     is not dense (is_dense), else its clustering at CELL_FRACTION h
     (module docstring).  say: a function of a message, for progress.
-    features: the input's sharp edges and corners, kept (cluster_surface)."""
+    features: the input's sharp edges and corners, kept (cluster_surface).
+
+    envelope: how far the mesher's surface may leave the input (fTetWild's
+    own envelope, Options.epsilon of the diagonal).  Where the clustering's
+    chords cut deeper (a part curved tightly for the mesh scale), a surface
+    of under ALWAYS_TRIANGLES goes to fTetWild as it is (its own
+    simplification keeps to the envelope, in seconds at that size); a
+    larger one is meshed from the clustering all the same (fTetWild would
+    take minutes), and the report says how deep the chords cut.
+    """
     if not is_dense(surface, h):
         return None
-    cell = CELL_FRACTION * h
     if say is not None:
         say(f"tetmesh: simplifying the surface ({len(surface.F):,} triangles, ~{h_mesh_faces(surface, h):,.0f} "
             f"at the mesh scale {h:.3g})...")
     feature = corners = None
     if features is not None and np.any(features.sharp):
         feature, corners = features.degree > 0, features.corners
+    cell = CELL_FRACTION * h
+    out = _clustered(surface, cell, feature, corners)
+    deviation = _deviation(surface, out)
+    if envelope is not None and deviation > envelope and len(surface.F) < ALWAYS_TRIANGLES:
+        if say is not None:
+            say(f"tetmesh: the surface kept as it is ({len(surface.F):,} triangles): clustered at the mesh scale its "
+                f"chords would cut {deviation:.3g} deep, past the mesher's envelope ({envelope:.3g})")
+        return None
+    v0 = float(surface.signed_volumes().sum())
+    res = Simplified(out, len(surface.F), len(out.F), cell, float(out.signed_volumes().sum()) / v0 - 1.0, deviation,
+                     envelope)
+    if say is not None:
+        say(f"tetmesh: {res.text()}")
+    return res
+
+
+def _clustered(surface: TriSurface, cell: float, feature, corners) -> TriSurface:
+    """cluster_surface, then rounds of flips and smoothing onto the input."""
     V, F, smooth = cluster_surface(surface.V, surface.F, cell, feature, corners)
     for _ in range(SMOOTH_PASSES):
         F = flip_to_delaunay(V, F)
         V = _smooth_onto(surface, V, F, smooth, 1)
-    F = flip_to_delaunay(V, F)
-    out = TriSurface(V, F)
-    v0 = float(surface.signed_volumes().sum())
-    res = Simplified(out, len(surface.F), len(F), cell, float(out.signed_volumes().sum()) / v0 - 1.0)
-    if say is not None:
-        say(f"tetmesh: {res.text()}")
-    return res
+    return TriSurface(V, flip_to_delaunay(V, F))
+
+
+DEVIATION_SAMPLES = 200_000
+
+
+def _deviation(surface: TriSurface, out: TriSurface) -> float:
+    """How far the input's vertices (up to DEVIATION_SAMPLES of them, the
+    same each run) lie from the clustered surface: the depth of its chords."""
+    X = surface.V[np.unique(surface.F)]
+    if len(X) > DEVIATION_SAMPLES:
+        X = X[np.random.default_rng(0).choice(len(X), DEVIATION_SAMPLES, replace=False)]
+    return float(out.closest_points(X)[0].max())
 
 
 # edge flips towards a Delaunay triangulation of the clusters: only between

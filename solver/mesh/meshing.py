@@ -228,7 +228,8 @@ def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cance
     retries = 0
     # a surface far denser than the mesh is brought down to it first
     # (decimate.py): fTetWild's time grows with its input's triangles
-    simplified = simplify_for_meshing(checked.surface, h, say, checked.features)
+    simplified = simplify_for_meshing(checked.surface, h, say, checked.features,
+                                      settings.epsilon * checked.surface.bbox_diagonal)
     for attempt in range(3):
         m = _mesh_at(checked, settings, h, tetgen_off, cancel, simplified)
         tetgen_off = m.tetgen_off
