@@ -6,7 +6,8 @@ any network: it meshes the solid independently with fTetWild at an edge
 length ``h_src``, moves every node to the nearest mesh vertex and every
 boundary end to the nearest boundary vertex, and replaces each curve by the
 shortest path through the mesh's edges between them
-(``scipy.sparse.csgraph.dijkstra``).  The result zig-zags, reaches the
+(``scipy.sparse.csgraph.dijkstra``) that passes through no vertex an earlier
+curve's path or another node holds.  The result zig-zags, reaches the
 surface along whatever edge the mesh had, and -- with ``tiny`` -- holds
 segments ~1e-6 of the model size next to normal ones, like the exports.
 Used by the tests (tests/test_intake.py) and the validation report
@@ -16,6 +17,7 @@ Used by the tests (tests/test_intake.py) and the validation report
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from solver.mesh.tetmesh import TetMesh, edge_graph, shortest_path
@@ -51,6 +53,7 @@ def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: 
         node_vertex[k] = int(id_in[tree_in.query(nd.position)[1]])
     end_node = {e: k for k, nd in enumerate(pn.nodes) for e in nd.ends}
     rng = np.random.default_rng(seed)
+    used: set[int] = set()
     curves = []
     for ci, c in enumerate(pn.curves):
         ids = []
@@ -60,9 +63,19 @@ def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: 
                 ids.append(node_vertex[end_node[(ci, s)]])
             else:
                 ids.append(int(id_b[tree_b.query(x)[1]]))
-        path = shortest_path(G, ids[0], ids[1])
+        # not through a vertex another curve holds (a path's inner vertices,
+        # the nodes): two routes through one vertex would cross there, which
+        # no export has (and the check refuses)
+        blocked = np.zeros(mesh.n_vertices, bool)
+        blocked[list(used)] = True
+        blocked[list(node_vertex.values())] = True
+        blocked[ids] = False
+        path = shortest_path(_without(G, blocked), ids[0], ids[1]) if blocked.any() else None
+        if path is None:
+            path = shortest_path(G, ids[0], ids[1])
         if path is None:
             raise ValueError(f"no path between mesh vertices {ids[0]} and {ids[1]}")
+        used.update(int(v) for v in path[1:-1])
         P = X[path]
         if tiny and len(P) > 2:
             out = [P[0]]
@@ -77,6 +90,14 @@ def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: 
     out = Network(curves=curves + sharp, sharp_edges=net.sharp_edges, sharp_angle=net.sharp_angle,
                   node_tolerance=net.node_tolerance, boundary_tolerance=net.boundary_tolerance)
     return out, mesh
+
+
+def _without(G, blocked: np.ndarray):
+    """The edge graph G without the edges at the blocked vertices."""
+    keep = sp.diags((~blocked).astype(float))
+    H = (keep @ G @ keep).tocsr()
+    H.eliminate_zeros()
+    return H
 
 
 def end_angles(S: TriSurface, net: Network) -> np.ndarray:
