@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..surface.features import FeatureGraph
-from ..surface.trisurface import TriSurface
+from ..surface.trisurface import TriSurface, edge_keys
 
 # simplify when the surface has this many times the triangles of an h-mesh
 # of it (an h-mesh of area A has about A / (sqrt(3)/4 h^2) triangles):
@@ -310,8 +310,7 @@ def _manifold_edges(F: np.ndarray):
     b = F[:, [1, 2, 0]].reshape(-1)
     c = F[:, [2, 0, 1]].reshape(-1)
     f = np.repeat(np.arange(m), 3)
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    key = lo * (int(F.max()) + 1) + hi
+    key = edge_keys(a, b, int(F.max()) + 1)
     order = np.argsort(key, kind="stable")
     k = key[order]
     cut = np.r_[0, np.nonzero(np.diff(k))[0] + 1, len(k)]
@@ -352,10 +351,9 @@ def flip_to_delaunay(V: np.ndarray, F: np.ndarray, dihedral: float = FLIP_DIHEDR
         cand = ((excess > 1e-6) & (c != d) & (np.einsum("ij,ij->i", n1, n2) > cos_max)
                 & (np.einsum("ij,ij->i", m1, nm) > 0) & (np.einsum("ij,ij->i", m2, nm) > 0))
         # not where the edge (c, d) exists already
-        E = np.sort(np.r_[F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
         n = int(F.max()) + 1
-        have = np.unique(E[:, 0] * n + E[:, 1])
-        new = np.minimum(c, d) * n + np.maximum(c, d)
+        have = np.unique(edge_keys(F.reshape(-1), F[:, [1, 2, 0]].reshape(-1), n))
+        new = edge_keys(c, d, n)
         cand &= ~np.isin(new, have)
         idx = np.nonzero(cand)[0]
         if not len(idx):

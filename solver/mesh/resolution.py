@@ -260,7 +260,8 @@ def plan_resolution(volume: float, S: TriSurface, pn: PreparedNetwork, target_te
                    budget holds, the bulk coarsening to make room first.
     grading      : growth of the sizing field; None: automatic, the
                    gentlest of GRADING_STEPS whose plan fits the ceiling
-                   (GRADING when the budget is held).
+                   with the finest sizes floored by up to
+                   GRADING_FLOOR_SLACK (GRADING when the budget is held).
     curve_scales : (#curves,) the local scale each curve was repaired at
                    (network.intake): a curve repaired finer than the bulk
                    needs that edge length along it."""
