@@ -141,6 +141,12 @@ def _check_hex_outputs(args) -> None:
                                     fix=f"a number of cells, the default is {DEFAULT_HEXES}")
 
 
+_HEX_KIND = {"network": "the network admits none: ", "settings": "not at this cell size: ",
+             "field": "the field cannot be followed: ",
+             "map": "SymFrames' map failed (a limit of SymFrames, not a fault of the network): "}
+"""How a HexMeshError's kind opens its line (errors.HexMeshError)."""
+
+
 def _hex(args, inp, progress) -> int:
     """Make and write the hex mesh; returns the exit status it implies."""
     from .errors import HexMeshError
@@ -148,11 +154,16 @@ def _hex(args, inp, progress) -> int:
     from .hexmesh.mesher import DEFAULT_HEXES
     from .io.hexformats import export_hexmesh
 
+    if getattr(inp, "status", "converged") != "converged":
+        # said before any hex work: the field's own status, not a hex failure
+        print(f"error: no hex mesh: the field is {inp.status}, and a hex mesh needs a converged field; no hex file "
+              "written (solve it again: a finer edge length, or the advice above)", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
     try:
         hm = hexmesh(inp, args.cell_size, smooth=not args.no_smooth, progress=progress,
                      target_hexes=args.hex_cells or DEFAULT_HEXES)
     except HexMeshError as e:
-        print(f"error: no hex mesh: {e}", file=sys.stderr)
+        print(f"error: no hex mesh: {_HEX_KIND.get(e.kind, '')}{e}", file=sys.stderr)
         return EXIT_NO_HEX_MESH
     print(hm.report.summary())
     for path in args.hex:

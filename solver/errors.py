@@ -45,12 +45,24 @@ class Cancelled(Exception):
 
 
 class HexMeshError(SymFramesError):
-    """No valid hex mesh at these settings: the network admits none, the
-    field's transitions do not close, or no integer-grid map without
-    inverted tets was found.  The message says why and what to change;
+    """No valid hex mesh at these settings.  The message says why, where and
+    what to change; ``kind`` says whose the limit is:
+
+    * ``'network'``: the network admits no hex mesh, with the proof (an index
+      whose edges would have valence 2 or less);
+    * ``'settings'``: the cell size does not fit the solid;
+    * ``'field'``: the field is not one a hex mesh can follow (it did not
+      converge, or its transitions do not close as the network prescribes);
+    * ``'map'``: SymFrames' map failed (a fold it could not undo, a rounding
+      it could not keep apart): a limit of SymFrames, not a fault of the
+      network.
+
     ``report`` (a hexmesh.HexReport, or None) holds the figures gathered
     before the stop."""
 
-    def __init__(self, message: str, report=None):
+    KINDS = ("network", "settings", "field", "map")
+
+    def __init__(self, message: str, report=None, kind: str = "map"):
         super().__init__(message)
         self.report = report
+        self.kind = kind if kind in self.KINDS else "map"

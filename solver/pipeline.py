@@ -299,6 +299,7 @@ class FieldProblem:
     def __init__(self, V, F, network: Network, options: Options | None = None, progress=None, cancel=None,
                  mesh: TetMesh | MeshOutcome | None = None):
         self.options = opts = as_options(options)
+        self.given = network  # the network as given, before the intake's repairs (the hex report checks both)
         self.report = Report()
         st = Stages(STAGE_WEIGHTS, self.report.stage_seconds, progress, cancel)
         # the curve intake (intake.py) repairs the network at the scale of

@@ -692,3 +692,51 @@ def test_a_real_corner_is_named_as_the_users(cylinder):
                                            r"as given.*round the corner or split the curve at a node") as e:
         check_input(V, F, with_curve(net, 0, pts))
     assert "repair" not in str(e.value)
+
+
+def test_an_end_a_few_degrees_off_slides_only_as_far_as_it_must():
+    """Issue 48d: ends that reach the surface a few degrees off its normal
+    are bent within the curve, not slid along the surface: the slide is at
+    most SLIDE_PER_TAN h tan(angle).  The input is a cube-sphere hex mesh's
+    boundary and irregular edges (testkit/hexnet.py), the radial curves
+    reaching the coarse sphere 1-8 degrees off; before, the fairing slid
+    those ends 0.3-0.4 h."""
+    from solver.network.intake import SLIDE_PER_TAN
+    from testkit.hexnet import hexnet_input
+
+    d = hexnet_input("ball", 0)
+    V, F, net = d["V"], d["F"], d["network"]
+    checked = check_input(V, F, net)
+    ends = 0
+    for rep in checked.repairs:
+        for b in rep.ends:
+            assert b.slid_h <= SLIDE_PER_TAN * np.tan(np.radians(b.input_angle_deg + 1.0)) + 0.02, rep.text()
+            ends += 1
+    assert ends == 8
+    for c in checked.network.curves:
+        assert np.all(checked.surface.winding_number(c.points[1:-1]) > 0.5)
+
+
+def test_an_end_near_a_sharp_edge_never_slides_across_it():
+    """Issue 48e: on an octagonal prism (sharp vertical edges of 45 degrees),
+    an end 0.04 from an edge, whose curve leans towards it from under the
+    next face, slid across the edge onto that face before (0.056 off its
+    own face's plane); now it stays on its face, at least SHARP_CLEAR h
+    from the edge."""
+    from solver.examples import prism_surface
+    from solver.network.intake import SHARP_CLEAR
+
+    ang = np.radians(22.5 + 45 * np.arange(8))
+    outline = np.c_[np.cos(ang), np.sin(ang)]
+    V, F = prism_surface(outline, 1.0, n=8)
+    V[:, 2] -= 0.5
+    normal = np.array([np.cos(np.radians(45)), np.sin(np.radians(45)), 0.0])  # of the face between corners 0, 1
+    c0, c1 = np.r_[outline[0], 0.0], np.r_[outline[1], 0.0]
+    end = c1 + 0.04 * (c0 - c1) / np.linalg.norm(c0 - c1)
+    inner = np.array([0.1, 0.75, 0.0])
+    pts = np.vstack([np.linspace([0.1, 0.75, -0.5], inner, 6)[:-1], np.linspace(inner, end, 9)])
+    checked = check_input(V, F, Network(curves=[Curve(pts, 0.0, role="feature", name="lean")], sharp_angle=30.0))
+    q = checked.network.curves[0].points[-1]
+    assert abs((q - c1) @ normal) < 1e-6, q  # on its own face
+    to_edge = float(np.linalg.norm(q[:2] - c1[:2]))
+    assert to_edge >= SHARP_CLEAR * checked.scale - 1e-9, (to_edge, checked.scale)

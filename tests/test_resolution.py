@@ -284,7 +284,11 @@ def test_the_default_spends_what_the_network_asks_and_converges(monkeypatch):
     said = []
     p = FieldProblem(V, F, net, progress=lambda stage, frac, msg: said.append(msg))
     plan = p.plan
-    assert p.options.budget == 10_000 and plan.tets > 1.5 * 10_000 and plan.floor == 0
+    # every need met, up to the automatic grading's floor slack (resolution.GRADING_FLOOR_SLACK)
+    from solver.mesh.resolution import GRADING_FLOOR_SLACK
+
+    assert p.options.budget == 10_000 and plan.tets > 1.5 * 10_000
+    assert plan.floor == 0 or plan.floor <= GRADING_FLOOR_SLACK * plan.need_min, (plan.floor, plan.need_min)
     estimate = next(m for m in said if m.startswith("tetmesh: edge length"))
     assert "tets" in estimate and "MB" in estimate and " s end to end" in estimate and "spent" in estimate
     assert plan.tets / 1.5 <= p.mesh.n_tets <= 1.5 * plan.tets, (plan.tets, p.mesh.n_tets)

@@ -19,8 +19,8 @@ from ..errors import Cancelled, HexMeshError
 from ..stages import Stages
 from ..surface.trisurface import TriSurface, closest_point_on_triangles
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
-from .extract import extract_hexes, snap
-from .quality import HEX_EDGES, boundary_quads, edge_valences, euler_characteristic, scaled_jacobian
+from .extract import ExtractionError, extract_hexes, snap
+from .quality import HEX_EDGES, boundary_quads, det3, edge_valences, euler_characteristic, scaled_jacobian
 from .quantize import integer_grid_map, optimise_map, seamless_map
 from .report import DEFECTIVE, VALID, CurveMatch, HexReport
 from .seamless import MapError, build_map_system, degenerate_tets
@@ -122,11 +122,12 @@ def _check_cell(inp: HexInput, cell: float) -> None:
     if cell >= 0.5 * ext.min():
         raise HexMeshError(
             f"cell size {cell:.4g} is larger than half the solid's smallest extent ({ext.min():.4g}): the solid "
-            f"would be less than two cells thick; choose a cell size below {0.25 * ext.min():.4g}")
+            f"would be less than two cells thick; choose a cell size below {0.25 * ext.min():.4g}", kind="settings")
     n = vol / cell**3
     if n > MAX_HEXES:
         raise HexMeshError(f"cell size {cell:.4g} would make about {n:,.0f} hexahedra (the limit is "
-                           f"{MAX_HEXES:,}); choose a cell size of at least {(vol / MAX_HEXES) ** (1 / 3):.4g}")
+                           f"{MAX_HEXES:,}); choose a cell size of at least {(vol / MAX_HEXES) ** (1 / 3):.4g}",
+                           kind="settings")
 
 
 def _check_indices(inp: HexInput) -> None:
@@ -138,7 +139,7 @@ def _check_indices(inp: HexInput) -> None:
             raise HexMeshError(
                 f"curve {inp.network.source[i]}{name} has index {c.sigma:+g}: its hex edges would have valence "
                 f"{int(round(4 - 4 * c.sigma))}, cells meeting flat, which no valid hex mesh has; use curves of "
-                "index +1/4 (valence 3) or negative indices (valence 5, 6, ...)")
+                "index +1/4 (valence 3) or negative indices (valence 5, 6, ...)", kind="network")
 
 
 # ------------------------------------------------------------ the stages
@@ -191,11 +192,12 @@ def _map_system(cem: CurveEdgeMesh, inp: HexInput, cell: float, report: HexRepor
                 f"the field's transitions do not close as the network prescribes around {len(tr.bad_edges)} tet "
                 f"edges ({len(tr.ambiguous_faces)} faces ambiguous) near {_where(P)}: the field has singularities "
                 "the network does not ask for there" + _unconverged(inp) + "; a field that is not hex-meshable as "
-                "solved cannot give a hex mesh (solve it on a finer mesh, or check the network there)", report)
+                "solved cannot give a hex mesh (solve it on a finer mesh, or check the network there)", report,
+                kind="field")
         try:
             ms = build_map_system(cem, tr, cell)
         except MapError as e:
-            raise HexMeshError(f"the map's constraints cannot be met: {e}", report) from None
+            raise HexMeshError(f"the map's constraints cannot be met: {e}", report, kind="map") from None
         flat = degenerate_tets(ms)
         if not len(flat):
             break
@@ -216,6 +218,17 @@ def _where(points: np.ndarray) -> str:
     return f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})"
 
 
+AUTO_STEPS = (1.0, 0.85, 0.7)
+"""Cell sizes tried, as fractions of the automatic one, when the map fails
+or the mesh is defective at it (greedy rounding can collapse curves, nodes
+or thin parts that are about a cell apart; a smaller cell keeps them apart).
+A cell size the caller gives is tried alone."""
+
+
+class _Retry(HexMeshError):
+    """A failure of the map at this cell size that a smaller cell may undo."""
+
+
 def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, progress=None, cancel=None,
             target_hexes: int = DEFAULT_HEXES) -> HexMesh:
     """A pure hexahedral mesh of a solved field whose irregular edges are the
@@ -224,11 +237,13 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     Parameters
     ----------
     result : solver Result, or HexInput
-        the solved field (``solve(...)``)
+        the solved field (``solve(...)``); it must have converged
     cell_size : float, optional
         hex edge length in the units of the surface; default
         (``default_cell_size``): about target_hexes cells, at least 1.5
-        along the shortest singular curve
+        along the shortest singular curve; where the map fails or the mesh
+        is defective at the automatic size, 0.85 and 0.7 of it are tried
+        (``report.notes`` says so)
     smooth : bool
         optimise the vertex positions afterwards (never lowering the
         minimum scaled Jacobian)
@@ -247,69 +262,168 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     Raises
     ------
     HexMeshError
-        when no valid integer-grid map exists at this cell size (the message
-        says how many tets are inverted and where) or the cell size does not
-        fit the solid
+        when no valid hex mesh can be made; its ``kind`` says whose limit it
+        is: 'network' (the network admits none), 'settings' (the cell size
+        does not fit the solid), 'field' (the field did not converge, or its
+        transitions do not close as the network prescribes) or 'map'
+        (SymFrames' map failed: a limit of SymFrames); the message says how
+        many tets and where
     """
     inp = result if isinstance(result, HexInput) else HexInput.from_result(result)
+    status = getattr(inp, "status", "converged")
+    if status != "converged":
+        raise HexMeshError(
+            f"the field is {status}: a field that did not converge is not one a hex mesh can follow (its "
+            "transitions need not close around the curves); solve it again (a finer edge length, or the "
+            "advice of the solve's report) and mesh the converged field", kind="field")
     report = HexReport()
     clock = Stages(STAGE_WEIGHTS, report.stage_seconds, progress, cancel)
-    cell = float(cell_size) if cell_size is not None else default_cell_size(inp, target_hexes)
+    auto = cell_size is None
+    cell = float(cell_size) if not auto else default_cell_size(inp, target_hexes)
     if not np.isfinite(cell) or cell <= 0:
-        raise HexMeshError(f"cell size must be a positive length, got {cell_size!r}")
+        raise HexMeshError(f"cell size must be a positive length, got {cell_size!r}", kind="settings")
     _check_cell(inp, cell)
     _check_indices(inp)
-    report.cell_size = cell
+    steps = AUTO_STEPS if auto else (1.0,)
+    first_defective = None
+    for k, f in enumerate(steps):
+        c = cell * f
+        if k and _cell_count(inp, c) > MAX_HEXES:
+            break
+        try:
+            hm = _mesh_at(inp, c, smooth, clock, report)
+        except _Retry as e:
+            failure = str(e)
+            if k + 1 < len(steps):
+                report.notes.append(f"at cell size {c:.4g} the map failed ({failure}); trying "
+                                    f"{cell * steps[k + 1]:.4g}")
+                clock.say("integer-grid map", f"hex: {report.notes[-1]}")
+                continue
+            if first_defective is not None:
+                return first_defective
+            tried = ", ".join(f"{cell * x:.4g}" for x in steps[:k + 1])
+            raise HexMeshError(f"{failure} (cell sizes tried: {tried})" if len(steps) > 1 else failure, report,
+                               kind="map") from None
+        if hm.report.valid or k + 1 == len(steps):
+            return hm if hm.report.valid or first_defective is None else first_defective
+        first_defective = first_defective or hm
+        report = _fresh_report(report, f"at cell size {c:.4g} the mesh was defective ({hm.report.reason}); "
+                                       f"trying {cell * steps[k + 1]:.4g}")
+        clock.seconds = report.stage_seconds
+        clock.say("quality", f"hex: {report.notes[-1]}")
+    return first_defective
 
+
+def _cell_count(inp: HexInput, cell: float) -> float:
+    """About how many cells of this size the solid holds."""
+    return float(np.sum(inp.mesh.tet_volumes)) / cell**3
+
+
+def _fresh_report(old: HexReport, note: str) -> HexReport:
+    """A new report for the next attempt, keeping the notes and the seconds
+    spent so far."""
+    rep = HexReport()
+    rep.notes = old.notes + [note]
+    rep.stage_seconds = dict(old.stage_seconds)
+    return rep
+
+
+def _stage(clock: Stages, name: str, fn, *args, retry: bool = False, **kw):
+    """clock.run, with any failure that is not a diagnosis (a numpy or scipy
+    error, an internal inconsistency) turned into a HexMeshError that says it
+    is SymFrames' limit, never the network's."""
+    try:
+        return clock.run(name, fn, *args, **kw)
+    except (HexMeshError, Cancelled):
+        raise
+    except (CurveEdgeError, MapError, ExtractionError, ArithmeticError, ValueError, IndexError, RuntimeError,
+            np.linalg.LinAlgError) as e:
+        cls = _Retry if retry else HexMeshError
+        raise cls(f"SymFrames' hex stage '{name}' failed on this field ({type(e).__name__}: {e}); this is a limit "
+                  "of SymFrames, not a fault of the network: try another cell size or a finer field (a smaller "
+                  "edge length), and please report this input", kind="map") from None
+
+
+def _mesh_at(inp: HexInput, cell: float, smooth: bool, clock: Stages, report: HexReport) -> HexMesh:
+    """The stages at one cell size (module docs); raises _Retry where a
+    smaller cell may succeed."""
+    report.cell_size = cell
     try:
         cem = clock.run("curves onto edges", curves_on_edges, inp.mesh, inp.embedding, inp.network)
     except CurveEdgeError as e:
-        raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}", report) from None
-    cem, tr, ms, flat = clock.run("transitions", _map_system, cem, inp, cell, report)
+        raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}; this is a limit of the "
+                           "field's tet mesh, not of the network: solve it finer (a smaller edge length)", report,
+                           kind="map") from None
+    cem, tr, ms, flat = _stage(clock, "transitions", _map_system, cem, inp, cell, report)
     report.sizes.update(cem.stats)
     report.sizes.update(ms.stats)
     if len(flat):
         raise HexMeshError(f"{len(flat)} tets near {_where(cem.mesh.vertices[cem.mesh.tets[flat]].reshape(-1, 3))} "
-                           "are flat in every map the constraints allow", report)
-    sm, red = clock.run("seamless map", seamless_map, ms)
+                           "are flat in every map the constraints allow, and splitting them did not free them; "
+                           "this is a limit of SymFrames' map on this tet mesh: solve the field finer", report,
+                           kind="map")
+    sm, red = _stage(clock, "seamless map", seamless_map, ms)
     report.seamless_inverted = sm.inverted
-    gm = clock.run("integer-grid map", integer_grid_map, ms, red)
-    if gm.inverted:
-        gm = clock.run("integer-grid map", optimise_map, ms, gm, callback=_ticker(clock, "integer-grid map",
-                                                                                     "untangling"))
-    report.map_inverted, report.rounding_shift, report.stiffening = gm.inverted, gm.max_shift, gm.stiffening
-    if gm.inverted:
-        bad = np.nonzero(gm.det <= 0)[0]
-        where = _where(cem.mesh.vertices[cem.mesh.tets[bad]].reshape(-1, 3))
-        if sm.inverted > 0.01 * len(sm.det):
-            raise HexMeshError(
-                f"the field admits no valid map to the integer grid: already before rounding, {sm.inverted:,} of "
-                f"{len(sm.det):,} tets fold (around {where}); the singular curves do not give the boundary the "
-                "corners a hex mesh needs (a smooth solid torus, for example, needs curves around its tube) or "
-                "the field is not adapted to the surface there", report)
-        raise HexMeshError(
-            f"no valid integer-grid map at cell size {cell:.4g}: {gm.inverted} of {len(gm.det):,} tets stay "
-            f"inverted after rounding, stiffening and untangling, around {where}; try a smaller cell size (the "
-            "network's curves, the surface or its thin parts are closer there than the rounding can keep apart)",
-            report)
-    raw = clock.run("extraction", extract_hexes, cem.mesh, tr.faces, tr.tets, tr.transition, gm.corners, cell)
+    gm = _stage(clock, "integer-grid map", integer_grid_map, ms, red, retry=True)
+    if _folded(gm):
+        gm = _stage(clock, "integer-grid map", optimise_map, ms, gm, retry=True,
+                    callback=_ticker(clock, "integer-grid map", "untangling"))
+    report.map_inverted, report.rounding_shift, report.stiffening = _folded(gm), gm.max_shift, gm.stiffening
+    if report.map_inverted:
+        _refuse_folded(inp, cem, sm, gm, cell, report)
+    raw = _stage(clock, "extraction", extract_hexes, cem.mesh, tr.faces, tr.tets, tr.transition, gm.corners, cell,
+                 retry=True)
     report.lost_corners = raw.lost_corners
     if raw.fractional:
-        raise HexMeshError(
-            f"internal: the map is not an integer-grid map ({raw.fractional} cut faces with a translation that is "
-            "not whole); no mesh is written. Please report this input", report)
+        raise _Retry(f"the map is not an integer-grid map ({raw.fractional} cut faces with a translation that is "
+                     "not whole): a fault of SymFrames' rounding; please report this input", report, kind="map")
     if not len(raw.hexes):
-        raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g}; choose a smaller cell size", report)
+        raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g}; choose a smaller cell size", report,
+                           kind="settings")
     V, H = raw.vertices, raw.hexes
     sj0 = scaled_jacobian(V, H)
     report.sj_min_raw, report.sj_mean_raw = float(sj0.min()), float(sj0.mean())
     if smooth:
-        V = clock.run("smoothing", _smooth, V, H, cell, inp, _curve_vertices(V, cem, cell),
-                      _ticker(clock, "smoothing", "smoothing"))
-    clock.run("quality", _assess, report, inp, V, H, cell)
+        V = _stage(clock, "smoothing", _smooth, V, H, cell, inp, _curve_vertices(V, cem, cell),
+                   _ticker(clock, "smoothing", "smoothing"))
+    _stage(clock, "quality", _assess, report, inp, V, H, cell)
     e, val = _irregular(H)
     return HexMesh(V, H, scaled_jacobian(V, H), report, e, val,
                    (cem.mesh.vertices, cem.mesh.tets, snap(gm.corners)))
+
+
+def _folded(gm) -> int:
+    """Tets the map inverts or flattens, measured on the snapped corners the
+    extraction reads (a tet whose tiny positive volume snapping erases
+    cannot be traced through)."""
+    U = snap(gm.corners)
+    d = det3(np.transpose(U[:, 1:] - U[:, :1], (0, 2, 1)))
+    return int(np.sum((gm.det <= 0) | (np.sign(gm.det) * d <= 1e-12)))
+
+
+def _refuse_folded(inp: HexInput, cem, sm, gm, cell: float, report: HexReport) -> None:
+    """The message for a map that stays folded: before rounding, the
+    seamless map's own fold (no cell size helps); after it, the rounding's
+    (a smaller cell may)."""
+    bad = np.nonzero(gm.det <= 0)[0]
+    if not len(bad):
+        bad = np.argsort(gm.det)[:1]
+    where = _where(cem.mesh.vertices[cem.mesh.tets[bad]].reshape(-1, 3))
+    if sm.inverted > 0.01 * len(sm.det):
+        hint = ""
+        if not any(c.sigma != 0 for c in inp.network.curves) and not inp.sharp.any() and \
+                min(inp.surface.euler_characteristics()) <= 0:
+            hint = ("; here the solid has a smooth handle and no singular curve, and a grid needs corners on a "
+                    "boundary: a smooth solid torus, for example, needs curves around its tube")
+        raise HexMeshError(
+            f"SymFrames' seamless map folds: already before rounding, {sm.inverted:,} of {len(sm.det):,} tets "
+            f"fold (around {where}); this is a limit of SymFrames' map (its cut, transitions and constraints), "
+            f"not a proof that the network admits no hex mesh{hint}", report, kind="map")
+    raise _Retry(
+        f"no valid integer-grid map at cell size {cell:.4g}: {report.map_inverted} of {len(gm.det):,} tets stay "
+        f"inverted or flat after rounding, stiffening and untangling, around {where} (greedy rounding could not "
+        "keep the curves, the surface or its thin parts apart there: a limit of SymFrames' rounding)", report,
+        kind="map")
 
 
 def _ticker(clock: Stages, stage: str, what: str):
@@ -487,44 +601,50 @@ def _polyline_distance(P: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 def _match_curves(report: HexReport, inp: HexInput, V, E, val, cell: float) -> None:
     """Each irregular interior edge near a singular curve of the right index,
-    and every singular curve covered by such edges (within one cell)."""
+    and every singular curve covered by such edges (within one cell): against
+    the curves the field followed (the verdict), and against the curves as
+    the user gave them (reported: the intake may have moved them)."""
     net = inp.network
-    sing = [i for i, c in enumerate(net.curves) if c.sigma != 0]
+    sing = [(c.points, float(c.sigma), int(net.source[i]), c.name) for i, c in enumerate(net.curves) if c.sigma != 0]
+    report.extra_irregular, report.curves = curve_matches(sing, V, E, val, cell)
+    report.structure_exact = bool(report.extra_irregular == 0 and all(c.covered >= 1.0 for c in report.curves))
+    given = inp.given if inp.given is not None else sing
+    extra, matches = curve_matches([g for g in given if g[1] != 0], V, E, val, cell)
+    report.given_extra = extra
+    report.given_distance = max([c.distance for c in matches if c.edges] + [0.0])
+    report.given_covered = min([c.covered for c in matches] + [1.0])
+
+
+def curve_matches(curves: list, V, E, val, cell: float) -> tuple[int, list]:
+    """Irregular edges E (k, 2) with valences val against singular curves
+    [(points, sigma, id, name)]: how many lie more than a cell from every
+    curve of their valence, and a CurveMatch per curve."""
     mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]]) if len(E) else np.zeros((0, 3))
-    if not sing:
-        report.extra_irregular = len(E)
-        report.structure_exact = len(E) == 0
-        return
-    D = np.stack([_polyline_distance(net.curves[i].points, mid) for i in sing], axis=1) if len(E) else \
-        np.zeros((0, len(sing)))
+    if not curves:
+        return len(E), []
+    D = np.stack([_polyline_distance(P, mid) for P, *_ in curves], axis=1) if len(E) else \
+        np.zeros((0, len(curves)))
+    want = np.array([int(round(4 - 4 * sigma)) for _, sigma, *_ in curves])
+    # the nearest curve of the edge's own valence
+    D = np.where(val[:, None] == want[None, :], D, np.inf) if len(E) else D
     near = np.argmin(D, axis=1) if len(E) else np.zeros(0, dtype=np.int64)
     dist = D[np.arange(len(E)), near] if len(E) else np.zeros(0)
-    want = np.array([int(round(4 - 4 * net.curves[i].sigma)) for i in sing])
-    ok = (dist <= cell) & (val == want[near]) if len(E) else np.zeros(0, bool)
-    report.extra_irregular = int(np.sum(~ok))
-    curves = []
-    all_covered = True
-    for j, i in enumerate(sing):
-        c = net.curves[i]
+    ok = dist <= cell
+    out = []
+    for j, (P, sigma, cid, name) in enumerate(curves):
         mine = ok & (near == j)
-        P = c.points
         seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
         n = np.maximum(1, np.ceil(seg / (0.25 * cell)).astype(int))
         S = np.vstack([P[k] + np.linspace(0, 1, n[k], endpoint=False)[:, None] * (P[k + 1] - P[k])
                        for k in range(len(seg))] + [P[-1:]])
         if mine.any():
             Em = E[mine]
-            # distance from samples to the matched edges (segments)
             d = _segments_distance(S, V[Em[:, 0]], V[Em[:, 1]])
-            covered = float(np.mean(d <= cell))
-            far = float(dist[mine].max())
+            covered, far = float(np.mean(d <= cell)), float(dist[mine].max())
         else:
             covered, far = 0.0, float("inf")
-        all_covered &= covered >= 1.0
-        curves.append(CurveMatch(int(net.source[i]), c.name, float(c.sigma), int(want[j]), int(mine.sum()),
-                                 covered, far))
-    report.curves = curves
-    report.structure_exact = bool(report.extra_irregular == 0 and all_covered)
+        out.append(CurveMatch(cid, name, sigma, int(want[j]), int(mine.sum()), covered, far))
+    return int(np.sum(~ok)), out
 
 
 def _segments_distance(X, A, B):
@@ -619,11 +739,11 @@ def field_on_edges(result) -> EdgeField:
     try:
         cem = curves_on_edges(inp.mesh, inp.embedding, inp.network)
     except CurveEdgeError as e:
-        raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}") from None
+        raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}", kind="map") from None
     tr = build_transitions(cem, inp.mesh, inp.omega, inp.frames)
     if tr.bad_edges or len(tr.ambiguous_faces):
         raise HexMeshError(f"the field's transitions do not close as the network prescribes around "
-                           f"{len(tr.bad_edges)} tet edges" + _unconverged(inp))
+                           f"{len(tr.bad_edges)} tet edges" + _unconverged(inp), kind="field")
     mesh = cem.mesh
     curve = np.full(mesh.n_tets, -1, dtype=np.int64)
     for ch in cem.chains:

@@ -67,6 +67,15 @@ class HexReport:
         seconds per stage
     sizes : dict
         sizes of the intermediate meshes and systems
+    given_extra, given_distance, given_covered : int, float, float
+        the irregular edges against the singular curves as the user gave
+        them, before the intake repaired them: how many lie more than a
+        cell from every given curve of their valence, the largest distance
+        of a matched one, and the least fraction of a given curve within a
+        cell of its edges
+    notes : list of str
+        what the run changed on its way (a smaller automatic cell size where
+        the map failed at the first one, and why)
     """
 
     status: str = DEFECTIVE
@@ -98,6 +107,10 @@ class HexReport:
     stiffening: int = 0
     stage_seconds: dict = field(default_factory=dict)
     sizes: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+    given_extra: int = 0
+    given_distance: float = 0.0
+    given_covered: float = 1.0
 
     @property
     def valid(self) -> bool:
@@ -129,6 +142,10 @@ class HexReport:
                                                             sorted(self.irregular.items())) or "none")
                  + f"; {'exactly the prescribed curves' if self.structure_exact else 'NOT the prescribed curves'}"
                  + (f" ({self.extra_irregular} elsewhere)" if self.extra_irregular else ""),
+                 f"  against the curves as given: {self.given_extra} irregular edges more than a cell away, "
+                 f"the others within {self.given_distance:.3g} "
+                 f"({self.given_distance / max(self.cell_size, 1e-300):.2f} cells), covering "
+                 f"{100 * self.given_covered:.0f}% of each curve or more",
                  f"  boundary: Euler characteristic {self.euler} (surface {self.euler_expected}); faces in more "
                  f"than two cells {self.faces_over_two}; Hausdorff distance {self.hausdorff:.3g} "
                  f"({100 * self.hausdorff_relative:.2f}% of the diagonal)",
@@ -136,6 +153,7 @@ class HexReport:
                  f"{self.seamless_inverted}, integer-grid {self.map_inverted}; rounding moved up to "
                  f"{self.rounding_shift:.2f} cells; stiffening {self.stiffening}",
                  "  seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in self.stage_seconds.items())]
+        lines += [f"  note: {n}" for n in self.notes]
         for c in self.curves:
             if c.covered < 1.0 or c.distance > self.cell_size:
                 lines.append(f"  curve {c.curve} {c.name!r}: {c.edges} edges of valence {c.valence}, covers "

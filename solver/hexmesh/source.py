@@ -44,6 +44,10 @@ class HexInput:
         the surface's sharp edges
     status : str
         the field's status, 'converged' or 'not converged'
+    given : list or None
+        the singular curves as the user gave them, before the intake
+        repaired them: (points (n, 3), sigma, curve id, name) each; None
+        where unknown (the repaired curves are then taken)
     """
 
     mesh: TetMesh
@@ -54,6 +58,7 @@ class HexInput:
     surface: TriSurface
     sharp: np.ndarray
     status: str = "converged"
+    given: list | None = None
 
     @classmethod
     def from_result(cls, result) -> HexInput:
@@ -68,9 +73,13 @@ class HexInput:
         HexInput
         """
         checked = result.problem.checked
+        given = getattr(result.problem, "given", None)
+        if given is not None:
+            given = [(np.asarray(c.points, float), float(c.sigma), i, c.name) for i, c in enumerate(given.curves)
+                     if c.sigma != 0]
         return cls(result.mesh, np.asarray(result.omega), np.asarray(result.frames), result.embedding,
                    result.problem.network, checked.surface, np.asarray(checked.features.sharp, bool),
-                   result.report.status)
+                   result.report.status, given)
 
 
 def _flat(parts):
@@ -119,6 +128,9 @@ def hex_source_arrays(inp: HexInput) -> dict:
             "nodes": [{"position": [float(x) for x in nd.position], "ends": [[int(a), int(b)] for a, b in nd.ends]}
                       for nd in net.nodes],
             "status": inp.status}
+    if inp.given is not None:
+        meta["given"] = [{"sigma": g[1], "curve": int(g[2]), "name": g[3]} for g in inp.given]
+        out["hex_given_points"], out["hex_given_points_offsets"] = _flat([g[0] for g in inp.given])
     out["hex_meta"] = np.array(json.dumps(meta))
     out["hex_surface_vertices"] = inp.surface.V
     out["hex_surface_faces"] = inp.surface.F
@@ -158,5 +170,9 @@ def input_from_arrays(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, arra
                     [r.astype(np.int64) for r in parts["node_region"]], np.zeros((mesh.n_faces, 3)),
                     np.zeros(mesh.n_faces, bool), np.zeros(mesh.n_faces, np.int64))
     S = TriSurface(np.asarray(arrays["hex_surface_vertices"], float), np.asarray(arrays["hex_surface_faces"], np.int64))
+    given = None
+    if "given" in meta and "hex_given_points" in arrays:
+        pts = _split(np.asarray(arrays["hex_given_points"], float), arrays["hex_given_points_offsets"])
+        given = [(P, float(g["sigma"]), int(g["curve"]), g["name"]) for P, g in zip(pts, meta["given"])]
     return HexInput(mesh, np.asarray(omega, float), np.asarray(frames, float), emb, net, S,
-                    np.asarray(arrays["hex_surface_sharp"], bool), meta.get("status", "converged"))
+                    np.asarray(arrays["hex_surface_sharp"], bool), meta.get("status", "converged"), given)

@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..field.matchings import omega_matchings
-from ..linalg.rotations import CUBE_GROUP, GROUP_INVERSE, GROUP_PRODUCT, polar_rotation
+from ..linalg.rotations import CUBE_GROUP, GROUP_INVERSE, GROUP_PRODUCT, closest_symmetry, polar_rotation
 from ..mesh.tetmesh import TET_EDGES, TetMesh
 from .curve_edges import CurveEdgeError, CurveEdgeMesh
 
@@ -143,8 +143,14 @@ def face_transitions(cem: CurveEdgeMesh, base: np.ndarray, field_mesh: TetMesh, 
         g1 = _pair_matchings(field_mesh, omega, frames, np.c_[base[A[ok]], s[ok]])
         g2 = _pair_matchings(field_mesh, omega, frames, np.c_[s[ok], base[B[ok]]])
         M[ok, k] = GROUP_PRODUCT[g2, g1]
-    if np.any((M < 0).all(axis=1)):
-        raise CurveEdgeError("internal: two neighbouring split tets share no frame source")
+    none = np.nonzero((M < 0).all(axis=1))[0]
+    if len(none):
+        # neighbours split from different old tets, sharing no old vertex
+        # (inserted vertices only on their face): matched through their
+        # base vertices' frames by the closest cube symmetry
+        # (E_bB g ~ E_bA), the same relation g2 g1 gives through a source
+        bA, bB = base[A[none]], base[B[none]]
+        M[none, 0] = closest_symmetry(np.einsum("nji,njk->nik", frames[bA], frames[bB]))
     first = M[np.arange(len(M)), np.argmax(M >= 0, axis=1)]
     ambiguous = np.any((M >= 0) & (M != first[:, None]), axis=1)
     return faces, np.c_[A, B], first, faces[ambiguous]

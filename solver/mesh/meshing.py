@@ -40,6 +40,7 @@ from ..network.validation import CheckedInput
 from ..surface.trisurface import TriSurface
 from . import cdt
 from .bisection import bisect
+from .clearance import clear_curve_ends
 from .decimate import Simplified, simplify_for_meshing
 from .refine import red_refine
 from .resolution import TETS_PER_H3, Plan, solid_volume
@@ -107,6 +108,9 @@ class MeshStats:
     simplified : tuple of int or None
         (input triangles, triangles the mesher got) where a dense surface
         was simplified first (decimate.py), else None.
+    cleared : int
+        Surface vertices moved off the curve ends for the mesher
+        (clearance.py).
     """
 
     mesher: str = ""
@@ -114,6 +118,7 @@ class MeshStats:
     refine_levels: int = 0
     budget_retries: int = 0
     graded_tets: int = 0
+    cleared: int = 0
     flat: FlatRepair | None = None
     snap: SnapStats | None = field(default=None, compare=False)
     simplified: tuple | None = None
@@ -230,8 +235,11 @@ def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cance
     # (decimate.py): fTetWild's time grows with its input's triangles
     simplified = simplify_for_meshing(checked.surface, h, say, checked.features,
                                       settings.epsilon * checked.surface.bbox_diagonal)
+    domain, cleared = _cleared_domain(checked, simplified, h)
+    if cleared and say is not None:
+        say(f"tetmesh: {cleared} surface vertices moved off the curve ends for the mesher (clearance.py)")
     for attempt in range(3):
-        m = _mesh_at(checked, settings, h, tetgen_off, cancel, simplified)
+        m = _mesh_at(checked, settings, h, tetgen_off, cancel, simplified, domain)
         tetgen_off = m.tetgen_off
         n = m.mesh.n_tets * 8.0**m.k
         if m.problem is not None:
@@ -265,11 +273,23 @@ def mesh_domain(checked: CheckedInput, plan: Plan, settings: MeshSettings, cance
                 f"fTetWild meshed at {m.H:.4g} before {m.k} refinement level(s): try refine={m.k - 1}")
         raise MeshingError(f"the tet mesh's boundary {m.problem}; a thin part was lost, a cavity appeared or "
                            f"curve tubes too close to the surface merged with it. {hint}")
-    return _finish(checked, plan, settings, m, retries, simplified)
+    return _finish(checked, plan, settings, m, retries, simplified, cleared)
+
+
+def _cleared_domain(checked: CheckedInput, simplified: Simplified | None, h: float) -> tuple[TriSurface, int]:
+    """The surface the mesher meshes: the input or its simplification, with
+    the curve ends off its vertices and edges (clearance.py)."""
+    net = checked.network
+    ends = [c.points[k] for i, c in enumerate(net.curves) if not c.closed
+            for k, kind in ((0, net.start_kind[i]), (-1, net.end_kind[i])) if kind == "boundary"]
+    if simplified is not None:
+        return clear_curve_ends(simplified.surface, np.array(ends), h)
+    fixed = checked.features.degree > 0 if np.any(checked.features.sharp) else None
+    return clear_curve_ends(checked.surface, np.array(ends), h, fixed)
 
 
 def _finish(checked: CheckedInput, plan: Plan, settings: MeshSettings, m: _Made, retries: int,
-            simplified: Simplified | None = None) -> MeshOutcome:
+            simplified: Simplified | None = None, cleared: int = 0) -> MeshOutcome:
     """Snap, refine and grade the mesh kept."""
     mesh, snap = m.mesh, None
     if settings.snap_features:
@@ -285,19 +305,23 @@ def _finish(checked: CheckedInput, plan: Plan, settings: MeshSettings, m: _Made,
         mesh, graded = grade(mesh, plan, settings.budget, checked.surface)
     stats = MeshStats(mesher=m.mesher, mesher_tets=mesher_tets, refine_levels=m.k, budget_retries=retries,
                       graded_tets=graded, flat=m.flat, snap=snap,
-                      simplified=None if simplified is None else (simplified.faces_in, simplified.faces_out))
+                      simplified=None if simplified is None else (simplified.faces_in, simplified.faces_out),
+                      cleared=cleared)
     return MeshOutcome(mesh, m.h, stats)
 
 
 def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off: str, cancel,
-             simplified: Simplified | None = None) -> _Made:
+             simplified: Simplified | None = None, domain: TriSurface | None = None) -> _Made:
     """A mesh for a final edge length h.  With mesher 'TetGen' the surface
     alone is meshed at h (no tubes: embed.py traces the curves through any
     mesh); where TetGen fails (or ``tetgen_off`` says why it may not),
     fTetWild meshes, coarser by the refinement levels, one level finer
     each time the boundary's topology comes out wrong.  simplified: the
     dense input brought down to the mesh scale (decimate.py), which the
-    mesher gets instead of the input surface."""
+    mesher gets instead of the input surface; domain: the surface the
+    mesher gets, where given (the curve ends cleared, clearance.py)."""
+    if domain is None:
+        domain = simplified.surface if simplified is not None else checked.surface
     mesher = settings.mesher
     if mesher == "auto":
         singular = any(c.sigma != 0 for c in checked.network.curves)
@@ -307,8 +331,7 @@ def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off
         # no faster than refinement's (refine_levels is for fTetWild)
         k = int(settings.refine or 0)
         try:
-            mesh = cdt.tetrahedralize_cdt(simplified.surface if simplified is not None else checked.surface,
-                                          h * 2.0**k, cancel)
+            mesh = cdt.tetrahedralize_cdt(domain, h * 2.0**k, cancel)
         except MeshingError as e:
             tetgen_off = f"TetGen failed: {e}"
         else:
@@ -323,7 +346,6 @@ def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off
         flat = 0.01 * settings.epsilon * checked.surface.bbox_diagonal
         tubes = build_tubes(checked.network, checked.surface, r, r * np.sqrt(3.0),
                             node_radius(checked.network, H, settings.node_radius), flat)
-        domain = simplified.surface if simplified is not None else checked.surface
         mesh, repair = tetrahedralize_repaired(domain, H, (tubes.V, tubes.F), settings.epsilon, cancel,
                                                sharp=bool(np.any(checked.features.sharp)))
         problem = topology_change(checked.surface, mesh)

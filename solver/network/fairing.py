@@ -20,7 +20,9 @@ fairs it at a length tied to the mesh, never to the bounding box:
    edges goes, and so does a bend shorter than a few l between fixed points
    (a chain of 3-4 mesh edges carries no shape of its own), and an arc of
    radius R moves inwards by about 4.5 l^2 / R (a loop of radius 6.7 h by
-   0.5 h; reported).  A curve whose faired points would leave the solid
+   0.5 h; reported).  A closed loop then gets the smoothed residual back
+   (Tukey's twicing): the shrinking goes (to 0.01 h on that loop) and the
+   zig-zag stays gone.  A curve whose faired points would leave the solid
    keeps its resampled points;
 5b. *least bending*: the Gaussian keeps the long bow of a chain that
    strays to one side along its whole length, and the field pays for
@@ -108,6 +110,12 @@ def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
     return np.unique(np.array(knots, int))
 
 
+def _limit(slide_max, end) -> float:
+    """The slide allowed at an end (0 or -1): one number for every end, or a
+    dict per end."""
+    return float(slide_max[end]) if isinstance(slide_max, dict) else float(slide_max)
+
+
 def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: int,
                     slide: dict | None = None, slide_max: float = 0.0, project=None) -> np.ndarray:
     """Explicit Laplacian smoothing (step 1/2) with the fixed vertices held.
@@ -133,6 +141,7 @@ def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: 
     ends = [] if closed or not slide else [[i % n, (1 if i == 0 else n - 2), np.asarray(v, float)]
                                            for i, v in slide.items() if n > 2]
     start = {e[0]: core[e[0]].copy() for e in ends}
+    limits = {i % n: _limit(slide_max, k) for k in (slide or {}) for i in (k,)} if n > 2 else {}
     for step in range(iterations):
         if project is not None and step and step % 8 == 0:
             for e in ends:
@@ -150,17 +159,20 @@ def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: 
             x = core[i] + 0.5 * lap[i]
             off = x - start[i]
             r = np.linalg.norm(off)
-            core[i] = x if r <= slide_max else start[i] + off * (slide_max / r)
+            lim = limits[i]
+            core[i] = x if r <= lim else start[i] + off * (lim / max(r, 1e-300))
     Q[:n] = core
     if closed:
         Q[-1] = Q[0]
     return Q
 
 
-def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None, project=None):
+def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None, project=None,
+               slide_limit: dict | None = None):
     """Steps 1-5 of the module docstring.  slide: {0 or -1: outward normal}
     of boundary ends that may slide along the surface (``_laplacian_fair``;
-    by at most ``SLIDE_MAX * l``; project: its surface projection).
+    by at most ``SLIDE_MAX * l``, or by slide_limit[end] (a length) where
+    given and smaller; project: its surface projection).
     Returns (points, merged count, fairing length l, corner count, fixed
     mask)."""
     Pm = merge_close(P, MERGE * h, closed)
@@ -183,19 +195,24 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
     fx = np.concatenate(fixed)
     if closed and not len(knots):
         fx[[0, -1]] = False  # a loop's seam is no end
-    # (Tukey's twicing, adding back the smoothed residual, kept a loop of
-    # radius 6.7 h round (0.5 h of shrinking -> 0.01 h) but also the bow of
-    # tet-edge chains near their ends: on the tet-edge cylinder curves moved
-    # by up to 1.1 h, turned 19 degrees over h, and LM took 19 iterations to
-    # a penalty of 157, against 0.8 h, 9 degrees, 7-9 and 67 without)
-    Q = _laplacian_fair(Q, fx, closed, SMOOTH_ITERATIONS, slide, SLIDE_MAX * ell, project)
+    # Tukey's twicing, adding back the smoothed residual, keeps a loop of
+    # radius 6.7 h round (0.5 h of shrinking -> 0.01 h), so loops get it; it
+    # also keeps the bow of tet-edge chains near their ends, so open curves
+    # do not (on the tet-edge cylinder they moved by up to 1.1 h, turned 19
+    # degrees over h, and LM took 19 iterations to a penalty of 157, against
+    # 0.8 h, 9 degrees, 7-9 and 67 without; least bending straightens them)
+    lim = {e: min(SLIDE_MAX * ell, float((slide_limit or {}).get(e, np.inf))) for e in (slide or {})}
+    Q0 = Q
+    Q = _laplacian_fair(Q, fx, closed, SMOOTH_ITERATIONS, slide, lim, project)
+    if closed and len(Q) > 3:
+        Q = Q + _laplacian_fair(Q0 - Q, fx, closed, SMOOTH_ITERATIONS)
     if not closed and len(Q) > 2:
         ends = []
         for e in slide or {}:
             i = e % len(Q)
             nrm = project(Q[i])[1] if project is not None else np.asarray(slide[e], float)
             ends.append((i, 1 if i == 0 else len(Q) - 2, nrm))
-        Q = _least_bending(Q, fx, ends, Pm, BAND * ell, SLIDE_MAX * ell)
+        Q = _least_bending(Q, fx, ends, Pm, BAND * ell, {i: lim[e] for e, (i, _, _) in zip(slide, ends)})
         if project is not None:
             for i, _, _ in ends:
                 Q[i] = project(Q[i])[0]
@@ -267,7 +284,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
         for i, _, _ in ends:
             foot[i] = guide[0] if i == 0 else guide[-1]
             d[i] = np.linalg.norm(X[i] - foot[i])
-            lim[i] = slide_max
+            lim[i] = _limit(slide_max, i)
         out = free & (d > lim)
         if not np.any(free & (d > 1.01 * lim)):
             break

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..surface.trisurface import TriSurface
+from ..surface.trisurface import TriSurface, segments_distance
 from .curve_ends import (
     BEND_FRACTION,
     BEND_FRACTION_ONE_END,
@@ -44,6 +44,9 @@ from .network import Curve, PreparedNetwork
 from .polyline import hausdorff, merge_close, resample, turning
 
 TETS_PER_H3 = 15.0  # as mesh/resolution.py's (network/ sits below mesh/)
+SLIDE_PER_TAN = 3.0  # an end slides at most this many h times the tangent of its angle to the normal ...
+SHARP_CLEAR = 0.1  # ... and stays this many h off the sharp edges
+FREE_SLIDE = 30.0  # ... unless fairing turns it more than this many degrees off the normal
 LOCAL_LEVELS = 3  # an end repair that kinks at h is redone at h / 2, h / 4, h / 8 (the mesh is refined there)
 # the repair's own bar: under the kink check's MAX_KINK (45 degrees over h),
 # with a margin for the mesh's sampling of the curve
@@ -163,16 +166,93 @@ def _repair_without_kinks(repair_at, h: float, c: Curve):
     return hc, out
 
 
+def slide_limit(S: TriSurface, P: np.ndarray, h: float) -> float:
+    """How far the boundary end P[-1] may slide along the surface while its
+    curve is faired: as far as the end must to meet the surface along the
+    normal over the fairing width, ``SLIDE_PER_TAN * h * tan`` of its
+    chord's angle to the normal (an end 4 degrees off slides 0.21 h, one
+    18 degrees off a whole h, as before)."""
+    ang = np.radians(end_chord_angle(S, merge_close(P, 1e-9 * h, False), h)) if len(P) > 1 else 0.0
+    return max(SLIDE_PER_TAN * h * float(np.tan(min(ang, 1.4))), 0.0)
+
+
+class EndProjection:
+    """Where a boundary end goes while its curve is faired: the closest
+    point of the surface (``project``), or, for an end sliding from a given
+    point, of that point's own patch between sharp edges, kept
+    ``SHARP_CLEAR * h`` off the sharp edges (``for_ends``): an end inside a
+    face stays inside it and never crosses an edge onto the next face.
+
+    sharp : (A, B) the sharp edges' end points; patch_of : (#F,) the patch
+    of each face."""
+
+    def __init__(self, S: TriSurface, h: float, sharp: tuple | None, patch_of: np.ndarray | None):
+        self.S, self.h = S, h
+        self.sharp = sharp if sharp is not None and len(sharp[0]) and patch_of is not None else None
+        self.patch_of = patch_of
+        self._patches = {}
+
+    def project(self, x):
+        """(closest surface point, its normal)."""
+        _, f, q = self.S.closest_points(x[None])
+        return q[0], surface_normal_at(self.S, int(f[0]), q[0])
+
+    def for_ends(self, starts: list):
+        """A projection for the ends sliding from the points ``starts``: each
+        point goes with the start it is nearest."""
+        if self.sharp is None or not starts:
+            return self.project
+        procs = [self._on_patch(x) for x in starts]
+
+        def proj(x):
+            k = int(np.argmin([np.linalg.norm(x - s) for s in starts]))
+            return self._kept_off(procs[k], x)
+
+        return proj
+
+    def _on_patch(self, x) -> TriSurface:
+        _, f, _ = self.S.closest_points(x[None])
+        p = int(self.patch_of[int(f[0])])
+        if p not in self._patches:
+            self._patches[p] = TriSurface(self.S.V, self.S.F[self.patch_of == p])
+        return self._patches[p]
+
+    def _kept_off(self, P: TriSurface, x):
+        A, B = self.sharp
+        clear = SHARP_CLEAR * self.h
+        _, f, q = P.closest_points(x[None])
+        q = q[0]
+        y = np.repeat(q[None], len(A), axis=0)
+        d, mid = segments_distance(y, y, A, B)
+        k = int(np.argmin(d))
+        if d[k] < clear:
+            # back into the patch, square to the edge (from on the edge:
+            # towards the middle of the face the end was put on)
+            foot = 2.0 * mid[k] - q
+            w = q - foot if d[k] > 1e-9 * self.h else P.V[P.F[int(f[0])]].mean(axis=0) - foot
+            t = B[k] - A[k]
+            w = w - (w @ t) / max(t @ t, 1e-300) * t
+            n = float(np.linalg.norm(w))
+            if n > 1e-300:
+                _, f, q2 = P.closest_points((foot + (clear / n) * w)[None])
+                q = q2[0]
+        return q, surface_normal_at(P, int(f[0]), q)
+
+
 def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
-                   boundary_tolerance: float, joined: dict | None = None) -> tuple[PreparedNetwork, list[CurveRepair]]:
+                   boundary_tolerance: float, joined: dict | None = None,
+                   sharp: tuple | None = None, patch_of: np.ndarray | None = None
+                   ) -> tuple[PreparedNetwork, list[CurveRepair]]:
     """Repair every prepared interior curve at scale h (module docstring).
 
     names[ci] : label of prepared curve ci for messages;  boundary ends
     farther than boundary_tolerance from the surface are left as they are
     (validation refuses them).  joined : join_loose_ends' moves, reported
-    with the curves.  Returns the repaired network, one CurveRepair per
-    curve and the IntakeScales (each curve's local scale, the input's
-    corners held).
+    with the curves.  sharp : (A, B) the sharp edges' end points, and
+    patch_of : (#F,) the patch of each face between them: a sliding end
+    stays on its patch, ``SHARP_CLEAR * h`` off its edges (EndProjection).
+    Returns the repaired network, one CurveRepair per curve and the
+    IntakeScales (each curve's local scale, the input's corners held).
     """
     joined = joined or {}
 
@@ -181,9 +261,8 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
 
     curves, repairs, scales, held = [], [], [], []
 
-    def project(x):
-        _, f, q = S.closest_points(x[None])
-        return q[0], surface_normal_at(S, int(f[0]), q[0])
+    onto = EndProjection(S, h, sharp, patch_of)
+    project = onto.project
 
     for ci, c in enumerate(pn.curves):
         P0 = c.points
@@ -211,14 +290,21 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
 
         def repair_at(hc):
             """Fair and bend the curve at the scale hc (steps 1-6)."""
-            slide = {}
+            slide, limit = {}, {}
             if not c.closed and len(P0) > 1:
                 for end, kind in ((0, kinds[0]), (-1, kinds[1])):
                     if kind == "boundary":
                         q, nrm = project(P0[end])
                         if np.linalg.norm(q - P0[end]) <= boundary_tolerance:
                             slide[end] = nrm
-            Q, merged, ell, ncorner, fixed = fair_curve(P0, hc, c.closed, slide, project)
+                            limit[end] = slide_limit(S, P0 if end == -1 else P0[::-1], h)
+            project_end = onto.for_ends([P0[e] for e in slide])
+            Q, merged, ell, ncorner, fixed = fair_curve(P0, hc, c.closed, slide, project_end, limit)
+            if limit and max(end_chord_angle(S, Q if e == -1 else Q[::-1], hc) for e in limit) > FREE_SLIDE:
+                # the fairing itself turns the end far off the normal (a
+                # shape smaller than the fairing width): the end slides
+                # as the curve needs, as far as fair_curve allows
+                Q, merged, ell, ncorner, fixed = fair_curve(P0, hc, c.closed, slide, project_end)
             faired, note = True, ""
             # the faired curve must stay inside the solid (a curve hugging a
             # concave part of the surface could be pulled out of it)

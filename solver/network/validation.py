@@ -115,7 +115,10 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     if repair and pn.curves:
         # a real crossing is refused before fairing could pull it apart
         _check_crossings(pn, label, CROSSING_TOLERANCE * h)
-        pn, repairs, intake = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol, joined)
+        G0 = sharp_feature_graph(S, net)
+        E = S.edges[G0.sharp]
+        pn, repairs, intake = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol, joined,
+                                             (S.V[E[:, 0]], S.V[E[:, 1]]), G0.patches[1] if len(E) else None)
         if scale is not None:
             _check_local_scales(intake.scales, h, repairs, label)
 

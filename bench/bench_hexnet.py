@@ -1,0 +1,137 @@
+"""Hex meshes of networks known to be meshable (issue 48f): the
+testkit/hexnet.py family, default options, each run in a fresh process.
+
+    ./dev.sh python bench/bench_hexnet.py                       # every kind, seeds 0-2: a line per run
+    ./dev.sh python bench/bench_hexnet.py --kinds ball plate --seeds 0 1 --tet-edge
+    ./dev.sh python bench/bench_hexnet.py --write               # also bench/hexnet.json
+
+Each input is the boundary and the irregular edges of a hex mesh deformed by
+a smooth random map (an O-grid, a cube-sphere, plates with holes, a torus,
+a genus-2 part), so a valid hex mesh with exactly these curves exists.  A
+run solves the field and meshes it with the defaults, as
+``python -m solver NET.json --hex out.vtu`` does, and is judged by the bars
+of issue 48: converged; 100 % hexes, 0 inverted, min scaled Jacobian >= 0.5,
+mean >= 0.93; irregular edges within one cell of the curves as given, with
+valence 4 - 4 sigma, none elsewhere; Hausdorff <= 1 % of the diagonal.
+Recorded per run: the field (tets, LM iterations, penalty, status), the hex
+mesh (cells, quality, irregular edges against the given curves), the
+seconds per stage and end to end, or the error's kind and message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+
+def bars(row: dict) -> list:
+    """The bars a run missed (issue 48's list), empty when it met them all."""
+    if "error" in row:
+        return [row["error_kind"] + ": " + row["error"][:80]]
+    miss = []
+    if row["status"] != "converged":
+        miss.append("not converged")
+    if row.get("hex_error"):
+        return miss + [f"no hex ({row['hex_kind']})"]
+    if row["inverted"] or row["other_cells"]:
+        miss.append("inverted/other cells")
+    if row["sj_min"] < 0.5:
+        miss.append("min SJ < 0.5")
+    if row["sj_mean"] < 0.93:
+        miss.append("mean SJ < 0.93")
+    if row["given_extra"] or row["given_covered"] < 1.0 or not row["structure_exact"]:
+        miss.append("structure")
+    if row["hausdorff_pct"] > 1.0:
+        miss.append("Hausdorff")
+    return miss
+
+
+def run_one(kind: str, seed: int, tet_edge: bool) -> dict:
+    from solver import HexMeshError, SymFramesError, hexmesh, solve
+    from testkit.hexnet import hexnet_input
+
+    d = hexnet_input(kind, seed)
+    V, F, net = d["V"], d["F"], d["network"]
+    if tet_edge:
+        from testkit.tetedge import tet_edge_network
+
+        diag = float((V.max(axis=0) - V.min(axis=0)) @ (V.max(axis=0) - V.min(axis=0))) ** 0.5
+        net, _ = tet_edge_network(V, F, net, 0.05 * diag, seed=seed)
+    row = dict(kind=kind, seed=seed, variant="tet-edge" if tet_edge else "clean", curves=len(net.curves),
+               source_irregular={str(k): int(v) for k, v in d["meta"].get("irregular_edges", {}).items()})
+    t0 = time.perf_counter()
+    try:
+        r = solve(V, F, net)
+    except SymFramesError as e:
+        row.update(error=str(e), error_kind=type(e).__name__, total_s=round(time.perf_counter() - t0, 1))
+        return row
+    t_field = time.perf_counter() - t0
+    rep = r.report
+    row.update(status=rep.status, penalty=round(float(rep.lm.final.penalty), 3),
+               iterations=int(rep.lm.n_iterations), tets=int(rep.sizes.get("tets", 0)),
+               field_s=round(t_field, 1), field_stages={k: round(v, 1) for k, v in rep.stage_seconds.items()})
+    t1 = time.perf_counter()
+    try:
+        hm = hexmesh(r)
+    except HexMeshError as e:
+        row.update(hex_error=str(e), hex_kind=e.kind, total_s=round(time.perf_counter() - t0, 1))
+        return row
+    h = hm.report
+    row.update(hexes=h.hexes, other_cells=h.non_hex_cells, inverted=h.inverted, sj_min=round(h.sj_min, 3),
+               sj_mean=round(h.sj_mean, 3), sj_min_raw=round(h.sj_min_raw, 3), hex_status=h.status,
+               reason=h.reason, irregular={str(k): v for k, v in h.irregular.items()},
+               structure_exact=bool(h.structure_exact), given_extra=int(h.given_extra),
+               given_distance_cells=round(h.given_distance / h.cell_size, 2),
+               given_covered=round(h.given_covered, 3),
+               hausdorff_pct=round(100 * h.hausdorff_relative, 2), cell=round(h.cell_size, 4), notes=h.notes,
+               hex_s=round(time.perf_counter() - t1, 1),
+               hex_stages={k: round(v, 1) for k, v in h.stage_seconds.items()},
+               total_s=round(time.perf_counter() - t0, 1))
+    return row
+
+
+def main() -> None:
+    from testkit.hexnet import KINDS
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--kinds", nargs="+", default=list(KINDS))
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--tet-edge", action="store_true", help="also each input's tet-edge variant")
+    ap.add_argument("--write", action="store_true", help="write bench/hexnet.json")
+    ap.add_argument("--one", nargs=3, metavar=("KIND", "SEED", "VARIANT"), help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.one:
+        print(json.dumps(run_one(a.one[0], int(a.one[1]), a.one[2] == "tet-edge")))
+        return
+    rows = []
+    for kind in a.kinds:
+        for seed in a.seeds:
+            for variant in (["clean", "tet-edge"] if a.tet_edge else ["clean"]):
+                t = time.perf_counter()
+                p = subprocess.run([sys.executable, __file__, "--one", kind, str(seed), variant], capture_output=True,
+                                   text=True, cwd=ROOT)
+                if p.returncode:
+                    lines = p.stderr.strip().splitlines() or ["?"]
+                    row = dict(kind=kind, seed=seed, variant=variant, error=lines[-1], error_kind="crash",
+                               total_s=round(time.perf_counter() - t, 1))
+                else:
+                    row = json.loads(p.stdout.strip().splitlines()[-1])
+                row["missed"] = bars(row)
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+    met = sum(1 for r in rows if not r["missed"])
+    print(f"met every bar: {met} of {len(rows)}")
+    if a.write:
+        with open(os.path.join(ROOT, "bench", "hexnet.json"), "w") as fh:
+            json.dump(rows, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()

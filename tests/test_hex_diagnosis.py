@@ -1,0 +1,110 @@
+"""Every hex failure is a diagnosis (issue 48a): the exit code, the kind
+(the network admits no hex mesh / the cell size / the field / SymFrames' map)
+and a message naming the cause and the place; no numpy or scipy message
+reaches the user, and a field that did not converge is never meshed."""
+
+import dataclasses
+import os
+
+import numpy as np
+import pytest
+
+from solver import io
+from solver.__main__ import EXIT_NO_HEX_MESH, EXIT_NOT_CONVERGED, main
+from solver.hexmesh import HexInput, HexMeshError, hexmesh, mesher
+
+
+def test_kinds_name_whose_limit_it_is(solved):
+    res = solved("cylinder")
+    with pytest.raises(HexMeshError, match="larger than half the solid") as e:
+        hexmesh(res, 10.0)
+    assert e.value.kind == "settings"
+    inp = HexInput.from_result(res)
+    inp.network.curves[0] = dataclasses.replace(inp.network.curves[0], sigma=0.5)
+    with pytest.raises(HexMeshError, match="valence 2") as e:
+        hexmesh(inp)
+    assert e.value.kind == "network"
+
+
+def test_a_field_that_did_not_converge_is_not_meshed(solved, tmp_path, capsys):
+    res = solved("cylinder", max_iterations=1)
+    assert not res.report.converged, res.report.summary()
+    with pytest.raises(HexMeshError, match="did not converge") as e:
+        hexmesh(res)
+    assert e.value.kind == "field" and res.report.status in str(e.value)
+    # the command line: exit 3 (the field's status), before any hex work, no hex file
+    npz, out = str(tmp_path / "c.npz"), str(tmp_path / "c.vtu")
+    io.save_result(npz, res)
+    capsys.readouterr()
+    assert main(["--from-result", npz, "--hex", out, "-q"]) == EXIT_NOT_CONVERGED
+    err = capsys.readouterr().err
+    assert "not converged" in err and "no hex file written" in err
+    assert not os.path.exists(out)
+
+
+def test_an_internal_failure_is_said_as_a_limit_of_symframes(solved, monkeypatch, tmp_path, capsys):
+    """A numpy error inside a stage (here the extraction's, as a singular
+    matrix) becomes a HexMeshError of kind 'map' naming the stage; at the
+    automatic cell size smaller cells are tried first, and said."""
+    res = solved("cylinder")
+    calls = []
+
+    def broken(*a, **k):
+        calls.append(a[-1])
+        raise np.linalg.LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(mesher, "extract_hexes", broken)
+    with pytest.raises(HexMeshError) as e:
+        hexmesh(res, smooth=False)
+    msg = str(e.value)
+    assert e.value.kind == "map" and "'extraction'" in msg and "limit of SymFrames" in msg
+    assert "not a fault of the network" in msg and "cell sizes tried" in msg
+    assert len(calls) == len(mesher.AUTO_STEPS) and calls == sorted(calls, reverse=True)
+    # a cell size the user gave is tried alone
+    calls.clear()
+    with pytest.raises(HexMeshError, match="extraction"):
+        hexmesh(res, 0.3, smooth=False)
+    assert calls == [0.3]
+    # the command line: exit 4, the kind first, no traceback
+    npz, out = str(tmp_path / "c.npz"), str(tmp_path / "c.vtu")
+    io.save_result(npz, res)
+    capsys.readouterr()
+    assert main(["--from-result", npz, "--hex", out, "--no-smooth", "-q"]) == EXIT_NO_HEX_MESH
+    err = capsys.readouterr().err
+    assert "SymFrames' map failed (a limit of SymFrames, not a fault of the network)" in err
+    assert "Traceback" not in err and not os.path.exists(out)
+
+
+def test_a_map_failure_at_the_automatic_size_steps_the_cell_down(solved, monkeypatch):
+    """The first automatic cell size fails (as a stalled untangling would);
+    the next one meshes, and the report says what happened."""
+    res = solved("cylinder")
+    real = mesher.extract_hexes
+    seen = []
+
+    def first_fails(*a, **k):
+        seen.append(a[-1])
+        if len(seen) == 1:
+            raise np.linalg.LinAlgError("Singular matrix")
+        return real(*a, **k)
+
+    monkeypatch.setattr(mesher, "extract_hexes", first_fails)
+    hm = hexmesh(res, smooth=False)
+    assert len(seen) == 2 and np.isclose(seen[1], mesher.AUTO_STEPS[1] * seen[0])
+    assert np.isclose(hm.report.cell_size, seen[1])
+    assert hm.report.notes and "the map failed" in hm.report.notes[0] and "note:" in hm.report.summary()
+
+
+def test_a_smooth_torus_without_curves_is_a_map_limit_with_the_reason(solved):
+    """The seamless map of the smooth solid torus folds; the message says it
+    is SymFrames' map that failed, and why such a solid needs curves, without
+    calling that a proof about the user's network."""
+    res = solved("torus", edge_length=0.3, max_iterations=40)
+    with pytest.raises(HexMeshError) as e:
+        hexmesh(res)
+    if res.report.converged:
+        assert e.value.kind == "map", str(e.value)
+        assert "before rounding" in str(e.value) and "torus" in str(e.value)
+        assert "not a proof" in str(e.value)
+    else:
+        assert e.value.kind == "field"
