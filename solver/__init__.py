@@ -12,7 +12,9 @@ The public API is what this module exports, plus ``solver.io`` (file
 formats) and ``solver.examples`` (the built-in example solids and networks,
 ``load_example`` and ``EXAMPLES``); the Blender add-on imports nothing else.
 
-* Solving: ``solve``, ``FieldProblem`` (mesh once, solve repeatedly),
+* Solving: ``solve``, ``FieldProblem`` (mesh once, solve repeatedly;
+  ``solve_resolved`` solves it, and once more finer where the automatic
+  mesh left the network unresolved),
   ``Options``, ``Result``, ``Report``; ``check`` runs a solve's validation,
   curve repair and resolution plan without meshing (``CheckResult``).
 * Input: ``Curve``, ``Network``, ``Role``, ``Torsion``.
@@ -60,7 +62,7 @@ from .hexmesh import (
     input_from_arrays,
 )
 from .network.network import Curve, Network, Role, Torsion
-from .pipeline import FieldProblem, Options, Result, solve
+from .pipeline import FieldProblem, Options, Result, solve, solve_resolved
 from .precheck import CheckResult, check
 from .report import Report
 
@@ -99,6 +101,7 @@ __all__ = [
     "seed_points",
     "singular_faces",
     "solve",
+    "solve_resolved",
     "trace_streamlines",
     "vertex_normal_adaptation",
 ]

@@ -31,7 +31,7 @@ from . import checks, io
 from .errors import Cancelled, OptionsError, OutputError, SymFramesError
 from .examples import EXAMPLES, load_example
 from .io.atomic import check_output_path
-from .pipeline import INITS, FieldProblem
+from .pipeline import INITS, FieldProblem, solve_resolved
 from .precheck import check
 
 TAG_CONVENTIONS = ("index", "negated", "valence")
@@ -310,7 +310,7 @@ def main(argv: list[str] | None = None) -> int:
             profiler = cProfile.Profile()
             profiler.enable()
         problem = FieldProblem(V, F, net, opts, progress=progress)
-        result = problem.solve(root=args.root, progress=progress)
+        result = solve_resolved(problem, root=args.root, progress=progress)
         if profiler is not None:
             profiler.disable()
         print(result.report.summary())

@@ -42,6 +42,9 @@ class Report:
         ``'converged'`` or ``'not converged'``.
     status_reason : str
         Why (solution_status).
+    notes : list of str
+        What the solve changed on its way (a finer mesh where the automatic
+        one left the network unresolved, and why).
     """
 
     stage_seconds: dict = field(default_factory=dict)
@@ -55,6 +58,7 @@ class Report:
     corners: list = field(default_factory=list)  # corners.CornerChoice per reported sharp corner
     status: str = ""  # 'converged' or 'not converged' (solution_status)
     status_reason: str = ""
+    notes: list = field(default_factory=list)
 
     @property
     def converged(self) -> bool:
@@ -69,6 +73,7 @@ class Report:
                  f"edges {self.sizes.get('edges', 0):,}  (edge length {self.edge_length:.4g})"]
         if self.status:
             lines.insert(0, f"status: {self.status} ({self.status_reason})")
+        lines += [f"  note: {n}" for n in self.notes]
         if self.mesher and self.mesher != "fTetWild":
             lines.append(f"  meshed by {self.mesher}")
         if self.sizes.get("graded_tets"):

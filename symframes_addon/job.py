@@ -42,6 +42,7 @@ from ..solver import (
     hex_source_arrays,
     hexmesh,
     input_from_arrays,
+    solve_resolved,
     vertex_normal_adaptation,
 )
 from ..solver.io import FieldData, field_data
@@ -174,7 +175,7 @@ class SolveJob(Job):
         mesh = cached_mesh(key) if self.reuse_mesh else None
         problem = FieldProblem(inp.V, inp.F, inp.network, inp.options, progress=self._progress,
                                cancel=self._is_cancelled, mesh=mesh)
-        result = problem.solve(progress=self._progress, cancel=self._is_cancelled)
+        result = solve_resolved(problem, progress=self._progress, cancel=self._is_cancelled)
         _MESH_CACHE.update(key=key, mesh=problem.meshed)  # with its edge length and how it was made
         adaptation = vertex_normal_adaptation(result)
         network_faces = result.embedding.network_faces(result.mesh)

@@ -183,6 +183,20 @@ def _project_to_boundary(mesh: TetMesh, x: np.ndarray):
     return mesh.boundary_faces[f_local[0]], q[0], d[0]
 
 
+GRAZING = 0.3  # a last segment closer than acos(0.3) = 73 degrees to the boundary face's normal overshoots along it
+
+
+def _outward_normal(mesh: TetMesh, f: int) -> np.ndarray:
+    """Unit outward normal of boundary face f (a face id of the mesh)."""
+    t = mesh.face_tets[f, 0] if mesh.face_tets[f, 0] >= 0 else mesh.face_tets[f, 1]
+    a, b, c = mesh.vertices[mesh.faces[f]]
+    n = np.cross(b - a, c - a)
+    inside = mesh.vertices[mesh.tets[t]].mean(axis=0)
+    if n @ (inside - a) > 0:
+        n = -n
+    return n / max(np.linalg.norm(n), 1e-300)
+
+
 def trace_curve(mesh: TetMesh, loc: TetLocator, P: np.ndarray, start_tet: int, start_face: int,
                 end_at_boundary: bool, label: str, tol: float, strict: bool = True,
                 closed: bool = False) -> CurveTrace:
@@ -344,9 +358,16 @@ def _embed_once(mesh, net: PreparedNetwork, loc: TetLocator, rng, amp: float, no
             P[-1] = node_pos[node_of_end[(ci, 1)]]
         elif ekind == "boundary":
             f, x, _ = _project_to_boundary(mesh, P[-1])
-            # overshoot slightly so the walk leaves through the boundary
+            # overshoot slightly so the walk leaves through the boundary:
+            # along the last segment, or, where it grazes the boundary face,
+            # along the face's outward normal (a grazing overshoot can stay
+            # inside, and the walk then ends short of the boundary)
             d = x - P[-2]
-            P[-1] = x + 1e-3 * h * d / max(np.linalg.norm(d), 1e-300)
+            d /= max(np.linalg.norm(d), 1e-300)
+            n = _outward_normal(mesh, f)
+            if d @ n < GRAZING:
+                d = n
+            P[-1] = x + 1e-3 * h * d
         tr = trace_curve(mesh, loc, P, t0, start_face, ekind == "boundary", label, tol, strict, c.closed)
         if c.closed and tr.tets[-1] != tr.tets[0]:
             raise MeshingError(f"closed curve {label} did not return to its start tet")

@@ -44,7 +44,7 @@ from .network import Curve, PreparedNetwork
 from .polyline import hausdorff, merge_close, resample, turning
 
 TETS_PER_H3 = 15.0  # as mesh/resolution.py's (network/ sits below mesh/)
-SLIDE_PER_TAN = 3.0  # an end slides at most this many h times the tangent of its angle to the normal ...
+SLIDE_PER_TAN = 6.0  # an end slides at most this many h times the tangent of its angle to the normal ...
 SHARP_CLEAR = 0.1  # ... and stays this many h off the sharp edges
 FREE_SLIDE = 30.0  # ... unless fairing turns it more than this many degrees off the normal
 LOCAL_LEVELS = 3  # an end repair that kinks at h is redone at h / 2, h / 4, h / 8 (the mesh is refined there)
@@ -168,10 +168,14 @@ def _repair_without_kinks(repair_at, h: float, c: Curve):
 
 def slide_limit(S: TriSurface, P: np.ndarray, h: float) -> float:
     """How far the boundary end P[-1] may slide along the surface while its
-    curve is faired: as far as the end must to meet the surface along the
-    normal over the fairing width, ``SLIDE_PER_TAN * h * tan`` of its
-    chord's angle to the normal (an end 4 degrees off slides 0.21 h, one
-    18 degrees off a whole h, as before)."""
+    curve is faired: ``SLIDE_PER_TAN * h * tan`` of its chord's angle to the
+    normal (an end 4 degrees off slides at most 0.42 h, one 9.5 degrees off
+    or more a whole h, as before).  Sliding costs the field far less than
+    bending (on the cube-sphere networks of testkit/hexnet.py, whose short
+    radial curves reach the sphere 1-4 degrees off, ends held to 3 h tan
+    were bent over most of their length and left penalties of 3-6; at
+    6-10 h tan 0.3-4), but it moves the curve: before, fairing slid ends a
+    few degrees off the normal by up to a whole h (issue 48)."""
     ang = np.radians(end_chord_angle(S, merge_close(P, 1e-9 * h, False), h)) if len(P) > 1 else 0.0
     return max(SLIDE_PER_TAN * h * float(np.tan(min(ang, 1.4))), 0.0)
 
