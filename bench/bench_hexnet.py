@@ -76,7 +76,8 @@ def run_one(kind: str, seed: int, tet_edge: bool) -> dict:
     rep = r.report
     row.update(status=rep.status, penalty=round(float(rep.lm.final.penalty), 3),
                iterations=int(rep.lm.n_iterations), tets=int(rep.sizes.get("tets", 0)),
-               field_s=round(t_field, 1), field_stages={k: round(v, 1) for k, v in rep.stage_seconds.items()})
+               field_s=round(t_field, 1), field_stages={k: round(v, 1) for k, v in rep.stage_seconds.items()},
+               field_notes=list(rep.notes))
     t1 = time.perf_counter()
     try:
         hm = hexmesh(r)
