@@ -108,3 +108,21 @@ def test_a_smooth_torus_without_curves_is_a_map_limit_with_the_reason(solved):
         assert "not a proof" in str(e.value)
     else:
         assert e.value.kind == "field"
+
+
+def test_the_automatic_cell_size_says_why_and_keeps_close_curves_apart(solved):
+    """Issue 48d: the default cell size resolves the network and says why:
+    the cylinder's 4 axial curves are 0.7 apart, so the target's cells rule;
+    with one curve moved to 0.12 from another, 1.5 cells fit between them."""
+    from solver.hexmesh.mesher import cell_choice
+
+    res = solved("cylinder")
+    inp = HexInput.from_result(res)
+    cell, why = cell_choice(inp)
+    assert why.startswith("about 3,000 cells"), why
+    P0 = inp.network.curves[0].points
+    moved = P0 + np.array([0.12, 0.0, 0.0])
+    inp.network.curves[1] = dataclasses.replace(inp.network.curves[1], points=moved)
+    close, why = cell_choice(inp)
+    assert np.isclose(close, 0.12 / 1.5, rtol=0.05) and close < cell, (close, why)
+    assert "between curve" in why and "0.12 apart" in why, why

@@ -104,16 +104,70 @@ def default_cell_size(inp: HexInput, target_hexes: int = DEFAULT_HEXES) -> float
     -------
     float
         a cell size for about target_hexes hexahedra, finer where the
-        network needs it: at least 1.5 cells along its shortest singular
-        curve (so that the rounding keeps it one cell long or more)
+        network needs it (``cell_choice``): at least 1.5 cells along its
+        shortest singular curve and between two singular curves that share
+        no node (so that the rounding keeps them one cell long, and apart)
     """
+    return cell_choice(inp, target_hexes)[0]
+
+
+CELL_FLOOR = 8.0
+"""The network's needs make at most this many times the target's cells."""
+
+
+def cell_choice(inp: HexInput, target_hexes: int = DEFAULT_HEXES) -> tuple[float, str]:
+    """``default_cell_size`` and why: (cell size, the reason in words)."""
     vol = float(np.sum(inp.mesh.tet_volumes))
     cell = (vol / target_hexes) ** (1.0 / 3.0)
-    L = _curve_lengths(inp.network)
-    sing = np.array([c.sigma != 0 for c in inp.network.curves], bool)
-    if np.any(sing):
-        cell = min(cell, float(L[sing].min()) / 1.5)
-    return cell
+    why = f"about {target_hexes:,} cells"
+    net = inp.network
+    sing = [i for i, c in enumerate(net.curves) if c.sigma != 0]
+    if not sing:
+        return cell, why
+    L = _curve_lengths(net)
+    k = min(sing, key=lambda i: L[i])
+    if L[k] / 1.5 < cell:
+        cell, why = float(L[k]) / 1.5, f"1.5 cells along the shortest singular curve, {_name(net, k)} ({L[k]:.3g} long)"
+    gap, pair = _closest_apart(net, sing, cell)
+    if gap / 1.5 < cell:
+        cell, why = gap / 1.5, (f"1.5 cells between {_name(net, pair[0])} and {_name(net, pair[1])}, "
+                                f"{gap:.3g} apart")
+    floor = (vol / (CELL_FLOOR * target_hexes)) ** (1.0 / 3.0)
+    if cell < floor:
+        cell, why = floor, why + f"; held at {CELL_FLOOR:g}x the {target_hexes:,} cells aimed at"
+    return cell, why
+
+
+def _name(net, i: int) -> str:
+    c = net.curves[i]
+    return f"curve {net.source[i]}" + (f" '{c.name}'" if c.name else "")
+
+
+def _closest_apart(net, sing: list, cell: float) -> tuple[float, tuple]:
+    """The least distance between two singular curves that share no node
+    (sampled at a quarter cell), and the pair."""
+    nodes = {}
+    for n, nd in enumerate(net.nodes):
+        for ci, _ in nd.ends:
+            nodes.setdefault(ci, set()).add(n)
+    samples = []
+    for i in sing:
+        P = net.curves[i].points
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        m = np.maximum(1, np.ceil(seg / (0.25 * cell)).astype(int))
+        t = np.concatenate([np.arange(q) / q for q in m] + [[1.0]])
+        j = np.r_[np.repeat(np.arange(len(seg)), m), len(seg) - 1]
+        samples.append(P[j] + t[:, None] * np.diff(P, axis=0)[j])
+    best, pair = np.inf, (-1, -1)
+    trees = [cKDTree(X) for X in samples]
+    for a in range(len(sing)):
+        for b in range(a + 1, len(sing)):
+            if nodes.get(sing[a], set()) & nodes.get(sing[b], set()):
+                continue
+            d, _ = trees[b].query(samples[a], distance_upper_bound=min(best, 1.5 * cell))
+            if np.isfinite(d).any() and d.min() < best:
+                best, pair = float(d.min()), (sing[a], sing[b])
+    return best, pair
 
 
 def _check_cell(inp: HexInput, cell: float) -> None:
@@ -279,13 +333,14 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     report = HexReport()
     clock = Stages(STAGE_WEIGHTS, report.stage_seconds, progress, cancel)
     auto = cell_size is None
-    cell = float(cell_size) if not auto else default_cell_size(inp, target_hexes)
+    cell, why = (float(cell_size), "given") if not auto else cell_choice(inp, target_hexes)
     if not np.isfinite(cell) or cell <= 0:
         raise HexMeshError(f"cell size must be a positive length, got {cell_size!r}", kind="settings")
     _check_cell(inp, cell)
     _check_indices(inp)
     steps = AUTO_STEPS if auto else (1.0,)
     first_defective = None
+    report.cell_reason = why
     for k, f in enumerate(steps):
         c = cell * f
         if k and _cell_count(inp, c) > MAX_HEXES:
@@ -323,7 +378,7 @@ def _fresh_report(old: HexReport, note: str) -> HexReport:
     """A new report for the next attempt, keeping the notes and the seconds
     spent so far."""
     rep = HexReport()
-    rep.notes = old.notes + [note]
+    rep.notes, rep.cell_reason = old.notes + [note], old.cell_reason
     rep.stage_seconds = dict(old.stage_seconds)
     return rep
 

@@ -73,6 +73,10 @@ class HexReport:
         cell from every given curve of their valence, the largest distance
         of a matched one, and the least fraction of a given curve within a
         cell of its edges
+    cell_reason : str
+        why the cell size is what it is ('given', or what the automatic
+        size resolves: the target's cells, the shortest singular curve, two
+        close curves)
     notes : list of str
         what the run changed on its way (a smaller automatic cell size where
         the map failed at the first one, and why)
@@ -108,6 +112,7 @@ class HexReport:
     stage_seconds: dict = field(default_factory=dict)
     sizes: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    cell_reason: str = ""
     given_extra: int = 0
     given_distance: float = 0.0
     given_covered: float = 1.0
@@ -134,7 +139,7 @@ class HexReport:
     def summary(self) -> str:
         lines = [f"hex mesh: {self.status}" + (f" ({self.reason})" if self.reason else ""),
                  f"  {self.hexes:,} hexahedra ({self.non_hex_cells} other cells), {self.vertices:,} vertices, "
-                 f"cell size {self.cell_size:.4g}",
+                 f"cell size {self.cell_size:.4g}" + (f" ({self.cell_reason})" if self.cell_reason else ""),
                  f"  scaled Jacobian: min {self.sj_min:.3f}, mean {self.sj_mean:.3f} (before smoothing "
                  f"{self.sj_min_raw:.3f} / {self.sj_mean_raw:.3f}); cells at irregular edges: mean "
                  f"{self.sj_mean_irregular:.3f}; inverted {self.inverted}",
@@ -142,10 +147,6 @@ class HexReport:
                                                             sorted(self.irregular.items())) or "none")
                  + f"; {'exactly the prescribed curves' if self.structure_exact else 'NOT the prescribed curves'}"
                  + (f" ({self.extra_irregular} elsewhere)" if self.extra_irregular else ""),
-                 f"  against the curves as given: {self.given_extra} irregular edges more than a cell away, "
-                 f"the others within {self.given_distance:.3g} "
-                 f"({self.given_distance / max(self.cell_size, 1e-300):.2f} cells), covering "
-                 f"{100 * self.given_covered:.0f}% of each curve or more",
                  f"  boundary: Euler characteristic {self.euler} (surface {self.euler_expected}); faces in more "
                  f"than two cells {self.faces_over_two}; Hausdorff distance {self.hausdorff:.3g} "
                  f"({100 * self.hausdorff_relative:.2f}% of the diagonal)",
@@ -153,6 +154,11 @@ class HexReport:
                  f"{self.seamless_inverted}, integer-grid {self.map_inverted}; rounding moved up to "
                  f"{self.rounding_shift:.2f} cells; stiffening {self.stiffening}",
                  "  seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in self.stage_seconds.items())]
+        if self.curves:
+            lines.insert(4, f"  against the curves as given: {self.given_extra} irregular edges more than a cell away, "
+                            f"the others within {self.given_distance:.3g} "
+                            f"({self.given_distance / max(self.cell_size, 1e-300):.2f} cells), covering "
+                            f"{100 * self.given_covered:.0f}% of each curve or more")
         lines += [f"  note: {n}" for n in self.notes]
         for c in self.curves:
             if c.covered < 1.0 or c.distance > self.cell_size:
