@@ -4,6 +4,8 @@ testkit/hexnet.py family, default options, each run in a fresh process.
     ./dev.sh python bench/bench_hexnet.py                       # every kind, seeds 0-2: a line per run
     ./dev.sh python bench/bench_hexnet.py --kinds ball plate --seeds 0 1 --tet-edge
     ./dev.sh python bench/bench_hexnet.py --write               # also bench/hexnet.json
+    ./dev.sh python bench/bench_hexnet.py --kinds ball cylinder plate genus2 torus --seeds 0 1 --tet-edge \
+        --write --json hexnet_tetedge.json                      # the tet-edge variants too
 
 Each input is the boundary and the irregular edges of a hex mesh deformed by
 a smooth random map (an O-grid, a cube-sphere, plates with holes, a torus,
@@ -105,7 +107,8 @@ def main() -> None:
     ap.add_argument("--kinds", nargs="+", default=list(KINDS))
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--tet-edge", action="store_true", help="also each input's tet-edge variant")
-    ap.add_argument("--write", action="store_true", help="write bench/hexnet.json")
+    ap.add_argument("--write", action="store_true", help="write the rows to bench/hexnet.json (or --json)")
+    ap.add_argument("--json", default="hexnet.json", help="with --write: the file's name in bench/")
     ap.add_argument("--one", nargs=3, metavar=("KIND", "SEED", "VARIANT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.one:
@@ -130,7 +133,7 @@ def main() -> None:
     met = sum(1 for r in rows if not r["missed"])
     print(f"met every bar: {met} of {len(rows)}")
     if a.write:
-        with open(os.path.join(ROOT, "bench", "hexnet.json"), "w") as fh:
+        with open(os.path.join(ROOT, "bench", a.json), "w") as fh:
             json.dump(rows, fh, indent=1)
 
 

@@ -55,7 +55,33 @@ def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: 
     rng = np.random.default_rng(seed)
     used: set[int] = set()
     curves = []
+    def route(a: int, b: int, free: list, inside: bool = False) -> np.ndarray:
+        """The shortest path a -> b through no vertex another curve holds
+        (a path's inner vertices, the nodes), but for those in free: two
+        routes through one vertex would cross there, which no export has
+        (and the check refuses); inside: through interior vertices only."""
+        blocked = ~interior if inside else np.zeros(mesh.n_vertices, bool)
+        blocked[list(used)] = True
+        blocked[list(node_vertex.values())] = True
+        blocked[free] = False
+        path = shortest_path(_without(G, blocked), a, b) if blocked.any() else None
+        if path is None:
+            path = shortest_path(G, a, b)
+        if path is None:
+            raise ValueError(f"no path between mesh vertices {a} and {b}")
+        used.update(int(v) for v in path[1:-1])
+        return path
+
     for ci, c in enumerate(pn.curves):
+        if c.closed:
+            # a loop: through three of its points, leg by leg
+            n = len(c.points) - 1
+            way = [int(id_in[tree_in.query(c.points[k])[1]]) for k in (0, n // 3, (2 * n) // 3)]
+            legs = [route(way[k], way[(k + 1) % 3], [way[k], way[(k + 1) % 3]], inside=True) for k in range(3)]
+            used.update(way)
+            path = np.concatenate([legs[0], legs[1][1:], legs[2][1:]])
+            curves.append(Curve(X[path], c.sigma, c.role, c.torsion, c.name, True))
+            continue
         ids = []
         for s, kind in ((0, pn.start_kind[ci]), (1, pn.end_kind[ci])):
             x = c.points[0 if s == 0 else -1]
@@ -63,20 +89,7 @@ def tet_edge_network(V, F, net: Network, h_src: float, tiny: bool = True, mesh: 
                 ids.append(node_vertex[end_node[(ci, s)]])
             else:
                 ids.append(int(id_b[tree_b.query(x)[1]]))
-        # not through a vertex another curve holds (a path's inner vertices,
-        # the nodes): two routes through one vertex would cross there, which
-        # no export has (and the check refuses)
-        blocked = np.zeros(mesh.n_vertices, bool)
-        blocked[list(used)] = True
-        blocked[list(node_vertex.values())] = True
-        blocked[ids] = False
-        path = shortest_path(_without(G, blocked), ids[0], ids[1]) if blocked.any() else None
-        if path is None:
-            path = shortest_path(G, ids[0], ids[1])
-        if path is None:
-            raise ValueError(f"no path between mesh vertices {ids[0]} and {ids[1]}")
-        used.update(int(v) for v in path[1:-1])
-        P = X[path]
+        P = X[route(ids[0], ids[1], ids)]
         if tiny and len(P) > 2:
             out = [P[0]]
             for k in range(1, len(P)):
