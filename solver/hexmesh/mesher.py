@@ -357,7 +357,8 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
             if first_defective is not None:
                 return first_defective
             tried = ", ".join(f"{cell * x:.4g}" for x in steps[:k + 1])
-            raise HexMeshError(f"{failure} (cell sizes tried: {tried})" if len(steps) > 1 else failure, report,
+            raise HexMeshError((f"{failure} (cell sizes tried: {tried})" if len(steps) > 1 else failure)
+                               + "; try a smaller cell size, or a finer field (a smaller edge length)", report,
                                kind="map") from None
         if hm.report.valid or k + 1 == len(steps):
             return hm if hm.report.valid or first_defective is None else first_defective
@@ -465,11 +466,13 @@ def _refuse_folded(inp: HexInput, cem, sm, gm, cell: float, report: HexReport) -
         bad = np.argsort(gm.det)[:1]
     where = _where(cem.mesh.vertices[cem.mesh.tets[bad]].reshape(-1, 3))
     if sm.inverted > 0.01 * len(sm.det):
-        hint = ""
+        hint = ("; try a finer field (a smaller edge length), and please report the input if it folds there "
+                "too")
         if not any(c.sigma != 0 for c in inp.network.curves) and not inp.sharp.any() and \
                 min(inp.surface.euler_characteristics()) <= 0:
             hint = ("; here the solid has a smooth handle and no singular curve, and a grid needs corners on a "
-                    "boundary: a smooth solid torus, for example, needs curves around its tube")
+                    "boundary: a smooth solid torus, for example, needs curves around its tube (add them, or "
+                    "sharp edges)")
         raise HexMeshError(
             f"SymFrames' seamless map folds: already before rounding, {sm.inverted:,} of {len(sm.det):,} tets "
             f"fold (around {where}); this is a limit of SymFrames' map (its cut, transitions and constraints), "
