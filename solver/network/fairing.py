@@ -110,14 +110,8 @@ def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
     return np.unique(np.array(knots, int))
 
 
-def _limit(slide_max, end) -> float:
-    """The slide allowed at an end (0 or -1): one number for every end, or a
-    dict per end."""
-    return float(slide_max[end]) if isinstance(slide_max, dict) else float(slide_max)
-
-
 def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: int,
-                    slide: dict | None = None, slide_max: float = 0.0, project=None) -> np.ndarray:
+                    slide: dict | None = None, slide_max: dict | None = None, project=None) -> np.ndarray:
     """Explicit Laplacian smoothing (step 1/2) with the fixed vertices held.
     k steps at spacing s act like a Gaussian of width s sqrt(k / 2) along the
     curve.  (Taubin's lambda|mu filter, tried first, keeps bends longer than
@@ -128,7 +122,7 @@ def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: 
     Such an end is smoothed against the mirror image of its neighbour in the
     tangent plane (the curve continued by reflection, which meets the plane
     at right angles): it slides in the plane towards the foot of its
-    neighbour, by at most slide_max in all, and the curve's last stretch
+    neighbour, by at most slide_max[end] in all, and the curve's last stretch
     turns towards the normal smoothly, over the filter's width.  project(x)
     -> (closest surface point, its outward normal): every 8 steps the end
     is put back on the surface and the plane follows it."""
@@ -141,7 +135,7 @@ def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: 
     ends = [] if closed or not slide else [[i % n, (1 if i == 0 else n - 2), np.asarray(v, float)]
                                            for i, v in slide.items() if n > 2]
     start = {e[0]: core[e[0]].copy() for e in ends}
-    limits = {i % n: _limit(slide_max, k) for k in (slide or {}) for i in (k,)} if n > 2 else {}
+    limits = {k % n: float(slide_max[k]) for k in (slide or {})} if n > 2 else {}
     for step in range(iterations):
         if project is not None and step and step % 8 == 0:
             for e in ends:
@@ -220,7 +214,7 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
 
 
 def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarray, band: float,
-                   slide_max: float, rounds: int = 80) -> np.ndarray:
+                   slide_max: dict, rounds: int = 80) -> np.ndarray:
     """Step 5b of the module docstring: the open polyline Q bent as little
     as it can be -- the least sum of |P_(i-1) - 2 P_i + P_(i+1)|^2 over the
     points not centred on a fixed one -- with the fixed points held and
@@ -232,7 +226,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
            PLANE (n . (P - P_end))^2); the term |2 (I - n n^T)(P_neighbour -
            P_end)|^2 (the neighbour against its mirror image in the plane)
            makes the curve meet the surface along the normal; it stays
-           within slide_max of the guide's end.  The other end points
+           within slide_max[end index] of the guide's end.  The other end points
            stay where they are.
     Points beyond the band (ends: beyond slide_max) are pulled to its edge
     with a weight mu that starts faint (1e-4, against bending terms of
@@ -284,7 +278,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
         for i, _, _ in ends:
             foot[i] = guide[0] if i == 0 else guide[-1]
             d[i] = np.linalg.norm(X[i] - foot[i])
-            lim[i] = _limit(slide_max, i)
+            lim[i] = slide_max[i]
         out = free & (d > lim)
         if not np.any(free & (d > 1.01 * lim)):
             break

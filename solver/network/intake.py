@@ -292,17 +292,19 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
             held.append(np.zeros((0, 3)))
             continue
 
+        # the ends on the surface slide while the curve is faired, at every scale alike
+        slide, limit = {}, {}
+        if not c.closed and len(P0) > 1:
+            for end, kind in ((0, kinds[0]), (-1, kinds[1])):
+                if kind == "boundary":
+                    q, nrm = project(P0[end])
+                    if np.linalg.norm(q - P0[end]) <= boundary_tolerance:
+                        slide[end] = nrm
+                        limit[end] = slide_limit(S, P0 if end == -1 else P0[::-1], h)
+        project_end = onto.for_ends([P0[e] for e in slide])
+
         def repair_at(hc):
             """Fair and bend the curve at the scale hc (steps 1-6)."""
-            slide, limit = {}, {}
-            if not c.closed and len(P0) > 1:
-                for end, kind in ((0, kinds[0]), (-1, kinds[1])):
-                    if kind == "boundary":
-                        q, nrm = project(P0[end])
-                        if np.linalg.norm(q - P0[end]) <= boundary_tolerance:
-                            slide[end] = nrm
-                            limit[end] = slide_limit(S, P0 if end == -1 else P0[::-1], h)
-            project_end = onto.for_ends([P0[e] for e in slide])
             Q, merged, ell, ncorner, fixed = fair_curve(P0, hc, c.closed, slide, project_end, limit)
             if limit and max(end_chord_angle(S, Q if e == -1 else Q[::-1], hc) for e in limit) > FREE_SLIDE:
                 # the fairing itself turns the end far off the normal (a

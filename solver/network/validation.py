@@ -110,15 +110,15 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     def label(ci):
         return _label(net.curves, pn.source[ci])
 
+    G = sharp_feature_graph(S, net)
     repairs = []
     intake = IntakeScales(np.full(len(pn.curves), h), [np.zeros((0, 3))] * len(pn.curves))
     if repair and pn.curves:
         # a real crossing is refused before fairing could pull it apart
         _check_crossings(pn, label, CROSSING_TOLERANCE * h)
-        G0 = sharp_feature_graph(S, net)
-        E = S.edges[G0.sharp]
+        E = S.edges[G.sharp]
         pn, repairs, intake = repair_network(S, pn, h, [label(ci) for ci in range(len(pn.curves))], btol, joined,
-                                             (S.V[E[:, 0]], S.V[E[:, 1]]), G0.patches[1] if len(E) else None)
+                                             (S.V[E[:, 0]], S.V[E[:, 1]]), G.patches[1] if len(E) else None)
         if scale is not None:
             _check_local_scales(intake.scales, h, repairs, label)
 
@@ -135,7 +135,6 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
                       repairs[ci] if repairs else None)
     # ------------------------------------------------------------- crossings
     _check_crossings(pn, label, CROSSING_TOLERANCE * h)
-    G = sharp_feature_graph(S, net)
     _check_end_points(S, G, end_points, label)
     # -------------------------------------------------------- Poincare-Hopf
     G, corners = resolve_corners(S, G, face_sigma, net.corner_turns)
