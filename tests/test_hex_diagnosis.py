@@ -125,3 +125,18 @@ def test_the_automatic_cell_size_says_why_and_keeps_close_curves_apart(solved):
     close, why = cell_choice(inp)
     assert np.isclose(close, 0.12 / 1.5, rtol=0.05) and close < cell, (close, why)
     assert "between curve" in why and "0.12 apart" in why, why
+
+
+def test_a_smoothing_run_that_diverges_keeps_the_maps_own_places(solved, monkeypatch):
+    """A smoothing run whose positions go non-finite (seen once on a
+    generated genus-2 part: scipy's "'x' must be finite") is dropped; with
+    every run dropped the cells stay where the map put them."""
+    res = solved("cylinder")
+
+    def diverges(V, *a, **k):
+        raise ValueError("'x' must be finite, check for nan or inf values")
+
+    monkeypatch.setattr(mesher, "optimise", diverges)
+    hm = hexmesh(res)
+    assert hm.report.sj_min == pytest.approx(hm.report.sj_min_raw)
+    assert np.isfinite(hm.vertices).all()

@@ -576,7 +576,13 @@ def _smooth(V: np.ndarray, H: np.ndarray, cell: float, inp: HexInput, on_curve: 
     # that keeps the minimum
     W = V
     for weight in (SPRING, 3 * SPRING, 10 * SPRING, 100 * SPRING):
-        W = optimise(V, H, cell, motion, anchor=spring, anchor_weight=weight, callback=callback)
+        try:
+            Wk = optimise(V, H, cell, motion, anchor=spring, anchor_weight=weight, callback=callback)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            continue  # a run that diverged (non-finite positions): the next spring, or the map's own places
+        if not np.all(np.isfinite(Wk)):
+            continue
+        W = Wk
         if moved(W) <= 0.9 * cell and float(scaled_jacobian(W, H).min()) >= best_min:
             return W
     for a in (0.5, 0.25, 0.125):
