@@ -161,22 +161,40 @@ def test_bisection_is_conforming():
     assert np.sum(mesh.face_areas[mesh.boundary_faces]) == pytest.approx(6.0)
 
 
-def test_short_curve_within_budget():
+def test_short_curve_within_budget(monkeypatch):
     """The cube-sphere network with an inner cube 0.03 across: node-to-node
     curves 0.03 long.  The uniform default meshed it at h = 0.01 (~6e7 tets
     for the ball); now the mesh is graded and stays within 1.5x the budget.
     Meshing only: LM on such a mesh converges slowly (README, limitations),
     too slowly for a test."""
+    import solver.mesh.meshing as meshing
+
+    made = []  # the tet count of each mesh fTetWild made
+
+    def counting(*args, **kwargs):
+        m = mesh_at(*args, **kwargs)
+        if m.mesher == "fTetWild":
+            made.append(m.mesh.n_tets * 8.0**m.k)
+        return m
+
+    mesh_at = meshing._mesh_at
+    monkeypatch.setattr(meshing, "_mesh_at", counting)
     V, F, net = ball_example(inner=0.015)  # meshed here: its own network, and the budget retries are the point
     budget = 6000
     problem = FieldProblem(V, F, net, Options(target_tets=budget))
     sizes = problem.report.sizes
     assert sizes["tets"] <= 1.5 * budget
     # fTetWild refines around the tubes of the short curves: at the planned
-    # bulk edge length it made 8.9k-9.4k tets (the plan: 3,000 for the
-    # bulk), leaving the grading no room (8,899 tets: none graded), so the
-    # bulk is meshed again coarser until the planned grading fits
-    assert sizes.get("budget_retries", 0) >= 1 and "with a coarser bulk" in problem.report.summary(), sizes
+    # bulk edge length it made 7.9k-9.4k tets (the plan: 3,000 for the
+    # bulk); where that leaves the grading no room (8,899 tets: none
+    # graded), the bulk is meshed again coarser until the planned grading
+    # fits, and the report says so.  fTetWild's count varies from run to
+    # run, so which case this run meets is read off the meshes it made.
+    room = problem.plan.graded_tets if problem.plan.graded else 0.0
+    if made[0] > 1.5 * budget - room:
+        assert sizes.get("budget_retries", 0) >= 1 and "with a coarser bulk" in problem.report.summary(), sizes
+    else:
+        assert len(made) == 1 and not sizes.get("budget_retries"), (made, sizes)
     assert sizes.get("graded_tets", 0) > 0
     # the short curves need more than the budget allows: said, not hidden
     assert sizes["resolution_floor"] > sizes["edge_length_needed"]
