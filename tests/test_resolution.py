@@ -319,3 +319,60 @@ def test_the_default_spends_what_the_network_asks_and_converges(monkeypatch):
     assert r.report.metrics["normal_adaptation_mean_deg"] <= 0.5
     held = resolution_plan(p.checked, Options(target_tets=10_000))
     assert held.tets <= 1.5 * 10_000
+
+
+def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch):
+    """solve_resolved's ladder: a graded automatic mesh whose LM stopped
+    above the discretisation level gives way first to a uniform mesh at
+    its own bulk edge length (a generated ellipsoid: penalty 31 graded at
+    28.5k tets, 0.14 uniform at 9.2k), then to one FINER times as fine;
+    the first that converges is kept and the notes say what was done.
+    The solves are stand-ins: the ladder is what is tested."""
+    import types
+
+    import solver.pipeline as pl
+
+    made = []
+
+    class Fake:
+        def __init__(self, V, F, net, opts, progress=None, cancel=None):
+            self.edge_length, self.options = opts.edge_length, opts
+            self.mesh = types.SimpleNamespace(n_tets=1000)
+            made.append(self.edge_length)
+
+        def solve(self, root=None, progress=None, cancel=None):
+            ok = len(made) == want_converged_at
+            lm = types.SimpleNamespace(final=types.SimpleNamespace(penalty=0.5 if ok else 9.0 - len(made)),
+                                       converged=True)
+            rep = types.SimpleNamespace(converged=ok, lm=lm, notes=[], status_reason=(
+                "ok" if ok else "the structure penalty is above the discretisation level"))
+            return types.SimpleNamespace(report=rep)
+
+    monkeypatch.setattr(pl, "FieldProblem", Fake)
+    first = Fake(None, None, None, Options())
+    first.edge_length = 0.2
+    first.given = None
+    first.checked = types.SimpleNamespace(surface=types.SimpleNamespace(V=None, F=None))
+    first.meshed = types.SimpleNamespace(stats=types.SimpleNamespace(mesher="fTetWild", graded_tets=500))
+    long_curve = types.SimpleNamespace(points=np.array([[0.0, 0, 0], [1.0, 0, 0]]), closed=False)
+    first.network = types.SimpleNamespace(curves=[long_curve])
+    monkeypatch.setattr(pl, "solid_volume", lambda S: 1.0)
+    for want_converged_at, lengths in ((2, [0.2]), (3, [0.2, pl.FINER * 0.2]), (9, [0.2, pl.FINER * 0.2])):
+        made.clear()
+        made.append(None)  # the first problem
+        res = pl.solve_resolved(first)
+        assert made[1:] == pytest.approx(lengths)
+        note = res.report.notes[-1]
+        assert "uniform mesh at edge length 0.2" in note and "graded" in note
+        assert res.report.converged == (want_converged_at <= 3)
+    # a curve shorter than SHORT_UNIFORM edges, or a uniform first mesh:
+    # straight to the finer one
+    for short, graded in ((True, 500), (False, 0)):
+        first.meshed.stats.graded_tets = graded
+        first.network.curves = [types.SimpleNamespace(points=long_curve.points * (0.49 if short else 1.0),
+                                                      closed=False)]
+        made.clear()
+        made.append(None)
+        want_converged_at = 2
+        pl.solve_resolved(first)
+        assert made[1:] == pytest.approx([pl.FINER * 0.2])

@@ -31,9 +31,12 @@ fairs it at a length tied to the mesh, never to the bounding box:
    0.0018, its curves bowed to turn 2.3 degrees over h 0.0099, 7 degrees
    0.090, with fairing alone, which kept those bows).  So an open curve
    is then bent as little as it can be while every point stays within
-   ``BAND * l`` of the input -- again the chain's own uncertainty
-   (``_least_bending``): the least sum of |P_(i-1) - 2 P_i + P_(i+1)|^2
-   (a discrete cubic spline) with nodes and corners held, boundary ends
+   the input's own uncertainty of it (``_least_bending``): ``ROUGH``
+   times the input's roughness there (``roughness``), between
+   ``SMOOTH_BAND * h`` and ``BAND * l`` -- about an edge for a chain of
+   mesh edges, a fifth of h for a smooth curve -- and near a boundary end
+   as far as the end may slide: the least sum of
+   |P_(i-1) - 2 P_i + P_(i+1)|^2 (a discrete cubic spline) with nodes and corners held, boundary ends
    free to move in their tangent plane (by at most ``SLIDE_MAX * l`` from
    the input end) and the curve meeting the surface along the normal
    (each end's neighbour against its mirror image in that plane); points
@@ -46,8 +49,12 @@ fairs it at a length tied to the mesh, never to the bounding box:
    tangent plane (the curve continued by reflection, which crosses the
    surface at right angles), so it moves towards the foot of the curve
    and the last stretch turns onto the normal smoothly, over the fairing
-   width (by at most ``SLIDE_MAX * l``: the chain's own uncertainty,
-   about an edge of its mesh; the plane follows the surface).
+   width (by at most ``SLIDE_MAX * l``, half an edge of the chain's mesh:
+   the hex cells of the default size are 0.8-0.9 h, and ends slid a whole
+   h left the given radial curves of ellipsoids 50-85 % within a cell of
+   the hex mesh's irregular edges, 100 % at half; the plane follows the
+   surface).  What the slide leaves of the end's angle is bent within the
+   curve.
 """
 
 from __future__ import annotations
@@ -55,6 +62,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
+from scipy.spatial import cKDTree
 
 from .curves import CurveGeometry
 from .polyline import arclength, merge_close, resample, turning
@@ -63,8 +71,11 @@ MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of 
 MERGE = 0.05  # points closer than MERGE * h are merged
 CORNER_WINDOW = 2.0  # chords of CORNER_WINDOW * l on each side detect real corners
 SMOOTH_ITERATIONS = 72  # Laplacian steps of 1/2 at spacing l / 2: a Gaussian of width 3 l
-BAND = 1.0  # least bending keeps every point within BAND * l of the input
-SLIDE_MAX = 1.0  # a boundary end slides along the surface by at most this many l while faired
+BAND = 1.0  # least bending keeps every point within BAND * l of the input, at most ...
+ROUGH = 3.0  # ... and within ROUGH times the input's own roughness (roughness())
+SMOOTH_BAND = 0.2  # ... but never closer than SMOOTH_BAND * h: a smooth input is kept to a fifth of an edge
+END_REACH = 4.0  # ... and near a boundary end within its slide, over END_REACH * l
+SLIDE_MAX = 0.5  # a boundary end slides along the surface by at most this many l while faired
 
 
 def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
@@ -108,6 +119,22 @@ def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
             knots.append(v)
         i = j + 1
     return np.unique(np.array(knots, int))
+
+
+def roughness(P: np.ndarray, reach: int = 2) -> np.ndarray:
+    """How far the polyline P strays from smooth near each vertex: at
+    vertex i, |P_(i-1) - 2 P_i + P_(i+1)| / 2 (its distance from the
+    midpoint of its neighbours), the largest within ``reach`` vertices.
+    A chain of tet edges zig-zags by a large part of an edge (0.3-0.5 of
+    it) and strays in bumps of an edge or more; a curve read off a hex mesh
+    or drawn smooth strays only by its curvature (s^2 / 2R at spacing s on
+    a radius R), a few thousandths of an edge."""
+    r = np.zeros(len(P))
+    if len(P) < 3:
+        return r
+    r[1:-1] = np.linalg.norm(P[:-2] - 2.0 * P[1:-1] + P[2:], axis=1) / 2.0
+    pad = np.r_[np.zeros(reach), r, np.zeros(reach)]
+    return np.max(np.lib.stride_tricks.sliding_window_view(pad, 2 * reach + 1), axis=1)
 
 
 def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: int,
@@ -195,7 +222,21 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
     # do not (on the tet-edge cylinder they moved by up to 1.1 h, turned 19
     # degrees over h, and LM took 19 iterations to a penalty of 157, against
     # 0.8 h, 9 degrees, 7-9 and 67 without; least bending straightens them)
+    # the input's own uncertainty: a chain of mesh edges is known to about
+    # an edge (l), a smooth curve to its roughness, and is moved no further
+    # (a smooth bent bar's curves, read off a hex mesh, were straightened by
+    # a whole l towards least bending, 0.15 on average: 20 % of them then
+    # lay within a cell of the hex mesh's irregular edges)
+    band_at = np.clip(ROUGH * roughness(Pm), SMOOTH_BAND * h, BAND * ell)
     lim = {e: min(SLIDE_MAX * ell, float((slide_limit or {}).get(e, np.inf))) for e in (slide or {})}
+    # near a boundary end the curve turns onto the normal: there it may
+    # move as far as the end may slide, less and less over END_REACH l (a
+    # bow reaching the caps 32 degrees off, held to its roughness, turned
+    # 20 degrees over h at its ends; spread over this reach, 3)
+    cum = arclength(Pm)
+    for e in lim:
+        along = cum if e == 0 else cum[-1] - cum
+        band_at = np.maximum(band_at, lim[e] * np.clip(1.0 - along / (END_REACH * ell), 0.0, 1.0))
     Q0 = Q
     Q = _laplacian_fair(Q, fx, closed, SMOOTH_ITERATIONS, slide, lim, project)
     if closed and len(Q) > 3:
@@ -206,19 +247,21 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
             i = e % len(Q)
             nrm = project(Q[i])[1] if project is not None else np.asarray(slide[e], float)
             ends.append((i, 1 if i == 0 else len(Q) - 2, nrm))
-        Q = _least_bending(Q, fx, ends, Pm, BAND * ell, {i: lim[e] for e, (i, _, _) in zip(slide, ends)})
+        held = {i: lim[e] for e, (i, _, _) in zip(slide, ends)}
+        Q = _least_bending(Q, fx, ends, Pm, band_at[cKDTree(Pm).query(Q)[1]], held)
         if project is not None:
             for i, _, _ in ends:
                 Q[i] = project(Q[i])[0]
     return Q, merged, ell, len(knots), fx
 
 
-def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarray, band: float,
+def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarray, band: np.ndarray,
                    slide_max: dict, rounds: int = 80) -> np.ndarray:
     """Step 5b of the module docstring: the open polyline Q bent as little
     as it can be -- the least sum of |P_(i-1) - 2 P_i + P_(i+1)|^2 over the
     points not centred on a fixed one -- with the fixed points held and
-    every point within band of the polyline guide.  (Not for loops: with
+    each point within its band (an array, one per point) of the polyline
+    guide.  (Not for loops: with
     nothing held the sum shrinks a loop.)
 
     ends : (end index, its neighbour, unit outward normal) of boundary ends.
@@ -274,7 +317,7 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
         X = x.reshape(n, 3)
         s, t, d = geo.closest(X)
         foot = geo.point(s, t)
-        lim = np.full(n, band)
+        lim = np.array(band, float)
         for i, _, _ in ends:
             foot[i] = guide[0] if i == 0 else guide[-1]
             d[i] = np.linalg.norm(X[i] - foot[i])

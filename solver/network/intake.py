@@ -169,8 +169,8 @@ def _repair_without_kinks(repair_at, h: float, c: Curve):
 def slide_limit(S: TriSurface, P: np.ndarray, h: float) -> float:
     """How far the boundary end P[-1] may slide along the surface while its
     curve is faired: ``SLIDE_PER_TAN * h * tan`` of its chord's angle to the
-    normal (an end 4 degrees off slides at most 0.42 h, one 9.5 degrees off
-    or more a whole h, as before).  Sliding costs the field far less than
+    normal (an end 4 degrees off slides at most 0.42 h), within
+    fairing.SLIDE_MAX l.  Sliding costs the field far less than
     bending (on the cube-sphere networks of testkit/hexnet.py, whose short
     radial curves reach the sphere 1-4 degrees off, ends held to 3 h tan
     were bent over most of their length and left penalties of 3-6; at
