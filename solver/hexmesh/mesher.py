@@ -17,10 +17,17 @@ from scipy.spatial import cKDTree
 
 from ..errors import Cancelled, HexMeshError
 from ..stages import Stages
-from ..surface.trisurface import TriSurface, closest_point_on_triangles
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
 from .extract import ExtractionError, extract_hexes, snap
-from .quality import HEX_EDGES, boundary_quads, det3, edge_valences, euler_characteristic, scaled_jacobian
+from .quality import (
+    HEX_EDGES,
+    boundary_quads,
+    det3,
+    edge_valences,
+    euler_characteristic,
+    hausdorff_distance,
+    scaled_jacobian,
+)
 from .quantize import integer_grid_map, optimise_map, seamless_map
 from .report import DEFECTIVE, VALID, CurveMatch, HexReport
 from .seamless import MapError, build_map_system, degenerate_tets
@@ -632,7 +639,7 @@ def _assess(report: HexReport, inp: HexInput, V: np.ndarray, H: np.ndarray, cell
     else:
         report.sj_mean_irregular = 1.0
     _match_curves(report, inp, V, e[irr], val[irr], cell)
-    report.hausdorff = _hausdorff(inp.surface, V, q)
+    report.hausdorff = hausdorff_distance(inp.surface, V, q)
     report.hausdorff_relative = report.hausdorff / inp.surface.bbox_diagonal
     _verdict(report)
 
@@ -720,26 +727,6 @@ def _segments_distance(X, A, B):
         t = np.clip(np.einsum("kij,ij->ki", X[:, None] - a[None], dv) / ddv, 0.0, 1.0)
         out = np.minimum(out, np.linalg.norm(X[:, None] - (a[None] + t[..., None] * dv[None]), axis=2).min(axis=1))
     return out
-
-
-def _hausdorff(S: TriSurface, V: np.ndarray, q: np.ndarray) -> float:
-    """Two-sided distance between the quad boundary and the surface, sampled
-    at vertices, edge midpoints and face centres of both."""
-    if not len(q):
-        return float("inf")
-    P = V[q]
-    samples = np.vstack([V[np.unique(q)], P.mean(axis=1), 0.5 * (P + np.roll(P, -1, axis=1)).reshape(-1, 3)])
-    d1, _, _ = S.closest_points(samples)
-    tri = np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
-    T = V[tri]
-    tree = cKDTree(T.mean(axis=1))
-    Y = np.vstack([S.V, S.V[S.F].mean(axis=1)])
-    k = min(16, len(T))
-    _, idx = tree.query(Y, k=k)
-    idx = idx.reshape(len(Y), k)
-    C = closest_point_on_triangles(np.repeat(Y, k, axis=0), T[idx.reshape(-1)])
-    d2 = np.linalg.norm(C - np.repeat(Y, k, axis=0), axis=1).reshape(len(Y), k).min(axis=1)
-    return float(max(d1.max(), d2.max()))
 
 
 def _verdict(report: HexReport) -> None:

@@ -26,6 +26,11 @@ WINDING_GROUP_FACES = 64
 WINDING_FAR = 3.0
 
 
+CLOSEST_CHUNK = 65_536
+"""Points ``TriSurface.closest_points`` answers at once (its memory is a
+few KB per point of a chunk)."""
+
+
 def unique_rows(a: np.ndarray):
     """np.unique(axis=0) for non-negative int rows of width 2 or 3, in
     lexicographic order, via a combined int64 key (much faster).
@@ -333,6 +338,9 @@ class TriSurface:
         Returns (distance (k,), face index (k,), closest point (k, 3)).
         """
         X = np.atleast_2d(np.asarray(X, float))
+        if len(X) > CLOSEST_CHUNK:  # bounded memory: each point's answer is its own
+            parts = [self.closest_points(X[s:s + CLOSEST_CHUNK], within) for s in range(0, len(X), CLOSEST_CHUNK)]
+            return tuple(np.concatenate(p) for p in zip(*parts))
         P, cent, rad, tree = self.face_tree
         nf, rmax = len(self.F), float(rad.max())
         kq = min(nf, 16)
