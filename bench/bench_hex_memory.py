@@ -105,16 +105,17 @@ def run_one(spec: str) -> dict:
 
 
 def run_cells(spec: str) -> dict:
-    """example:cells -- the example solved at defaults, then meshed at the
+    """example:cells[:edge length] -- the example solved (at defaults, or
+    at that edge length), then meshed at the
     cell size for about that many cells: the hex stages' peak above the
     resident set the solve left (what the per-cell estimate is fitted to)."""
     from solver import default_cell_size, hexmesh, solve
     from solver.examples import load_example
     from solver.hexmesh import HexInput
 
-    name, cells = spec.split(":")
+    name, cells, *h = spec.split(":")
     V, F, net = load_example(name)
-    res = solve(V, F, net)
+    res = solve(V, F, net, edge_length=float(h[0]) if h else None)
     inp = HexInput.from_result(res)
     cell = default_cell_size(inp, int(cells))
     with Sampler() as s:
@@ -133,8 +134,8 @@ def run_cells(spec: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--input", nargs="+", default=list(INPUTS), help="sphere:SUBDIVISIONS or sculpt:TRIANGLES")
-    ap.add_argument("--cells", nargs="+", help="EXAMPLE:CELLS, e.g. cube:100000: the hex stages' peak above the "
-                    "solve's resident set at that many cells (the per-cell memory figure)")
+    ap.add_argument("--cells", nargs="+", help="EXAMPLE:CELLS[:EDGE_LENGTH], e.g. cube:100000: the hex stages' "
+                    "peak above the solve's resident set at that many cells (the per-cell memory figure)")
     ap.add_argument("--one", help=argparse.SUPPRESS)
     ap.add_argument("--one-cells", help=argparse.SUPPRESS)
     a = ap.parse_args()
