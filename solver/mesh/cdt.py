@@ -18,8 +18,8 @@ the command line, the API and the tests) and ``Options.mesher`` allows it
 ('auto', the default, takes it for networks without singular curves on
 surfaces no denser than the mesh: ``wants_tetgen``).  fTetWild meshes everything else, and wherever TetGen
 fails or its mesh's boundary differs from the surface (meshing.py).  TetGen carves only what lies
-outside the outer surface: the tets it puts in a cavity are dropped here (``_carve_cavities``).  Like fTetWild it runs in a child process
-(tetwild.run_tetwild): TetGen aborts the process on some inputs (seen:
+outside the outer surface: the tets it puts in a cavity are dropped here (``_carve_cavities``).
+Like fTetWild it runs in a child process (tetwild.run_tetwild): TetGen aborts the process on some inputs (seen:
 overlapping facets), which must not take the host application down.
 """
 
