@@ -103,6 +103,9 @@ def test_the_memory_estimate_is_said_before_the_work_and_guards_it(solved, monke
     floor = float(e.value.args[0].split("at least ")[1].split(" ")[0])
     assert 0.05 < floor < 0.1
     assert mesher.memory_refusal(inp, 1.01 * floor) is None and mesher.memory_refusal(inp, 0.99 * floor)
+    # a machine the field's tets alone fill: no cell size is offered
+    monkeypatch.setattr(mesher, "physical_memory_mb", lambda: mesher.hex_memory_mb(0, inp.mesh.n_tets) / 0.75)
+    assert "the field's tets alone take most of it: mesh a coarser field" in mesher.memory_refusal(inp, 0.5)
 
 
 def test_a_smaller_automatic_cell_past_the_memory_estimate_is_not_tried(solved, monkeypatch):

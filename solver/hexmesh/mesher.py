@@ -229,13 +229,16 @@ def memory_refusal(inp: HexInput, cell: float) -> str | None:
     ram = physical_memory_mb()
     if np.isfinite(mb) and mb <= RAM_FRACTION * ram:
         return None
-    fits = max(1.0, (RAM_FRACTION * ram - hex_memory_mb(0, inp.mesh.n_tets)) * 1024.0 / HEX_KB_PER_CELL)
+    fits = (RAM_FRACTION * ram - hex_memory_mb(0, inp.mesh.n_tets)) * 1024.0 / HEX_KB_PER_CELL
     vol = float(np.sum(inp.mesh.tet_volumes))
-    return (f"cell size {cell:.4g} would make about {n:,.0f} hexahedra, and the hex stages would need ~{_gb(mb)} of "
+    head = (f"cell size {cell:.4g} would make about {n:,.0f} hexahedra, and the hex stages would need ~{_gb(mb)} of "
             f"memory ({HEX_KB_PER_CELL:g} KB per cell, {HEX_KB_PER_TET:g} KB per tet of the field's "
-            f"{inp.mesh.n_tets:,}), past {RAM_FRACTION:.0%} of this machine's {_gb(ram)}; choose a cell "
-            f"size of at least {(vol / fits) ** (1 / 3):.4g} (about {fits:,.0f} cells), or mesh on a machine with "
-            "more memory")
+            f"{inp.mesh.n_tets:,}), past {RAM_FRACTION:.0%} of this machine's {_gb(ram)}")
+    if fits < 1000:
+        return (f"{head}; the field's tets alone take most of it: mesh a coarser field (a larger edge length), or "
+                "on a machine with more memory")
+    return (f"{head}; choose a cell size of at least {(vol / fits) ** (1 / 3):.4g} (about {fits:,.0f} cells), or "
+            "mesh on a machine with more memory")
 
 
 def _check_indices(inp: HexInput) -> None:
