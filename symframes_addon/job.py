@@ -159,6 +159,7 @@ class Outcome:
     result: object = None  # the solver Result, kept for Hex Mesh once written (remember_result)
     solve_id: str = ""  # written on the field datablock: the kept Result is that field's
     inputs_key: str = ""  # scene_io.Inputs.field_key() of the inputs solved
+    inputs_parts: str = ""  # scene_io.Inputs.field_parts() of the same (what Hex Mesh names when they change)
 
 
 @dataclass
@@ -181,7 +182,8 @@ class SolveJob(Job):
         network_faces = result.embedding.network_faces(result.mesh)
         out = Outcome(field_data(result), result.quaternions(), adaptation, network_faces, result.report,
                       remeshed=mesh is None, hex_source=hex_source_arrays(HexInput.from_result(result)),
-                      result=result, solve_id=new_id(), inputs_key=inp.field_key())
+                      result=result, solve_id=new_id(), inputs_key=inp.field_key(),
+                      inputs_parts=inp.field_parts())
         if self.want_glyphs or self.want_streamlines:
             self._progress("display", 0.97, "sampling glyphs and streamlines")
             f = FrameField.from_result(result)

@@ -56,6 +56,7 @@ def write_outcome(scene, out: job.Outcome) -> None:
         created.append((bpy.data.meshes, field_me))
         field_me[storage.SOLVE_ID_KEY] = out.solve_id
         field_me[storage.INPUTS_KEY] = out.inputs_key
+        field_me[storage.INPUTS_PARTS_KEY] = out.inputs_parts
         glyph_me = curve = None
         if out.glyphs is not None:
             glyph_me = glyphs.new_glyph_mesh(*out.glyphs)
@@ -272,24 +273,29 @@ class SYMFRAMES_OT_compute(_Threaded, bpy.types.Operator):
 def hex_source(context):
     """What Hex Mesh meshes: the Result of the last Compute Field while the
     stored field is that result; else the stored field with the network
-    embedding its solve kept beside it (job.StoredField), as long as the
-    scene's inputs are the ones it was solved with.  ValueError (or a
-    SymFramesError) says why there is none."""
+    embedding its solve kept beside it (job.StoredField); either only as
+    long as the scene's inputs are the ones it was solved with (the same
+    inputs key in the session and in a reopened file).  ValueError (or a
+    SymFramesError) says why there is none, and what changed."""
     scene = context.scene
     me = storage.stored_field(scene)
     if me is None:
         raise ValueError("no field computed yet: press Compute Field first")
+    solved = me.get(storage.INPUTS_KEY)
+    if solved is not None:
+        now = scene_io.read_inputs(context)
+        if solved != now.field_key():
+            what = scene_io.changes(me.get(storage.INPUTS_PARTS_KEY), now)
+            what = f" ({'; '.join(what)})" if what else ""
+            raise ValueError(f"the domain, the network or their settings changed since the field was computed"
+                             f"{what}, so the field is not theirs: press Compute Field again (or undo the change)")
     result = job.cached_result(me.get(storage.SOLVE_ID_KEY))
     if result is not None:
         return result
     arrays = storage.read_hex_source(me)
-    solved = me.get(storage.INPUTS_KEY)
     if arrays is None or solved is None:
         raise ValueError("this field was stored without the network as its solve traced it, which Hex Mesh needs: "
                          "compute the field again")
-    if solved != scene_io.read_inputs(context).field_key():
-        raise ValueError("the domain, the network or their settings changed since the field was computed, so the "
-                         "stored field is not theirs: press Compute Field again (or undo the change)")
     f = storage.frame_field(scene)
     return job.StoredField(f.mesh, f.frames, storage.field_omega(scene), arrays)
 

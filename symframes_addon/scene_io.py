@@ -10,8 +10,10 @@ every curve object in the chosen collection (and its children), one solver
 from __future__ import annotations
 
 import hashlib
+import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numpy as np
 from mathutils.geometry import interpolate_bezier
@@ -40,6 +42,8 @@ class Inputs:
     options: Options
     ignored: list
     network_note: str = ""
+    domain_name: str = ""
+    curve_shapes: dict = field(default_factory=dict)  # curve name -> fingerprint of its spline as drawn
 
     def mesh_key(self) -> str:
         """Fingerprint of what the tet mesh depends on (surface, curve
@@ -67,6 +71,72 @@ class Inputs:
         if self.network.sharp_edges is not None:
             h.update(np.ascontiguousarray(self.network.sharp_edges, np.int64).tobytes())
         return h.hexdigest()
+
+    def field_parts(self) -> str:
+        """What field_key fingerprints, part by part (JSON): the domain's
+        surface, the resolution settings, the sharp features and each curve's
+        index, role and shape as drawn, so that ``changes`` can say what
+        differs."""
+        o = self.options
+        auto = (o.target_tets, o.tets_ceiling, o.grading) if o.edge_length is None else None
+        sharp = hashlib.sha1(repr(self.network.sharp_angle).encode())
+        if self.network.sharp_edges is not None:
+            sharp.update(np.ascontiguousarray(self.network.sharp_edges, np.int64).tobytes())
+        return json.dumps({
+            "domain": [self.domain_name, _digest(self.V, self.F)],
+            "resolution": repr((o.edge_length, auto, self.network.node_tolerance)),
+            "sharp": sharp.hexdigest()[:16],
+            "curves": {c.name: [float(c.sigma), c.role.value, self.curve_shapes.get(c.name) or _digest(c.points)]
+                       for c in self.network.curves}})
+
+
+def _digest(*arrays) -> str:
+    h = hashlib.sha1()
+    for a in arrays:
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _index(sigma: float) -> str:
+    """A curve index as the panel speaks of it: +1/4, -1/2, -1, 0."""
+    f = Fraction(sigma).limit_denominator(64)
+    return "0" if f == 0 else f"{'+' if f > 0 else '-'}{abs(f)}"
+
+
+def changes(solved_parts: str | None, now: Inputs) -> list[str]:
+    """What differs between the inputs a field was solved with (their
+    ``field_parts``) and ``now``, in words; [] if nothing that can be named
+    (a field stored without its parts)."""
+    try:
+        was = json.loads(solved_parts) if solved_parts else None
+    except ValueError:
+        was = None
+    if not isinstance(was, dict):
+        return []
+    cur = json.loads(now.field_parts())
+    out = []
+    if was.get("domain") != cur["domain"]:
+        old_name, new_name = (was.get("domain") or ["", ""])[0], cur["domain"][0]
+        out.append(f"the domain is now '{new_name}', was '{old_name}'" if old_name != new_name else
+                   f"the domain '{new_name}' was moved, scaled or edited")
+    if was.get("resolution") != cur["resolution"]:
+        out.append("the resolution settings (edge length, Auto's tet count or grading, node tolerance) changed")
+    if was.get("sharp") != cur["sharp"]:
+        out.append("the sharp edges (the angle or the marked edges) changed")
+    old_curves, new_curves = was.get("curves") or {}, cur["curves"]
+    for name, (sigma, role, shape) in new_curves.items():
+        if name not in old_curves:
+            out.append(f"curve '{name}' was added")
+            continue
+        o_sigma, o_role, o_shape = old_curves[name]
+        if o_role != role:
+            out.append(f"curve '{name}' is now a {role} curve, was {o_role}")
+        elif o_sigma != sigma:
+            out.append(f"curve '{name}' has index {_index(sigma)}, was {_index(o_sigma)}")
+        if o_shape != shape:
+            out.append(f"curve '{name}' was moved or reshaped")
+    out += [f"curve '{name}' was removed or renamed" for name in old_curves if name not in new_curves]
+    return out
 
 
 def read_domain(obj, depsgraph) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -235,5 +305,19 @@ def read_inputs(context) -> Inputs:
     if s.use_sharp_marks and len(sharp_pairs):
         net.sharp_edges = sharp_pairs
     return Inputs(V=V, F=F, network=net, options=opts, ignored=ignored,
-                  network_note=network_note(s.network, len(net.curves)))
+                  network_note=network_note(s.network, len(net.curves)), domain_name=s.domain.name,
+                  curve_shapes=curve_shapes(s.network))
+
+
+def curve_shapes(collection) -> dict:
+    """Fingerprint of each network curve's spline as drawn (world space,
+    before resampling), under the name read_network gives it."""
+    out = {}
+    objs, _ = network_objects(collection)
+    for obj in objs:
+        splines = list(obj.data.splines)
+        for k, sp in enumerate(splines):
+            name = obj.name if len(splines) == 1 else f"{obj.name}[{k}]"
+            out[name] = _digest(spline_points(sp, obj.matrix_world))
+    return out
 

@@ -27,8 +27,10 @@ setting ``symframes.field`` (a pointer counts as a user, so it is saved):
 * ``["symframes_solve_id"]`` = the id under which job.py keeps the solve's
   Result in memory (Hex Mesh uses it while it is kept);
   ``["symframes_inputs_key"]`` = scene_io.Inputs.field_key() of the inputs
-  solved (Hex Mesh on a reopened file refuses if the scene's inputs changed
-  since: the stored field is not theirs)
+  solved (Hex Mesh, in the session that solved it or on a reopened file,
+  refuses if the scene's inputs changed since: the field is not theirs);
+  ``["symframes_inputs_parts"]`` = scene_io.Inputs.field_parts() (JSON), for
+  the refusal to say what changed
 * ``["symframes_hex_source"]`` = a group of ID properties: the arrays of
   solver.hex_source_arrays (the network as the solve traced it through the
   tet mesh -- traces, node regions, the prepared curves and nodes --, and the
@@ -74,6 +76,7 @@ REMESHED_KEY = "symframes_remeshed"
 POSITIONS_KEY = "symframes_positions"
 SOLVE_ID_KEY = "symframes_solve_id"
 INPUTS_KEY = "symframes_inputs_key"
+INPUTS_PARTS_KEY = "symframes_inputs_parts"
 HEX_SOURCE_KEY = "symframes_hex_source"
 HEX_SOURCE_LAYOUT = "layout"
 ROLE_KEY = "symframes_role"

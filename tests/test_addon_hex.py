@@ -383,6 +383,41 @@ def test_a_changed_network_is_refused_on_a_stored_field(cyl):
     assert scene_state() == before
 
 
+def _scale_domain():
+    scene().symframes.domain.scale = (1.2, 1.2, 1.2)
+    bpy.context.view_layer.update()
+
+
+def _network_curve():
+    return next(o for o in scene().symframes.network.all_objects if o.type == "CURVE")
+
+
+def _change_index():
+    _network_curve().symframes.index = -1
+
+
+def _delete_curve():
+    bpy.data.objects.remove(_network_curve())
+
+
+@pytest.mark.parametrize("edit, what", [
+    (_scale_domain, r"the domain '[^']+' was moved, scaled or edited"),
+    (_change_index, r"curve '[^']+' has index -1/4, was \+1/4"),
+    (_delete_curve, r"curve '[^']+' was removed or renamed"),
+])
+def test_a_stale_field_is_refused_within_the_session(cyl, edit, what):
+    """The session still holds the solve's Result, yet after scaling the
+    domain, changing a curve's index or deleting a curve Hex Mesh refuses
+    with what changed (the inputs key of a reopened file), and the scene is
+    unchanged; the inputs as solved give the session's Result."""
+    reopen(cyl)
+    assert operators.hex_source(bpy.context) is cyl.memory[1]  # nothing changed: the session's Result
+    edit()
+    before = scene_state()
+    _refused(bpy.ops.symframes.hex_mesh, "changed since the field was computed .*" + what)
+    assert scene_state() == before
+
+
 # ------------------------------------------------------------ the stored field
 def test_hex_mesh_of_the_stored_field_in_a_thread(cyl):
     """A reopened file has no Result in memory: the field is meshed with the

@@ -81,3 +81,38 @@ def test_a_surface_of_thin_triangles_that_tetgen_overrefines_goes_to_ftetwild():
     assert p.report.mesher.startswith("fTetWild (TetGen made"), p.report.mesher
     assert p.mesh.n_tets <= 1.5 * budget
     assert p.edge_length == pytest.approx(p.plan.edge_length)
+
+
+def _box_with_cavity():
+    """The box [-1, 1]^3 with a cubic cavity [-0.4, 0.4]^3 (its faces into it)."""
+    V, F = box(n=2)
+    Vc, Fc = box(lo=(-0.4,) * 3, hi=(0.4,) * 3, n=2)
+    return np.vstack([V, Vc]), np.vstack([F, Fc[:, ::-1] + len(V)])
+
+
+def test_a_solid_with_a_cavity_solves_with_defaults():
+    """TetGen fills cavities (it carves only outside the outer surface); the
+    tets it puts in one are dropped: the mesh's boundary has the surface's
+    two components and the solid's volume, and the field converges."""
+    from solver import solve
+
+    V, F = _box_with_cavity()
+    r = solve(V, F, Network(sharp_angle=30.0))
+    assert r.report.mesher == "TetGen", r.report.mesher
+    assert r.mesh.boundary.n_components == 2
+    assert r.mesh.tet_volumes.sum() == pytest.approx(8.0 - 0.8**3, rel=1e-9)
+    assert not np.any(np.all(np.abs(r.mesh.vertices[r.mesh.tets].mean(axis=1)) < 0.4, axis=1))
+    assert r.report.converged, r.report.status_reason
+
+
+def test_where_tetgen_fills_a_cavity_ftetwild_meshes(monkeypatch):
+    """Should TetGen's mesh still miss a component of the surface, fTetWild
+    meshes instead and the report says why."""
+    import solver.mesh.cdt as cdt
+
+    monkeypatch.setattr(cdt, "_carve_cavities", lambda S, P, T: (P, T))  # TetGen's mesh as it comes
+    V, F = _box_with_cavity()
+    p = FieldProblem(V, F, Network(sharp_angle=30.0), Options(edge_length=0.3))
+    assert p.report.mesher == "fTetWild (TetGen's mesh boundary has 1 components but the surface has 2)", \
+        p.report.mesher
+    assert p.mesh.boundary.n_components == 2

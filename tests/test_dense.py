@@ -149,6 +149,37 @@ def test_closest_points_within_a_distance():
     assert np.all(np.isinf(dw[~near])) and np.all(fw[~near] == -1) and np.all(np.isnan(qw[~near]))
 
 
+def test_closest_points_over_triangles_of_very_different_sizes():
+    """A dense plane of 20,000 triangles beside one triangle 100x larger (a
+    CAD part's flat face next to a sculpted region): the triangles are
+    searched by size class, the answer is exact (against all faces, also
+    within a distance), and the points see only their own neighbourhood:
+    one k-d tree over all centroids made every point search as far as the
+    large triangle reaches (all 20,000 faces each)."""
+    n = 100
+    g = np.linspace(0.0, 1.0, n + 1)
+    V = np.stack([*np.meshgrid(g, g, indexing="ij"), np.zeros((n + 1, n + 1))], -1).reshape(-1, 3)
+    i = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, e = i[:-1, :-1].ravel(), i[1:, :-1].ravel(), i[1:, 1:].ravel(), i[:-1, 1:].ravel()
+    V = np.vstack([V, [[3.0, 0.0, -0.5], [4.0, 0.0, -0.5], [3.0, 1.0, -0.5]]])
+    F = np.vstack([np.stack([a, b, c], 1), np.stack([a, c, e], 1), [[len(V) - 3, len(V) - 2, len(V) - 1]]])
+    S = TriSurface(V, F)
+    assert S._size_classes is not None and TriSurface(*icosphere(3))._size_classes is None
+    rng = np.random.default_rng(5)
+    X = np.vstack([np.c_[rng.uniform(0, 1, (300, 2)), rng.uniform(-0.2, 0.2, 300)], rng.uniform(-1, 5, (100, 3))])
+    d, f, q = S.closest_points(X)
+    P = S.V[S.F]
+    D = np.array([np.linalg.norm(closest_point_on_triangles(np.repeat(x[None], len(P), 0), P) - x, axis=1)
+                  for x in X])
+    exact = D.min(axis=1)
+    assert np.allclose(d, exact, rtol=0, atol=1e-12) and np.allclose(D[np.arange(len(X)), f], exact, atol=1e-12)
+    assert np.allclose(np.linalg.norm(q - X, axis=1), d)
+    dw, fw, _ = S.closest_points(X, within=0.1)
+    near = exact <= 0.1
+    assert 100 < near.sum() < 390
+    assert np.allclose(dw[near], exact[near], rtol=0, atol=1e-12) and np.all(fw[~near] == -1)
+
+
 def test_a_dense_creased_solid_keeps_its_creases_and_solves():
     """The sculpt-like cylinder of testkit/sculpt.py at 20,000 triangles
     (bumped wall, two circular 90-degree creases) with the cylinder

@@ -76,6 +76,60 @@ def test_a_cell_larger_than_the_solid_is_refused_before_any_work(solved):
         hexmesh(res, -1.0)
 
 
+def test_the_memory_estimate_is_said_before_the_work_and_guards_it(solved, monkeypatch):
+    """The estimate (cells, MB) is the first progress line of a hex run; on
+    a machine too small for it the run is refused before any stage, with
+    the estimate and a cell size that fits (which then passes)."""
+    import importlib
+
+    mesher = importlib.import_module("solver.hexmesh.mesher")  # (solver.hexmesh is also the function)
+
+    inp = HexInput.from_result(solved("cube"))
+    said = []
+    with pytest.raises(mesher.Cancelled):
+        hexmesh(inp, 0.1, progress=lambda stage, f, msg: said.append(msg), cancel=lambda: True)
+    n, mb = mesher.hex_estimate(inp, 0.1)
+    assert said == [f"hex: cell size 0.1: expected ~{n:,.0f} cells and ~{mb:,.0f} MB of memory for the hex stages"]
+    assert 7000 < n < 9000 and mesher.hex_memory_mb(n, inp.mesh.n_tets) == mb > mesher.HEX_BASE_MB
+    ram = 2 * mb  # 75% of it holds the estimate at 0.1, not at 0.05 (8x the cells)
+    monkeypatch.setattr(mesher, "physical_memory_mb", lambda: ram)
+    assert mesher.memory_refusal(inp, 0.1) is None
+    said.clear()
+    with pytest.raises(HexMeshError, match=r"cell size 0.05 would make about [\d,]+ hexahedra, and the hex stages "
+                       r"would need ~[\d.]+ GB of memory \(4.1 KB per cell, 5 KB per tet of the field's [\d,]+\), "
+                       r"past 75% of this machine's [\d.]+ GB; choose a cell size of at least ([\d.]+)") as e:
+        hexmesh(inp, 0.05, progress=lambda stage, f, msg: said.append(msg), cancel=lambda: True)
+    assert e.value.kind == "settings" and said == []
+    floor = float(e.value.args[0].split("at least ")[1].split(" ")[0])
+    assert 0.05 < floor < 0.1
+    assert mesher.memory_refusal(inp, 1.01 * floor) is None and mesher.memory_refusal(inp, 0.99 * floor)
+    # a machine the field's tets alone fill: no cell size is offered
+    monkeypatch.setattr(mesher, "physical_memory_mb", lambda: mesher.hex_memory_mb(0, inp.mesh.n_tets) / 0.75)
+    assert "the field's tets alone take most of it: mesh a coarser field" in mesher.memory_refusal(inp, 0.5)
+
+
+def test_a_smaller_automatic_cell_past_the_memory_estimate_is_not_tried(solved, monkeypatch):
+    """The automatic steps (0.85, 0.7 of the cell) stop where the estimate
+    passes the machine's memory: with the map failed at the first size, the
+    run is refused with both reasons (it handed back None before)."""
+    import importlib
+
+    mesher = importlib.import_module("solver.hexmesh.mesher")
+    inp = HexInput.from_result(solved("cube"))
+    cell = mesher.default_cell_size(inp)
+    mb0, mb1 = mesher.hex_estimate(inp, cell)[1], mesher.hex_estimate(inp, 0.85 * cell)[1]
+    monkeypatch.setattr(mesher, "physical_memory_mb", lambda: (mb0 + mb1) / 2 / mesher.RAM_FRACTION)
+
+    def fail(inp, c, *a):
+        raise mesher._Retry(f"the map failed at {c:.4g} (a test)", kind="map")
+
+    monkeypatch.setattr(mesher, "_mesh_at", fail)
+    with pytest.raises(HexMeshError, match=rf"the map failed at {cell:.4g} \(a test\); the next cell size, "
+                       rf"{0.85 * cell:.4g}, is not tried: cell size {0.85 * cell:.4g} would make about") as e:
+        hexmesh(inp)
+    assert e.value.kind == "map"
+
+
 def test_a_curve_of_index_one_half_is_refused_with_its_valence(solved):
     """Valence 4 - 4 sigma = 2: two cells meeting flat, no valid hex mesh."""
     res = solved("cylinder")

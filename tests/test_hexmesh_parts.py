@@ -5,14 +5,22 @@ import itertools
 import numpy as np
 import pytest
 
+from solver.examples import icosphere
 from solver.hexmesh.curve_edges import _prism_tets
 from solver.hexmesh.extract import extract_hexes
-from solver.hexmesh.quality import boundary_quads, edge_valences, euler_characteristic, scaled_jacobian
+from solver.hexmesh.quality import (
+    boundary_quads,
+    edge_valences,
+    euler_characteristic,
+    hausdorff_distance,
+    scaled_jacobian,
+)
 from solver.hexmesh.quantize import greedy_round
 from solver.hexmesh.seamless import AffineUnionFind, IntegerSpace
 from solver.hexmesh.smooth import foldover_free
 from solver.linalg.rotations import CUBE_GROUP
 from solver.mesh.tetmesh import TetMesh
+from solver.surface.trisurface import TriSurface, closest_point_on_triangles
 
 CUBE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
 
@@ -64,6 +72,72 @@ def test_boundary_quads_valences_and_euler_characteristic_of_a_block():
     P = V[q]
     nrm = np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 1])
     assert np.all(np.einsum("ij,ij->i", nrm, P.mean(axis=1) - n / 2) > 0)
+
+
+def _hex_block(n: int, jitter: float, seed: int = 0):
+    """(V, H) of [-1, 1]^3 as n^3 hexahedra, the vertices moved randomly by
+    up to jitter of a cell."""
+    g = np.linspace(-1.0, 1.0, n + 1)
+    V = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    V = V + jitter * (2.0 / n) * np.random.default_rng(seed).uniform(-1, 1, V.shape)
+    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
+    H = np.array([[idx[i + a, j + b, k + c] for a, b, c in CUBE.astype(int)]
+                  for i, j, k in itertools.product(range(n), repeat=3)])
+    return V, H
+
+
+def _distances_brute(X, V, F):
+    """Exact distance from each point of X to the triangles (V, F): every pair."""
+    T = V[F]
+    out = np.empty(len(X))
+    for s in range(0, len(X), 64):
+        Y = X[s:s + 64]
+        C = closest_point_on_triangles(np.repeat(Y, len(T), axis=0), np.tile(T, (len(Y), 1, 1)))
+        out[s:s + 64] = np.linalg.norm(C - np.repeat(Y, len(T), axis=0), axis=1).reshape(len(Y), -1).min(axis=1)
+    return out
+
+
+def _hausdorff_before(S, V, q):
+    """The quality stage's measure before it was bounded in memory: every
+    surface sample against its 16 nearest boundary triangles, at once."""
+    from scipy.spatial import cKDTree
+
+    P = V[q]
+    samples = np.vstack([V[np.unique(q)], P.mean(axis=1), 0.5 * (P + np.roll(P, -1, axis=1)).reshape(-1, 3)])
+    d1 = S.closest_points(samples)[0]
+    T = V[np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])]
+    Y = np.vstack([S.V, S.V[S.F].mean(axis=1)])
+    k = min(16, len(T))
+    _, idx = cKDTree(T.mean(axis=1)).query(Y, k=k)
+    C = closest_point_on_triangles(np.repeat(Y, k, axis=0), T[idx.reshape(-1)])
+    d2 = np.linalg.norm(C - np.repeat(Y, k, axis=0), axis=1).reshape(len(Y), k).min(axis=1)
+    return float(max(d1.max(), d2.max()))
+
+
+@pytest.mark.parametrize("radius, spike", [(1.2, 0.0), (1.9, 0.0), (1.1, 1.5)])
+def test_hausdorff_distance_in_chunks_is_the_exact_one(radius, spike):
+    """The chunked, pruned measure equals the exhaustive one (every sample
+    against every triangle, both ways) and the measure before it, to 1e-12
+    of the diagonal, whichever side is the farther (radius 1.2: the block's
+    corners; 1.9: the sphere; a spike: one surface vertex), in one chunk or
+    in chunks of 5 samples."""
+    V, H = _hex_block(4, 0.15)
+    q, _ = boundary_quads(H)
+    Vs, Fs = icosphere(2, radius)
+    Vs[0] *= 1.0 + spike
+    S = TriSurface(Vs, Fs)
+    P = V[q]
+    samples = np.vstack([V[np.unique(q)], P.mean(axis=1), 0.5 * (P + np.roll(P, -1, axis=1)).reshape(-1, 3)])
+    tri = np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+    d1 = _distances_brute(samples, Vs, Fs).max()
+    d2 = _distances_brute(np.vstack([Vs, Vs[Fs].mean(axis=1)]), V, tri).max()
+    exact = max(d1, d2)
+    assert (d2 > d1) == (radius > 1.5 or spike > 0)  # each side is the farther one somewhere
+    diag = S.bbox_diagonal
+    for chunk in (5, 1 << 15):
+        assert abs(hausdorff_distance(S, V, q, chunk=chunk) - exact) <= 1e-12 * diag
+    assert abs(_hausdorff_before(S, V, q) - exact) <= 1e-12 * diag
+    assert hausdorff_distance(S, V, q[:0]) == np.inf
 
 
 # ------------------------------------------------------------------ rounding

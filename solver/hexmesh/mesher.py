@@ -16,11 +16,19 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import Cancelled, HexMeshError
+from ..mesh.resolution import RAM_FRACTION, physical_memory_mb
 from ..stages import Stages
-from ..surface.trisurface import TriSurface, closest_point_on_triangles
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
 from .extract import ExtractionError, extract_hexes, snap
-from .quality import HEX_EDGES, boundary_quads, det3, edge_valences, euler_characteristic, scaled_jacobian
+from .quality import (
+    HEX_EDGES,
+    boundary_quads,
+    det3,
+    edge_valences,
+    euler_characteristic,
+    hausdorff_distance,
+    scaled_jacobian,
+)
 from .quantize import integer_grid_map, optimise_map, seamless_map
 from .report import DEFECTIVE, VALID, CurveMatch, HexReport
 from .seamless import MapError, build_map_system, degenerate_tets
@@ -36,6 +44,16 @@ ball's cells at its nodes kept a minimum scaled Jacobian of 0.54, at 0.1
 0.72, with the irregular edges still within a cell of their curves."""
 DEFAULT_HEXES = 3000
 MAX_HEXES = 2_000_000
+HEX_BASE_MB = 50.0
+HEX_KB_PER_CELL = 4.1
+HEX_KB_PER_TET = 5.0
+"""The hex stages' memory above the field's: ``HEX_KB_PER_CELL`` per cell
+(extraction and smoothing; bench/bench_hex_memory.py on the cube's field:
+83 MB at 19.7k cells, 396 MB at 97k, 1,202 MB at 301k) plus
+``HEX_KB_PER_TET`` per tet of the field (the seamless map; the ball's field
+of 51.8k tets, split to 55.7k: 251 MB at 2,432 cells), plus ``HEX_BASE_MB``.
+A cell size whose estimate passes ``RAM_FRACTION`` of the machine's memory
+is refused before any hex work."""
 
 
 @dataclass
@@ -182,6 +200,45 @@ def _check_cell(inp: HexInput, cell: float) -> None:
         raise HexMeshError(f"cell size {cell:.4g} would make about {n:,.0f} hexahedra (the limit is "
                            f"{MAX_HEXES:,}); choose a cell size of at least {(vol / MAX_HEXES) ** (1 / 3):.4g}",
                            kind="settings")
+    why = memory_refusal(inp, cell)
+    if why:
+        raise HexMeshError(why, kind="settings")
+
+
+def hex_memory_mb(cells: float, tets: int) -> float:
+    """Estimated memory (MB) the hex stages need above the field's, for
+    about ``cells`` cells on a field of ``tets`` tets (``HEX_KB_PER_CELL``)."""
+    return HEX_BASE_MB + (HEX_KB_PER_CELL * cells + HEX_KB_PER_TET * tets) / 1024.0
+
+
+def hex_estimate(inp: HexInput, cell: float) -> tuple[float, float]:
+    """(about how many cells, estimated MB of the hex stages) at a cell size."""
+    n = _cell_count(inp, cell)
+    return n, hex_memory_mb(n, inp.mesh.n_tets)
+
+
+def _gb(mb: float) -> str:
+    return f"{mb / 1024:.1f} GB" if mb < 10240 else f"{mb / 1024:,.0f} GB"
+
+
+def memory_refusal(inp: HexInput, cell: float) -> str | None:
+    """The message refusing a hex run at this cell size for its memory
+    estimate, or None when it fits in ``RAM_FRACTION`` of this machine's
+    memory."""
+    n, mb = hex_estimate(inp, cell)
+    ram = physical_memory_mb()
+    if np.isfinite(mb) and mb <= RAM_FRACTION * ram:
+        return None
+    fits = (RAM_FRACTION * ram - hex_memory_mb(0, inp.mesh.n_tets)) * 1024.0 / HEX_KB_PER_CELL
+    vol = float(np.sum(inp.mesh.tet_volumes))
+    head = (f"cell size {cell:.4g} would make about {n:,.0f} hexahedra, and the hex stages would need ~{_gb(mb)} of "
+            f"memory ({HEX_KB_PER_CELL:g} KB per cell, {HEX_KB_PER_TET:g} KB per tet of the field's "
+            f"{inp.mesh.n_tets:,}), past {RAM_FRACTION:.0%} of this machine's {_gb(ram)}")
+    if fits < 1000:
+        return (f"{head}; the field's tets alone take most of it: mesh a coarser field (a larger edge length), or "
+                "on a machine with more memory")
+    return (f"{head}; choose a cell size of at least {(vol / fits) ** (1 / 3):.4g} (about {fits:,.0f} cells), or "
+            "mesh on a machine with more memory")
 
 
 def _check_indices(inp: HexInput) -> None:
@@ -339,12 +396,19 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     _check_cell(inp, cell)
     _check_indices(inp)
     steps = AUTO_STEPS if auto else (1.0,)
-    first_defective = None
+    first_defective, failure = None, ""
     report.cell_reason = why
     for k, f in enumerate(steps):
         c = cell * f
-        if k and _cell_count(inp, c) > MAX_HEXES:
+        stop = _too_many(inp, c) if k else None
+        if stop and first_defective is not None:
             break
+        if stop:  # the last size's map failed, and the next one may not be tried
+            raise HexMeshError(f"{failure}; the next cell size, {c:.4g}, is not tried: {stop}; try a finer field (a "
+                               "smaller edge length)", report, kind="map")
+        n, mb = hex_estimate(inp, c)
+        clock.say("curves onto edges", f"hex: cell size {c:.4g}: expected ~{n:,.0f} cells and ~{mb:,.0f} MB of "
+                                       "memory for the hex stages")
         try:
             hm = _mesh_at(inp, c, smooth, clock, report)
         except _Retry as e:
@@ -368,6 +432,15 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
         clock.seconds = report.stage_seconds
         clock.say("quality", f"hex: {report.notes[-1]}")
     return first_defective
+
+
+def _too_many(inp: HexInput, cell: float) -> str | None:
+    """Why a cell size the automatic steps reach may not be tried (the cell
+    limit, the memory estimate), or None."""
+    n = _cell_count(inp, cell)
+    if n > MAX_HEXES:
+        return f"it would make about {n:,.0f} hexahedra (the limit is {MAX_HEXES:,})"
+    return memory_refusal(inp, cell)
 
 
 def _cell_count(inp: HexInput, cell: float) -> float:
@@ -632,7 +705,7 @@ def _assess(report: HexReport, inp: HexInput, V: np.ndarray, H: np.ndarray, cell
     else:
         report.sj_mean_irregular = 1.0
     _match_curves(report, inp, V, e[irr], val[irr], cell)
-    report.hausdorff = _hausdorff(inp.surface, V, q)
+    report.hausdorff = hausdorff_distance(inp.surface, V, q)
     report.hausdorff_relative = report.hausdorff / inp.surface.bbox_diagonal
     _verdict(report)
 
@@ -720,26 +793,6 @@ def _segments_distance(X, A, B):
         t = np.clip(np.einsum("kij,ij->ki", X[:, None] - a[None], dv) / ddv, 0.0, 1.0)
         out = np.minimum(out, np.linalg.norm(X[:, None] - (a[None] + t[..., None] * dv[None]), axis=2).min(axis=1))
     return out
-
-
-def _hausdorff(S: TriSurface, V: np.ndarray, q: np.ndarray) -> float:
-    """Two-sided distance between the quad boundary and the surface, sampled
-    at vertices, edge midpoints and face centres of both."""
-    if not len(q):
-        return float("inf")
-    P = V[q]
-    samples = np.vstack([V[np.unique(q)], P.mean(axis=1), 0.5 * (P + np.roll(P, -1, axis=1)).reshape(-1, 3)])
-    d1, _, _ = S.closest_points(samples)
-    tri = np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
-    T = V[tri]
-    tree = cKDTree(T.mean(axis=1))
-    Y = np.vstack([S.V, S.V[S.F].mean(axis=1)])
-    k = min(16, len(T))
-    _, idx = tree.query(Y, k=k)
-    idx = idx.reshape(len(Y), k)
-    C = closest_point_on_triangles(np.repeat(Y, k, axis=0), T[idx.reshape(-1)])
-    d2 = np.linalg.norm(C - np.repeat(Y, k, axis=0), axis=1).reshape(len(Y), k).min(axis=1)
-    return float(max(d1.max(), d2.max()))
 
 
 def _verdict(report: HexReport) -> None:

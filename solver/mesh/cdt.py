@@ -17,8 +17,9 @@ where the ``tetgen`` package is installed (requirements.txt installs it for
 the command line, the API and the tests) and ``Options.mesher`` allows it
 ('auto', the default, takes it for networks without singular curves on
 surfaces no denser than the mesh: ``wants_tetgen``).  fTetWild meshes everything else, and wherever TetGen
-fails (pipeline.py).  Like fTetWild it runs in a child process
-(tetwild.run_tetwild): TetGen aborts the process on some inputs (seen:
+fails or its mesh's boundary differs from the surface (meshing.py).  TetGen carves only what lies
+outside the outer surface: the tets it puts in a cavity are dropped here (``_carve_cavities``).
+Like fTetWild it runs in a child process (tetwild.run_tetwild): TetGen aborts the process on some inputs (seen:
 overlapping facets), which must not take the host application down.
 """
 
@@ -58,11 +59,30 @@ def tetrahedralize_cdt(surface: TriSurface, edge_length: float, cancel=None) -> 
     P, T = run_tetwild((V - centre) / unit, F, h, 0.0, cancel=cancel, tetgen_volume=VOLUME_BOUND * h**3)
     if len(T) == 0:
         raise MeshingError("TetGen produced no tetrahedra")
-    mesh = TetMesh(np.asarray(P, float) * unit + centre, np.asarray(T, np.int64))
+    P, T = np.asarray(P, float) * unit + centre, np.asarray(T, np.int64)
+    if surface.n_components > 1:
+        P, T = _carve_cavities(surface, P, T)
+    if len(T) == 0:
+        raise MeshingError("TetGen produced no tetrahedra inside the solid")
+    mesh = TetMesh(P, T)
     vol = mesh.tet_volumes
     if np.any(vol <= 0):
         raise MeshingError(f"TetGen produced {int(np.sum(vol <= 0))} inverted or flat tetrahedra")
     return mesh
+
+
+def _carve_cavities(surface: TriSurface, P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """TetGen carves only what lies outside the outer surface: the tets it
+    puts inside a cavity (an inner component oriented into it) are dropped
+    here, by the winding number of their centroids (1 in the solid, 0 in a
+    cavity; TetGen keeps the surface's triangles, so no tet straddles one),
+    and the vertices only they used."""
+    inside = surface.winding_number(P[T].mean(axis=1)) > 0.5
+    T = T[inside]
+    used = np.unique(T)
+    remap = np.full(len(P), -1, np.int64)
+    remap[used] = np.arange(len(used))
+    return P[used], remap[T]
 
 
 def wants_tetgen(surface: TriSurface, edge_length: float, singular_curves: bool = False) -> bool:

@@ -335,7 +335,11 @@ def _mesh_at(checked: CheckedInput, settings: MeshSettings, h: float, tetgen_off
         except MeshingError as e:
             tetgen_off = f"TetGen failed: {e}"
         else:
-            return _Made(mesh, h, k, h * 2.0**k, topology_change(checked.surface, mesh), "TetGen", None, "")
+            problem = topology_change(checked.surface, mesh)
+            if problem is None:
+                return _Made(mesh, h, k, h * 2.0**k, None, "TetGen", None, "")
+            # (a cavity TetGen filled, a thin part it lost): fTetWild meshes the solid instead
+            tetgen_off = f"TetGen's mesh boundary {problem}"
     name = "fTetWild" + (f" ({tetgen_off})" if tetgen_off else "")
     k = refine_levels(checked, settings.refine, h)
     while True:

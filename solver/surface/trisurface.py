@@ -26,6 +26,18 @@ WINDING_GROUP_FACES = 64
 WINDING_FAR = 3.0
 
 
+CLOSEST_CHUNK = 65_536
+"""Points ``TriSurface.closest_points`` answers at once (its memory is a
+few KB per point of a chunk)."""
+CLOSEST_PAIRS = 262_144
+"""Point-triangle pairs its exhaustive fallback measures at once (~150 MB)."""
+SIZE_CLASS_SPREAD = 8.0
+SIZE_CLASS_RATIO = 4.0
+"""closest_points searches the triangles in classes of radii within a
+factor SIZE_CLASS_RATIO where the largest radius exceeds SIZE_CLASS_SPREAD
+times the median (TriSurface._size_classes)."""
+
+
 def unique_rows(a: np.ndarray):
     """np.unique(axis=0) for non-negative int rows of width 2 or 3, in
     lexicographic order, via a combined int64 key (much faster).
@@ -323,6 +335,26 @@ class TriSurface:
         rad = np.max(np.linalg.norm(P - cent[:, None], axis=2), axis=1)
         return P, cent, rad, cKDTree(cent)
 
+    @cached_property
+    def _size_classes(self):
+        """None where the triangles are of about one size; else
+        [(face ids, TriSurface of those faces)], the faces grouped by radius
+        in classes spanning a factor SIZE_CLASS_RATIO each, for
+        closest_points.  (One k-d tree over all centroids must search as far
+        as the largest triangle's radius around every point: a dense region
+        beside a few large triangles then gave each point tens of thousands
+        of candidates.)"""
+        rad = self.face_tree[2]
+        if not len(rad) or rad.max() <= SIZE_CLASS_SPREAD * max(float(np.median(rad)), 1e-300):
+            return None
+        lo = max(float(rad[rad > 0].min()) if np.any(rad > 0) else 1.0, 1e-300)
+        cls = np.floor(np.log(np.maximum(rad, lo) / lo) / np.log(SIZE_CLASS_RATIO)).astype(np.int64)
+        out = []
+        for c in np.unique(cls):
+            ids = np.nonzero(cls == c)[0]
+            out.append((ids, TriSurface(self.V, self.F[ids])))
+        return out
+
     def closest_points(self, X: np.ndarray, within: float | None = None):
         """Closest surface point to each of X (k, 3).
 
@@ -333,6 +365,17 @@ class TriSurface:
         Returns (distance (k,), face index (k,), closest point (k, 3)).
         """
         X = np.atleast_2d(np.asarray(X, float))
+        if len(X) > CLOSEST_CHUNK:  # bounded memory: each point's answer is its own
+            parts = [self.closest_points(X[s:s + CLOSEST_CHUNK], within) for s in range(0, len(X), CLOSEST_CHUNK)]
+            return tuple(np.concatenate(p) for p in zip(*parts))
+        classes = self._size_classes
+        if classes is not None:  # triangles of very different sizes: each class searched alone
+            best_d, best_f, best_p = np.full(len(X), np.inf), np.full(len(X), -1), np.full((len(X), 3), np.nan)
+            for ids, sub in classes:
+                d, f, q = sub.closest_points(X, within)
+                better = d < best_d
+                best_d[better], best_f[better], best_p[better] = d[better], ids[f[better]], q[better]
+            return best_d, best_f, best_p
         P, cent, rad, tree = self.face_tree
         nf, rmax = len(self.F), float(rad.max())
         kq = min(nf, 16)
@@ -368,17 +411,18 @@ class TriSurface:
             best_d[far], best_f[far], best_p[far] = np.inf, -1, np.nan
         return best_d, best_f, best_p
 
-    def _closest_exhaustive(self, X, rows, radius, best_d, best_f, best_p, pairs_per_chunk: int = 1_000_000):
+    def _closest_exhaustive(self, X, rows, radius, best_d, best_f, best_p, pairs_per_chunk: int = CLOSEST_PAIRS):
         """closest_points for the points X[rows] over every face with its
         centroid within radius of the point (improving best_* in place)."""
         P, cent, rad, tree = self.face_tree
-        lists = tree.query_ball_point(X[rows], radius, return_sorted=False)
-        counts = np.fromiter((len(c) for c in lists), np.int64, len(lists))
+        radius = np.broadcast_to(np.asarray(radius, float), (len(rows),))
+        # the counts first, the candidate lists a bounded batch at a time
+        counts = np.asarray(tree.query_ball_point(X[rows], radius, return_length=True), np.int64).reshape(-1)
         start = 0
         while start < len(rows):
             stop = start + 1 + int(np.searchsorted(np.cumsum(counts[start:]), pairs_per_chunk))
             stop = min(stop, len(rows))
-            part = lists[start:stop]
+            part = tree.query_ball_point(X[rows[start:stop]], radius[start:stop], return_sorted=False)
             f = np.fromiter(itertools.chain.from_iterable(part), np.int64, int(counts[start:stop].sum()))
             k = np.repeat(rows[start:stop], counts[start:stop])
             # a face cannot be nearer than its centroid's distance less its radius
