@@ -481,7 +481,7 @@ def _mesh_at(inp: HexInput, cell: float, smooth: bool, clock: Stages, report: He
         cem = clock.run("curves onto edges", curves_on_edges, inp.mesh, inp.embedding, inp.network)
     except CurveEdgeError as e:
         raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}; this is a limit of the "
-                           "field's tet mesh, not of the network: solve it finer (a smaller edge length)", report,
+                           "field's tet mesh, not of the network", report,
                            kind="map") from None
     cem, tr, ms, flat = _stage(clock, "transitions", _map_system, cem, inp, cell, report)
     report.sizes.update(cem.stats)
