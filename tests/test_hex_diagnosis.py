@@ -140,3 +140,31 @@ def test_a_smoothing_run_that_diverges_keeps_the_maps_own_places(solved, monkeyp
     hm = hexmesh(res)
     assert hm.report.sj_min == pytest.approx(hm.report.sj_min_raw)
     assert np.isfinite(hm.vertices).all()
+
+
+def test_a_radial_curve_inside_its_node_ball_is_put_onto_edges():
+    """The cube-sphere network with an inner cube 0.45 of the radius: radial
+    curves 0.22 long, inside their nodes' balls of tets at edge length 0.25
+    (TetGen: the same mesh each run).  Refused before ("lies inside its
+    nodes' balls of tets"; a generated ellipsoid's field, converged, was
+    refused so); now the boundary face it ends on is split and the node's
+    cone reaches it: every curve is a chain of the new mesh's edges, each
+    radial one from its node to the surface."""
+    from solver import FieldProblem, Options
+    from solver.examples import ball_example
+    from solver.hexmesh.curve_edges import curves_on_edges
+
+    V, F, net = ball_example(inner=0.45)
+    p = FieldProblem(V, F, net, Options(mesher="TetGen", edge_length=0.25))  # meshed here: its short curves
+    cem = curves_on_edges(p.mesh, p.embedding, p.network)
+    M = cem.mesh
+    edges = set(map(tuple, np.sort(M.edges, axis=1).tolist()))
+    on_surface = np.zeros(M.n_vertices, bool)
+    on_surface[M.faces[M.boundary_faces].ravel()] = True
+    radial = 0
+    for c in cem.chains:
+        assert all(tuple(sorted(e)) in edges for e in zip(c.vertices[:-1].tolist(), c.vertices[1:].tolist()))
+        if p.network.curves[c.curve].name.startswith("radial"):
+            radial += 1
+            assert c.vertices[0] in set(cem.node_vertices.tolist()) and on_surface[c.vertices[-1]]
+    assert radial == 8

@@ -296,6 +296,17 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
             p = b.split_face(int(faces[lo - 1]), pts[lo - 1], ci)
             chains.append(Chain(np.array([start_v, p, end_v], dtype=np.int64), ci, float(c.sigma), False, polyline))
             continue
+        if lo > hi and (start_v >= 0) != (end_v >= 0):
+            # a curve from a node to the surface inside the node's ball (a
+            # short radial curve): where the ball holds the boundary face
+            # it ends on, the face is split there and the cone reaches it
+            k, f = (end_node[(ci, 0)], int(tr.end_face)) if start_v >= 0 else (end_node[(ci, 1)], int(tr.start_face))
+            if f >= 0 and ball_of[int(np.max(mesh.face_tets[f]))] == k:
+                x = _end_point(mesh, f, polyline) if start_v >= 0 else polyline[0]
+                p = b.split_face(f, x, ci)
+                chains.append(Chain(np.array([start_v, p] if start_v >= 0 else [p, end_v], dtype=np.int64), ci,
+                                    float(c.sigma), False, polyline))
+                continue
         if lo > hi:
             raise CurveEdgeError(
                 f"curve {labels[ci]} lies inside its nodes' balls of tets (it is shorter than about two tets of "
