@@ -40,6 +40,17 @@ class OutputError(SymFramesError):
     old file, or none, is left: never a partial one)."""
 
 
+class ReadError(SymFramesError):
+    """A file SymFrames reads back is not what its format says: a stored
+    result (``--from-result``, ``io.load_hex_input``) that is empty,
+    truncated, not a NumPy archive, or lacks an array or holds one of the
+    wrong type, shape or range (frames that are not rotations, a non-finite
+    omega, an index past its mesh); an interchange file (``.hexex``,
+    ``.fra``, ``.perm``, ``.qtn``) with a wrong count, a non-finite value or
+    an id out of range.  The message names the file, the array or line, and
+    the value."""
+
+
 class Cancelled(Exception):
     """Raised inside a solve when the caller's cancel callback returns True."""
 

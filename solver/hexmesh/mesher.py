@@ -15,7 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import Cancelled, HexMeshError
+from .. import checks
+from ..errors import Cancelled, HexMeshError, OptionsError
+from ..mesh.tetmesh import TetMesh
 from ..stages import Stages
 from ..surface.trisurface import TriSurface, closest_point_on_triangles
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
@@ -25,7 +27,7 @@ from .quantize import integer_grid_map, optimise_map, seamless_map
 from .report import DEFECTIVE, VALID, CurveMatch, HexReport
 from .seamless import MapError, build_map_system, degenerate_tets
 from .smooth import BoundaryMotion, optimise
-from .source import HexInput
+from .source import HexInput, field_fault
 from .transitions import build_transitions
 
 SHARP_DIHEDRAL = 30.0
@@ -170,30 +172,94 @@ def _closest_apart(net, sing: list, cell: float) -> tuple[float, tuple]:
     return best, pair
 
 
-def _check_cell(inp: HexInput, cell: float) -> None:
-    ext = np.ptp(inp.mesh.vertices, axis=0)
-    vol = float(np.sum(inp.mesh.tet_volumes))
-    if cell >= 0.5 * ext.min():
-        raise HexMeshError(
-            f"cell size {cell:.4g} is larger than half the solid's smallest extent ({ext.min():.4g}): the solid "
-            f"would be less than two cells thick; choose a cell size below {0.25 * ext.min():.4g}", kind="settings")
-    n = vol / cell**3
+def _cells(volume: float, cell: float) -> tuple[float, str]:
+    """About how many cells of this size the volume holds, and that in words
+    (in powers of ten past 10^12, where cell**3 may underflow)."""
+    log = np.log10(volume) - 3 * np.log10(cell)
+    return (10.0**log if log < 300 else np.inf), (f"{10.0**log:,.0f}" if log < 12 else f"10^{log:.0f}")
+
+
+def solid_size(inp: HexInput) -> tuple[float, float]:
+    """(the solid's smallest axis extent, its volume) from the field's tet mesh."""
+    return float(np.ptp(inp.mesh.vertices, axis=0).min()), float(np.sum(inp.mesh.tet_volumes))
+
+
+def check_cell_size(cell: float, extent: float, volume: float, subject: str | None = None,
+                    fix: str = "", error=None) -> None:
+    """Refuse a cell size that does not fit the solid.
+
+    Parameters
+    ----------
+    cell : float
+        a positive cell size
+    extent, volume : float
+        the solid's smallest axis extent and its volume (``solid_size``, or
+        the surface's before any tet mesh exists)
+    subject : str, optional
+        the cell size and whose it is, opening the message (default
+        "cell size 0.1 (the one given)"; "--cell-size 0.1" on the command
+        line, the automatic one with its reason)
+    fix : str
+        what else to change, ending the message
+    error : callable(message) -> exception, optional
+        default: a HexMeshError of kind 'settings'
+
+    Raises
+    ------
+    HexMeshError (or what ``error`` makes)
+        a cell of at least half the smallest extent (less than two cells
+        across), or more than MAX_HEXES cells
+    """
+    fail = error or (lambda msg: HexMeshError(msg, kind="settings"))
+    subject = subject or f"cell size {cell:.4g} (the one given)"
+    if cell >= 0.5 * extent:
+        raise fail(f"{subject} is larger than half the solid's smallest extent ({extent:.4g}): "
+                   f"the solid would be less than two cells thick; choose a cell size below {0.25 * extent:.4g}{fix}")
+    n, words = _cells(volume, cell)
     if n > MAX_HEXES:
-        raise HexMeshError(f"cell size {cell:.4g} would make about {n:,.0f} hexahedra (the limit is "
-                           f"{MAX_HEXES:,}); choose a cell size of at least {(vol / MAX_HEXES) ** (1 / 3):.4g}",
-                           kind="settings")
+        raise fail(f"{subject} would make about {words} hexahedra (the limit is {MAX_HEXES:,}); "
+                   f"choose a cell size of at least {(volume / MAX_HEXES) ** (1 / 3):.4g}{fix}")
+
+
+def _check_cell(inp: HexInput, cell: float, why: str = "given") -> None:
+    if why == "given":
+        check_cell_size(cell, *solid_size(inp))
+    else:
+        check_cell_size(cell, *solid_size(inp), subject=f"the automatic cell size {cell:.4g} (for {why})",
+                        fix="; give a cell size (cell_size, --cell-size) instead")
+
+
+def check_indices(curves, sources=None, error=None) -> None:
+    """Refuse a network no hex mesh can have, from the network alone: a
+    curve of index sigma becomes hex edges of valence 4 - 4 sigma, and
+    valence 2 or less means cells meeting flat, which no valid hex mesh has.
+
+    Parameters
+    ----------
+    curves : list of network.Curve
+        the network's curves (a Network's or a PreparedNetwork's)
+    sources : list of int, optional
+        the number of each curve as the user gave it (default: its position)
+    error : callable(message) -> exception, optional
+        default: a HexMeshError of kind 'network'
+
+    Raises
+    ------
+    HexMeshError (or what ``error`` makes)
+        naming the first curve of index +1/2 or more
+    """
+    fail = error or (lambda msg: HexMeshError(msg, kind="network"))
+    for i, c in enumerate(curves):
+        if float(c.sigma) >= 0.5:
+            name = f" '{c.name}'" if c.name else ""
+            raise fail(f"curve {i if sources is None else sources[i]}{name} has index {float(c.sigma):+g}: its hex "
+                       f"edges would have valence {int(round(4 - 4 * float(c.sigma)))}, cells meeting flat, which "
+                       "no valid hex mesh has; use curves of index +1/4 (valence 3) or negative indices (valence 5, "
+                       "6, ...)")
 
 
 def _check_indices(inp: HexInput) -> None:
-    """A curve of index sigma becomes hex edges of valence 4 - 4 sigma;
-    valence 2 or less means cells meeting flat: no valid hex mesh has them."""
-    for i, c in enumerate(inp.network.curves):
-        if c.sigma >= 0.5:
-            name = f" '{c.name}'" if c.name else ""
-            raise HexMeshError(
-                f"curve {inp.network.source[i]}{name} has index {c.sigma:+g}: its hex edges would have valence "
-                f"{int(round(4 - 4 * c.sigma))}, cells meeting flat, which no valid hex mesh has; use curves of "
-                "index +1/4 (valence 3) or negative indices (valence 5, 6, ...)", kind="network")
+    check_indices(inp.network.curves, inp.network.source)
 
 
 # ------------------------------------------------------------ the stages
@@ -279,12 +345,29 @@ or thin parts that are about a cell apart; a smaller cell keeps them apart).
 A cell size the caller gives is tried alone."""
 
 
+def _hex_input(result, what: str) -> HexInput:
+    """The HexInput of a Result or HexInput argument, its field checked."""
+    if not isinstance(result, HexInput):
+        if isinstance(result, (str, bytes)) or hasattr(result, "__fspath__"):
+            raise OptionsError(f"{what}: result = {result!r} is a path; a stored result file is read first: "
+                               f"{what}(solver.io.load_hex_input({str(result)!r}))")
+        inp = HexInput.from_result(result)
+    else:
+        inp = result
+    if not isinstance(inp.mesh, TetMesh):
+        raise OptionsError(f"{what}: the HexInput's mesh is {type(inp.mesh).__name__}, not a TetMesh")
+    fault = field_fault(inp.mesh, inp.frames, inp.omega)
+    if fault:
+        raise HexMeshError(f"the field is not one a hex mesh can follow: {fault}", kind="field")
+    return inp
+
+
 class _Retry(HexMeshError):
     """A failure of the map at this cell size that a smaller cell may undo."""
 
 
 def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, progress=None, cancel=None,
-            target_hexes: int = DEFAULT_HEXES) -> HexMesh:
+            target_hexes: int = DEFAULT_HEXES, allow_unconverged: bool = False) -> HexMesh:
     """A pure hexahedral mesh of a solved field whose irregular edges are the
     prescribed curves.
 
@@ -307,6 +390,9 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     target_hexes : int
         the number of cells the default cell size aims at (ignored when
         cell_size is given)
+    allow_unconverged : bool
+        mesh a field that did not converge anyway (``report.notes`` says
+        so); by default such a field is refused
 
     Returns
     -------
@@ -323,20 +409,29 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
         (SymFrames' map failed: a limit of SymFrames); the message says how
         many tets and where
     """
-    inp = result if isinstance(result, HexInput) else HexInput.from_result(result)
+    inp = _hex_input(result, "hexmesh")
+    cell_size = checks.positive_float("cell_size", cell_size, OptionsError, allow_none=True,
+                                      fix="the hex edge length in the units of the surface (None: automatic)")
+    target_hexes = checks.integer("target_hexes", target_hexes, OptionsError, low=1, high=MAX_HEXES,
+                                  fix=f"the number of cells the automatic cell size aims at (default {DEFAULT_HEXES})")
+    smooth = checks.boolean("smooth", smooth, OptionsError)
+    allow_unconverged = checks.boolean("allow_unconverged", allow_unconverged, OptionsError)
+    for name, fn in (("progress", progress), ("cancel", cancel)):
+        if fn is not None and not callable(fn):
+            raise OptionsError(f"{name} = {checks.describe(fn)}: must be a function or None")
     status = getattr(inp, "status", "converged")
-    if status != "converged":
+    if status != "converged" and not allow_unconverged:
         raise HexMeshError(
             f"the field is {status}: a field that did not converge is not one a hex mesh can follow (its "
             "transitions need not close around the curves); solve it again (a finer edge length, or the "
             "advice of the solve's report) and mesh the converged field", kind="field")
     report = HexReport()
+    if status != "converged":
+        report.notes.append(f"the field is {status}; meshed as asked (allow_unconverged)")
     clock = Stages(STAGE_WEIGHTS, report.stage_seconds, progress, cancel)
     auto = cell_size is None
     cell, why = (float(cell_size), "given") if not auto else cell_choice(inp, target_hexes)
-    if not np.isfinite(cell) or cell <= 0:
-        raise HexMeshError(f"cell size must be a positive length, got {cell_size!r}", kind="settings")
-    _check_cell(inp, cell)
+    _check_cell(inp, cell, why)
     _check_indices(inp)
     steps = AUTO_STEPS if auto else (1.0,)
     first_defective = None
@@ -372,7 +467,7 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
 
 def _cell_count(inp: HexInput, cell: float) -> float:
     """About how many cells of this size the solid holds."""
-    return float(np.sum(inp.mesh.tet_volumes)) / cell**3
+    return _cells(float(np.sum(inp.mesh.tet_volumes)), cell)[0]
 
 
 def _fresh_report(old: HexReport, note: str) -> HexReport:
@@ -799,7 +894,7 @@ def field_on_edges(result) -> EdgeField:
         transitions do not close as the network prescribes (then no hex
         mesher can use it either)
     """
-    inp = result if isinstance(result, HexInput) else HexInput.from_result(result)
+    inp = _hex_input(result, "field_on_edges")
     try:
         cem = curves_on_edges(inp.mesh, inp.embedding, inp.network)
     except CurveEdgeError as e:

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import OptionsError
+from ..linalg.rotations import CUBE_GROUP, closest_symmetry, exp_so3, rotation_angle
 from ..mesh.embed import CurveTrace, Embedding
 from ..mesh.tetmesh import TetMesh
 from ..network.network import Curve, Node, PreparedNetwork
@@ -72,6 +74,9 @@ class HexInput:
         -------
         HexInput
         """
+        if not all(hasattr(result, a) for a in ("problem", "mesh", "omega", "frames", "embedding", "report")):
+            raise OptionsError(f"HexInput.from_result: result = {_describe(result)}: must be a solver Result "
+                               "(solve(...)); a stored result file is read by solver.io.load_hex_input(path)")
         checked = result.problem.checked
         given = getattr(result.problem, "given", None)
         if given is not None:
@@ -80,6 +85,59 @@ class HexInput:
         return cls(result.mesh, np.asarray(result.omega), np.asarray(result.frames), result.embedding,
                    result.problem.network, checked.surface, np.asarray(checked.features.sharp, bool),
                    result.report.status, given)
+
+
+def _describe(x) -> str:
+    from ..checks import describe
+
+    return describe(x) if not hasattr(x, "__dict__") else f"a {type(x).__name__}"
+
+
+ROTATION_TOL = 1e-6
+"""Largest |R^T R - I| entry and |det R - 1| of a field's frame (a solve
+gives rotations to about 1e-12)."""
+CARRY_DEG = 2.0
+"""omega must carry the frame at one end of an edge to the other's (up to a
+cube symmetry, Eq. 8) within CARRY_DEG degrees on at least half of the
+edges: a solve's field misses by a median of 0.01-0.03 degrees, converged
+or not (more only in node regions and tubes, where the structure equation
+is relaxed); a zeroed, scaled or shuffled omega misses by about a frame's
+turn per edge (a median of 5 degrees on the cylinder at 10k tets)."""
+
+
+def field_fault(mesh: TetMesh, frames, omega) -> str:
+    """What is wrong with a field's frames and omega on its mesh, or ''.
+
+    Checks the shapes ((#V, 3, 3) and (#E, 3)), that every value is
+    finite, that the frames are rotations (orthonormal, determinant +1,
+    within ROTATION_TOL) and that omega carries them across most edges
+    (CARRY_DEG)."""
+    R, w = np.asarray(frames), np.asarray(omega)
+    if R.shape != (mesh.n_vertices, 3, 3) or R.dtype.kind not in "fi":
+        return f"frames have shape {R.shape} ({R.dtype}), not ({mesh.n_vertices}, 3, 3) floats: one per vertex"
+    if w.shape != (mesh.n_edges, 3) or w.dtype.kind not in "fi":
+        return f"omega has shape {w.shape} ({w.dtype}), not ({mesh.n_edges}, 3) floats: one per tet edge"
+    for name, a in (("frames", R), ("omega", w)):
+        bad = np.argwhere(~np.isfinite(a))
+        if len(bad):
+            return f"{name} hold {a[tuple(bad[0])]} at {tuple(int(x) for x in bad[0])}: values must be finite"
+    off = np.abs(np.einsum("nki,nkj->nij", R, R) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(R)
+    bad = np.nonzero((off > ROTATION_TOL) | (np.abs(det - 1) > ROTATION_TOL))[0]
+    if len(bad):
+        k = bad[0]
+        return (f"{len(bad):,} of the {len(R):,} frames are not rotations, e.g. frame {k} (|R^T R - I| = "
+                f"{off[k]:.3g}, det {det[k]:.4g}); a frame has orthonormal columns and determinant +1")
+    E = mesh.edges
+    carried = exp_so3(w) @ R[E[:, 0]]
+    M = np.einsum("nji,njk->nik", carried, R[E[:, 1]])
+    miss = np.degrees(rotation_angle(np.swapaxes(carried, 1, 2) @ R[E[:, 1]] @ CUBE_GROUP[closest_symmetry(M)]))
+    far = miss > CARRY_DEG
+    if 2 * far.sum() >= len(E):
+        return (f"omega does not carry the frames across their edges: on {far.sum():,} of the {len(E):,} edges it "
+                f"misses the next frame by more than {CARRY_DEG:g} degrees (median {np.median(miss):.3g}, a solve's "
+                "is below 0.1); omega and the frames are not one field (Eq. 8)")
+    return ""
 
 
 def _flat(parts):

@@ -40,7 +40,7 @@ from io import BytesIO
 import numpy as np
 
 from .. import checks
-from ..errors import NetworkError, OptionsError, SurfaceError, SymFramesError
+from ..errors import NetworkError, OptionsError, SurfaceError
 from ..network.network import Curve, Network
 from ..surface.polygons import triangulate_polygons
 from ..surface.trisurface import MAX_COORDINATE
@@ -371,40 +371,6 @@ def save_result(path: str, result) -> None:
     buf = BytesIO()
     np.savez_compressed(buf, **arrays)
     write_files({path: buf.getbuffer()})
-
-
-def load_hex_input(path: str):
-    """The field of a saved result, to mesh it again without solving
-    (``python -m solver --from-result``).
-
-    Parameters
-    ----------
-    path : str
-        a result ``.npz`` written by ``save_result``
-
-    Returns
-    -------
-    hexmesh.HexInput
-
-    Raises
-    ------
-    SymFramesError
-        when the file cannot be read or lacks what hex meshing needs
-    """
-    from ..hexmesh import input_from_arrays
-    from ..mesh.tetmesh import TetMesh
-
-    try:
-        with np.load(path) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as e:
-        raise SymFramesError(f"cannot read result file {path!r}: {e}") from None
-    missing = [k for k in ("vertices", "tets", "omega", "frames", "hex_meta") if k not in arrays]
-    if missing:
-        raise SymFramesError(f"{path}: not a SymFrames result with what hex meshing needs (missing "
-                             f"{', '.join(missing)}); solve the network again to write one")
-    mesh = TetMesh(arrays["vertices"], arrays["tets"])
-    return input_from_arrays(mesh, arrays["frames"], arrays["omega"], arrays)
 
 
 def load_result(path: str) -> dict:

@@ -136,7 +136,8 @@ def field_data(result) -> FieldData:
 
     Parameters
     ----------
-    result : solver.Result
+    result : solver.Result, or a hexmesh.HexInput (a stored field: its
+        prescribed Omega is not kept, ``face_omega`` is None)
 
     Returns
     -------
@@ -146,11 +147,15 @@ def field_data(result) -> FieldData:
     """
     mesh, emb = result.mesh, result.embedding
     curve = np.full(mesh.n_tets, -1, dtype=np.int64)
-    for i in range(len(emb.traces)):
-        curve[result.curve_tets(i)] = i
+    for i, tr in enumerate(emb.traces):
+        curve[tr.tets] = i
     node = np.zeros(mesh.n_tets, bool)
     node[emb.node_region_tets] = True
-    return FieldData(mesh, np.asarray(result.frames), np.asarray(result.omega), curve, node, emb.face_omega)
+    from ..hexmesh import HexInput
+
+    # a stored field keeps no prescribed Omega: unknown
+    face_omega = None if isinstance(result, HexInput) else emb.face_omega
+    return FieldData(mesh, np.asarray(result.frames), np.asarray(result.omega), curve, node, face_omega)
 
 
 def field_export(result) -> FieldExport:
