@@ -110,6 +110,9 @@ def default_cell_size(inp: HexInput, target_hexes: int = DEFAULT_HEXES) -> float
         shortest singular curve and between two singular curves that share
         no node (so that the rounding keeps them one cell long, and apart)
     """
+    inp = _hex_input(inp, "default_cell_size")
+    target_hexes = checks.integer("target_hexes", target_hexes, OptionsError, low=1, high=MAX_HEXES,
+                                  fix=f"the number of cells aimed at (default {DEFAULT_HEXES})")
     return cell_choice(inp, target_hexes)[0]
 
 

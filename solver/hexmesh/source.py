@@ -17,9 +17,9 @@ import numpy as np
 
 from ..errors import OptionsError
 from ..linalg.rotations import CUBE_GROUP, closest_symmetry, exp_so3, rotation_angle
-from ..mesh.embed import CurveTrace, Embedding
+from ..mesh.embed import Embedding
 from ..mesh.tetmesh import TetMesh
-from ..network.network import Curve, Node, PreparedNetwork
+from ..network.network import PreparedNetwork
 from ..surface.trisurface import TriSurface
 
 
@@ -168,6 +168,9 @@ def hex_source_arrays(inp: HexInput) -> dict:
         sharp edges), for ``numpy.savez`` or any array store;
         ``input_from_arrays`` rebuilds the HexInput from them
     """
+    if not isinstance(inp, HexInput):
+        raise OptionsError(f"hex_source_arrays: inp = {_describe(inp)}: must be a HexInput "
+                           "(HexInput.from_result(result))")
     emb, net = inp.embedding, inp.network
     tr = emb.traces
     out = {}
@@ -194,43 +197,3 @@ def hex_source_arrays(inp: HexInput) -> dict:
     out["hex_surface_faces"] = inp.surface.F
     out["hex_surface_sharp"] = inp.sharp
     return out
-
-
-def input_from_arrays(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, arrays: dict) -> HexInput:
-    """The HexInput of a stored field.
-
-    Parameters
-    ----------
-    mesh : TetMesh
-        the field's tet mesh, with the solve's exact vertex positions
-    frames : (#V, 3, 3) float array
-    omega : (#E, 3) float array
-    arrays : dict
-        what ``hex_source_arrays`` returned for this field
-
-    Returns
-    -------
-    HexInput
-    """
-    meta = json.loads(str(arrays["hex_meta"]))
-    parts = {k: _split(arrays[f"hex_{k}"], arrays[f"hex_{k}_offsets"])
-             for k in ("tets", "faces", "points", "tangents", "polyline", "curve_points", "node_region")}
-    curves, traces = [], []
-    for i, c in enumerate(meta["curves"]):
-        curves.append(Curve(parts["curve_points"][i], c["sigma"], c["role"], name=c["name"], closed=c["closed"]))
-        s, e = arrays["hex_ends"][i]
-        traces.append(CurveTrace(parts["tets"][i].astype(np.int64), parts["faces"][i].astype(np.int64),
-                                 parts["tangents"][i], parts["points"][i], int(s), int(e), parts["polyline"][i]))
-    nodes = [Node(np.asarray(nd["position"], float), [tuple(x) for x in nd["ends"]]) for nd in meta["nodes"]]
-    net = PreparedNetwork(curves, [c["source"] for c in meta["curves"]], [c["start"] for c in meta["curves"]],
-                          [c["end"] for c in meta["curves"]], nodes)
-    emb = Embedding(traces, np.asarray(arrays["hex_node_tets"], np.int64),
-                    [r.astype(np.int64) for r in parts["node_region"]], np.zeros((mesh.n_faces, 3)),
-                    np.zeros(mesh.n_faces, bool), np.zeros(mesh.n_faces, np.int64))
-    S = TriSurface(np.asarray(arrays["hex_surface_vertices"], float), np.asarray(arrays["hex_surface_faces"], np.int64))
-    given = None
-    if "given" in meta and "hex_given_points" in arrays:
-        pts = _split(np.asarray(arrays["hex_given_points"], float), arrays["hex_given_points_offsets"])
-        given = [(P, float(g["sigma"]), int(g["curve"]), g["name"]) for P, g in zip(pts, meta["given"])]
-    return HexInput(mesh, np.asarray(omega, float), np.asarray(frames, float), emb, net, S,
-                    np.asarray(arrays["hex_surface_sharp"], bool), meta.get("status", "converged"), given)

@@ -146,10 +146,17 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     Raises
     ------
     OutputError
-        an unknown extension, a path that cannot be written (checked before
+        hex_mesh not a HexMesh, an unknown extension, a path that cannot be written (checked before
         anything is made: atomic.check_output_path), ``.hexex`` for a mesh
         without its map, or a write that fails (the old file, or none, is left)
     """
+    from ..hexmesh import HexMesh
+
+    if not isinstance(hex_mesh, HexMesh):
+        from ..checks import describe
+
+        shown = describe(hex_mesh) if not hasattr(hex_mesh, "__dict__") else f"a {type(hex_mesh).__name__}"
+        raise OutputError(f"export_hexmesh: hex_mesh = {shown}: must be a HexMesh (hexmesh(result))")
     check_output_path(path, "hex mesh", HEX_FORMATS)
     ext = os.path.splitext(path)[1].lower()
     V, H = hex_mesh.vertices, hex_mesh.hexes
