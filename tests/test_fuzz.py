@@ -647,6 +647,11 @@ def _hex_call(rng, seed, path, arrays, res, tmp):
             del hex_arrays[k]
         else:
             hex_arrays[k] = pick(None, 1.0)
+    if rng.random() < 0.3:  # a HexInput made by hand, one field wrong
+        import dataclasses
+
+        name = str(rng.choice([f.name for f in dataclasses.fields(HexInput)]))
+        inp = dataclasses.replace(inp, **{name: pick(None, 1.0)})
     k = seed % 8
     if k == 0:
         return lambda: hexmesh(pick(inp, 0.4), pick(None), smooth=pick(True, 0.2), target_hexes=pick(3000, 0.3),

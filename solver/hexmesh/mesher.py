@@ -17,7 +17,9 @@ from scipy.spatial import cKDTree
 
 from .. import checks
 from ..errors import Cancelled, HexMeshError, OptionsError
+from ..mesh.embed import Embedding
 from ..mesh.tetmesh import TetMesh
+from ..network.network import PreparedNetwork
 from ..stages import Stages
 from ..surface.trisurface import TriSurface, closest_point_on_triangles
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
@@ -348,6 +350,19 @@ or thin parts that are about a cell apart; a smaller cell keeps them apart).
 A cell size the caller gives is tried alone."""
 
 
+def _given_ok(given) -> bool:
+    if not isinstance(given, list):
+        return False
+    for g in given:
+        if not isinstance(g, tuple) or len(g) != 4:
+            return False
+        P = np.asarray(g[0]) if isinstance(g[0], np.ndarray) else None
+        if P is None or P.ndim != 2 or P.shape[1:] != (3,) or len(P) < 2 or P.dtype.kind not in "fi" or \
+                not np.isfinite(P).all() or not checks._is_real(g[1]) or not np.isfinite(float(g[1])):
+            return False
+    return True
+
+
 def _hex_input(result, what: str) -> HexInput:
     """The HexInput of a Result or HexInput argument, its field checked."""
     if not isinstance(result, HexInput):
@@ -357,8 +372,24 @@ def _hex_input(result, what: str) -> HexInput:
         inp = HexInput.from_result(result)
     else:
         inp = result
-    if not isinstance(inp.mesh, TetMesh):
-        raise OptionsError(f"{what}: the HexInput's mesh is {type(inp.mesh).__name__}, not a TetMesh")
+    for name, cls in (("mesh", TetMesh), ("embedding", Embedding), ("network", PreparedNetwork),
+                      ("surface", TriSurface)):
+        if not isinstance(getattr(inp, name), cls):
+            raise OptionsError(f"{what}: the HexInput's {name} is {type(getattr(inp, name)).__name__}, not a "
+                               f"{cls.__name__} (HexInput.from_result(result) or io.load_hex_input(path) make one)")
+    sharp = np.asarray(inp.sharp)
+    if sharp.shape != (len(inp.surface.edges),) or sharp.dtype.kind != "b":
+        raise OptionsError(f"{what}: the HexInput's sharp is {sharp.shape} {sharp.dtype}, not one boolean per "
+                           f"surface edge ({len(inp.surface.edges)})")
+    if len(inp.embedding.traces) != len(inp.network.curves):
+        raise OptionsError(f"{what}: the HexInput's embedding traces {len(inp.embedding.traces)} curves, its network "
+                           f"has {len(inp.network.curves)}")
+    if inp.given is not None and not _given_ok(inp.given):
+        raise OptionsError(f"{what}: the HexInput's given = {checks.describe(inp.given)}: must be None or a list of "
+                           "(points (n, 3), sigma, curve id, name) per singular curve as the user gave it")
+    if inp.status not in ("converged", "not converged"):
+        raise OptionsError(f"{what}: the HexInput's status = {checks.describe(inp.status)}: must be 'converged' or "
+                           "'not converged'")
     fault = field_fault(inp.mesh, inp.frames, inp.omega)
     if fault:
         raise HexMeshError(f"the field is not one a hex mesh can follow: {fault}", kind="field")

@@ -386,8 +386,26 @@ def load_result(path: str) -> dict:
     dict
         Array name -> array; ``"report"`` parsed back to a dict
         (``solver.Report.from_dict(out["report"])`` makes it a Report).
+
+    Raises
+    ------
+    ReadError
+        a file that is missing, empty, truncated, not an ``.npz`` or damaged,
+        or has no report
     """
-    with np.load(path) as z:
-        out = {k: z[k] for k in z.files}
-    out["report"] = json.loads(str(out["report"]))
+    import zipfile
+    import zlib
+
+    from ..errors import ReadError
+    from .stored import open_archive
+
+    open_archive(path).close()  # an empty, truncated or foreign file is refused, naming it
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            out = {k: z[k] for k in z.files}
+        out["report"] = json.loads(str(out["report"]))
+    except KeyError:
+        raise ReadError(f"{path}: the array 'report' is missing: not a SymFrames result") from None
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError) as e:
+        raise ReadError(f"{path}: a damaged result file ({type(e).__name__}: {str(e)[:100]})") from None
     return out

@@ -52,7 +52,7 @@ class _Archive(ArraySource):
         return self._read(key, True)
 
 
-def _open(path) -> zipfile.ZipFile:
+def open_archive(path) -> zipfile.ZipFile:
     """The zip archive at path, or a ReadError saying what the file is."""
     if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
         raise ReadError(f"result file {path!r}: must be a file path (a non-empty string)")
@@ -98,5 +98,5 @@ def load_hex_input(path):
     ReadError
         naming the file, the array and what is wrong with it
     """
-    with _open(path) as zf:
+    with open_archive(path) as zf:
         return read_hex_input(_Archive(os.fspath(path), zf))
