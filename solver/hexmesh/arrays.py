@@ -195,8 +195,31 @@ def _entry(z: ArraySource, what: str, d, keys: dict):
 
 
 def _network(z: ArraySource, mesh, meta: dict):
-    from ..mesh.embed import CurveTrace, Embedding
-    from ..network.network import Curve, Node, PreparedNetwork
+    """The prepared network and its embedding, checked against the mesh and
+    each other."""
+    from ..mesh.embed import Embedding
+    from ..network.network import PreparedNetwork
+
+    curves, traces, ends = _curves(z, mesh, meta)
+    nodes = _nodes(z, meta, ends)
+    nn = len(nodes)
+    region, roff = z.parts("node_region", nn, "iuf", (), mesh.n_tets, "tet ids")
+    node_tets = z.indices("hex_node_tets", mesh.n_tets, "tet ids", (nn,))
+    net = PreparedNetwork(curves, [c["source"] for c in meta["curves"]], [c["start"] for c in meta["curves"]],
+                          [c["end"] for c in meta["curves"]], nodes)
+    emb = Embedding(traces, node_tets, _split(region, roff), np.zeros((mesh.n_faces, 3)),
+                    np.zeros(mesh.n_faces, bool), np.zeros(mesh.n_faces, np.int64))
+    return net, emb
+
+
+_KINDS = ("boundary", "node", "loop")
+
+
+def _curves(z: ArraySource, mesh, meta: dict):
+    """(curves, traces, the kind of each curve end) of the hex data."""
+    from ..mesh.embed import CurveTrace
+    from ..network.network import Curve
+
     nc = len(meta["curves"])
     parts = {}
     for key in _PER_CURVE:
@@ -204,23 +227,37 @@ def _network(z: ArraySource, mesh, meta: dict):
         flat, off = z.parts(key, nc, "f", () if n is not None else (3,), n, what)
         parts[key] = _split(flat, off)
     ends = z.indices("hex_ends", mesh.n_faces, "boundary face ids (or -1)", (nc, 2), low=-1)
-    curves, traces, kinds = [], [], ("boundary", "node", "loop")
+    curves, traces, kinds = [], [], []
     for i, c in enumerate(meta["curves"]):
-        sigma, role, name, source, k0, k1, closed = _entry(z, f"curve {i}", c, {
+        sigma, role, name, _, k0, k1, closed = _entry(z, f"curve {i}", c, {
             "sigma": (float, int), "role": (str,), "name": (str, type(None)), "source": (int,), "start": (str,),
             "end": (str,), "closed": (bool,)})
-        if k0 not in kinds or k1 not in kinds:
-            raise z.fail(f"'hex_meta' curve {i}: its ends are {k0!r}, {k1!r}, not of {kinds}")
-        if len(parts["tangents"][i]) != len(parts["points"][i]):
-            raise z.fail(f"curve {i}: {len(parts['points'][i])} pierce points but {len(parts['tangents'][i])} "
-                         "tangents in 'hex_points' / 'hex_tangents'")
+        if k0 not in _KINDS or k1 not in _KINDS:
+            raise z.fail(f"'hex_meta' curve {i}: its ends are {k0!r}, {k1!r}, not of {_KINDS}")
+        for end, kind in ((0, k0), (1, k1)):
+            if (kind == "boundary") != (ends[i, end] >= 0):
+                raise z.fail(f"curve {i}: its {('start', 'end')[end]} is a {kind} end, but 'hex_ends' gives it the "
+                             f"boundary face {ends[i, end]} (-1: none)")
+        n_faces = len(parts["faces"][i])
+        if len(parts["tangents"][i]) != n_faces or len(parts["points"][i]) != n_faces:
+            raise z.fail(f"curve {i}: {n_faces} pierced faces but {len(parts['points'][i])} pierce points and "
+                         f"{len(parts['tangents'][i])} tangents in 'hex_faces' / 'hex_points' / 'hex_tangents'")
         try:
             curves.append(Curve(parts["curve_points"][i], sigma, role, name=name, closed=closed))
         except NetworkError as e:
             raise z.fail(f"'hex_meta' curve {i}: {e}") from None
         traces.append(CurveTrace(parts["tets"][i], parts["faces"][i], parts["tangents"][i], parts["points"][i],
                                  int(ends[i, 0]), int(ends[i, 1]), parts["polyline"][i]))
-    nodes = []
+        kinds.append((k0, k1))
+    return curves, traces, kinds
+
+
+def _nodes(z: ArraySource, meta: dict, kinds: list) -> list:
+    """The nodes of the hex data; every curve end of kind 'node' at exactly
+    one node, and no other end."""
+    from ..network.network import Node
+
+    nc, nodes, seen = len(kinds), [], {}
     for j, nd in enumerate(meta["nodes"]):
         pos, e = _entry(z, f"node {j}", nd, {"position": (list,), "ends": (list,)})
         P, E = np.asarray(pos, dtype=object), np.asarray(e, dtype=object)
@@ -230,15 +267,17 @@ def _network(z: ArraySource, mesh, meta: dict):
                 np.any(E[:, 1].astype(np.int64) > 1):
             raise z.fail(f"'hex_meta' node {j} is {str(nd)[:80]}: a node has a position [x, y, z] and ends "
                          f"[[curve 0..{nc - 1}, 0 or 1], ...]")
+        for a, b in e:
+            if kinds[a][b] != "node" or (a, b) in seen:
+                why = f"also at node {seen[(a, b)]}" if (a, b) in seen else f"a {kinds[a][b]} end"
+                raise z.fail(f"'hex_meta' node {j} holds the {('start', 'end')[b]} of curve {a}, which is {why}")
+            seen[(a, b)] = j
         nodes.append(Node(np.asarray(pos, float), [(int(a), int(b)) for a, b in e]))
-    nn = len(nodes)
-    region, roff = z.parts("node_region", nn, "iuf", (), mesh.n_tets, "tet ids")
-    node_tets = z.indices("hex_node_tets", mesh.n_tets, "tet ids", (nn,))
-    net = PreparedNetwork(curves, [c["source"] for c in meta["curves"]], [c["start"] for c in meta["curves"]],
-                          [c["end"] for c in meta["curves"]], nodes)
-    emb = Embedding(traces, node_tets, _split(region, roff), np.zeros((mesh.n_faces, 3)),
-                    np.zeros(mesh.n_faces, bool), np.zeros(mesh.n_faces, np.int64))
-    return net, emb
+    loose = [(a, b) for a in range(nc) for b in (0, 1) if kinds[a][b] == "node" and (a, b) not in seen]
+    if loose:
+        a, b = loose[0]
+        raise z.fail(f"'hex_meta' curve {a}: its {('start', 'end')[b]} is a node end, but no node holds it")
+    return nodes
 
 
 def _given(z: ArraySource, meta: dict):

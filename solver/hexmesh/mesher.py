@@ -539,6 +539,10 @@ def _mesh_at(inp: HexInput, cell: float, smooth: bool, clock: Stages, report: He
         raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}; this is a limit of the "
                            "field's tet mesh, not of the network: solve it finer (a smaller edge length)", report,
                            kind="map") from None
+    except (ArithmeticError, ValueError, IndexError, KeyError, TypeError, RuntimeError) as e:
+        raise HexMeshError(f"SymFrames' hex stage 'curves onto edges' failed on this field ({type(e).__name__}: "
+                           f"{e}); this is a limit of SymFrames, not a fault of the network: try a finer field (a "
+                           "smaller edge length), and please report this input", report, kind="map") from None
     cem, tr, ms, flat = _stage(clock, "transitions", _map_system, cem, inp, cell, report)
     report.sizes.update(cem.stats)
     report.sizes.update(ms.stats)
