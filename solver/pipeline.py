@@ -552,6 +552,7 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
     Cancelled
         When ``cancel()`` returned True.
     """
+    checks.instance("problem", problem, FieldProblem, OptionsError, "FieldProblem(V, F, network, options)")
     res = problem.solve(root=root, progress=progress, cancel=cancel)
     rep, opts = res.report, problem.options
     unresolved = (not rep.converged and rep.lm is not None and rep.lm.converged

@@ -16,6 +16,7 @@ import contextlib
 import json
 import signal
 import sys
+import zlib
 
 import numpy as np
 import pytest
@@ -779,3 +780,48 @@ def test_fuzz_interchange_readers_read_their_own_files(interchange_texts, tmp_pa
         p = tmp_path / f"f{ext}"
         p.write_text(interchange_texts[ext])
         fn(str(p))
+
+
+def _public_names():
+    import inspect
+
+    import solver
+    import solver.io
+
+    out = []
+    for mod in (solver, solver.io):
+        for name in mod.__all__:
+            f = getattr(mod, name)
+            if callable(f) and name not in ("Role", "Torsion") and not (
+                    inspect.isclass(f) and issubclass(f, BaseException)):
+                out.append(f"{mod.__name__}.{name}")
+    return out
+
+
+@pytest.mark.parametrize("name", _public_names())
+def test_fuzz_every_public_name(name, stored_field, stop_before_meshing, stop_before_hex_stages, tmp_path,
+                                monkeypatch):
+    """Every public callable of solver and solver.io, called with wrong values
+    in each place (an int where a path goes would open a file descriptor;
+    None, strings, NaN, dicts, arrays of the wrong shape): SymFrames errors
+    only, 12 calls each."""
+    import importlib
+    import inspect
+
+    module, _, attr = name.rpartition(".")
+    f = getattr(importlib.import_module(module), attr)
+    monkeypatch.chdir(tmp_path)
+    values = HEX_VALUES + [0, 1, stored_field[0], np.zeros((4, 3)), np.zeros(0)]
+    rng = np.random.default_rng(zlib.crc32(name.encode()))
+    for _ in range(12):
+        args = [values[int(rng.integers(len(values)))] for _ in range(int(rng.integers(0, 5)))]
+        try:
+            inspect.signature(f).bind(*args)
+        except TypeError:
+            continue  # a call Python itself refuses (arity)
+        except ValueError:
+            pass  # no signature to check against
+        try:
+            run_case(f"{name}{tuple(type(a).__name__ for a in args)}", lambda: f(*args))
+        except (stop_before_meshing, stop_before_hex_stages):
+            pass

@@ -97,6 +97,10 @@ def write_files(files: dict, what: str = "") -> list[str]:
     mode = 0o666 & ~_umask()
     temps: list[tuple[str, str]] = []
     current = ""
+    for path in files:
+        if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+            raise OutputError((f"{what}: " if what else "") + f"output path {path!r}: must be a file path (a "
+                              "non-empty string)")
     try:
         for path, data in files.items():
             current = os.fspath(path)

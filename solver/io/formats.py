@@ -136,7 +136,19 @@ def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
     V : (n, 3) float array
     F : (m, 3) int array
         0-based (written 1-based).
+
+    Raises
+    ------
+    SurfaceError
+        V not (n, 3) finite numbers, F not (m, 3) vertex indices of V
+    OutputError
+        a path that cannot be written
     """
+    V = checks.array("write_obj: V", V, SurfaceError, shape=(None, 3))
+    F = checks.array("write_obj: F", F, SurfaceError, shape=(None, 3), kind="i")
+    if len(F) and (F.min() < 0 or F.max() >= len(V)):
+        raise SurfaceError(f"write_obj: F holds vertex index {int(F.min() if F.min() < 0 else F.max())}, outside "
+                           f"0..{len(V) - 1}")
     write_text(path, "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
                + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F))
 
@@ -228,7 +240,15 @@ def network_to_dict(net: Network, options: dict | None = None) -> dict:
     -------
     dict
         Plain lists and numbers, ready for ``json.dump``.
+
+    Raises
+    ------
+    NetworkError, OptionsError
+        net not a Network, options not a dict or None
     """
+    checks.instance("network", net, Network, NetworkError, "e.g. Network(curves=[...])")
+    if options is not None:
+        checks.mapping("options", options, OptionsError)
     d: dict = {"curves": [{"name": c.name, "points": np.asarray(c.points).tolist(), "sigma": c.sigma,
                            "role": c.role.value, "torsion": c.torsion.value, "closed": bool(c.closed)}
                           for c in net.curves]}
@@ -302,6 +322,7 @@ def write_network(path: str, net: Network, surface: str | None = None, options: 
     """
     d = network_to_dict(net, options)
     if surface is not None:
+        surface = checks.text("surface", surface, NetworkError)
         d = {"surface": surface, **d}
     write_text(path, json.dumps(d, indent=1))
 
@@ -349,7 +370,17 @@ def save_result(path: str, result) -> None:
     ----------
     path : str
     result : Result
+
+    Raises
+    ------
+    OptionsError
+        result not a solver Result
+    OutputError
+        a path that cannot be written
     """
+    from ..pipeline import Result
+
+    checks.instance("save_result: result", result, Result, OptionsError, "the Result of solve(...)")
     mesh = result.mesh
     n = len(result.embedding.traces)
     cf, cfo = _flat([result.curve_faces(i) for i in range(n)])

@@ -145,6 +145,12 @@ def field_data(result) -> FieldData:
         The result's mesh, frames and omega, the curve crossing each tet,
         the node-region tets and the prescribed Omega per face.
     """
+    from .. import checks
+    from ..errors import OptionsError
+    from ..hexmesh import HexInput
+    from ..pipeline import Result
+
+    checks.instance("field_data: result", result, (Result, HexInput), OptionsError, "the Result of solve(...)")
     mesh, emb = result.mesh, result.embedding
     curve = np.full(mesh.n_tets, -1, dtype=np.int64)
     for i, tr in enumerate(emb.traces):
@@ -640,7 +646,19 @@ def quaternion_frames(q: np.ndarray) -> np.ndarray:
     -------
     (n, 3, 3) float array
         Rotation matrices, columns the cross axes.
+
+    Raises
+    ------
+    OptionsError
+        q not (n, 4) finite numbers, or a quaternion of zero length
     """
+    from .. import checks
+    from ..errors import OptionsError
+
+    q = checks.array("quaternions", q, OptionsError, shape=(None, 4))
+    zero = np.nonzero(np.linalg.norm(q, axis=1) < 1e-12)[0]
+    if len(zero):
+        raise OptionsError(f"quaternion {zero[0]} is {q[zero[0]].tolist()}: of zero length, no rotation")
     return Rotation.from_quat(np.asarray(q, float), scalar_first=True).as_matrix()
 
 
@@ -975,6 +993,17 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
       0 on the boundary);
     * qtn: the tet quaternions w, x, y, z.
     """
+    from .. import checks
+    from ..errors import OptionsError
+    from ..hexmesh import HexInput
+    from ..pipeline import Result
+
+    checks.instance("export_field: result", result, (Result, HexInput, FieldData), OptionsError,
+                    "the Result of solve(...), a stored field (io.load_hex_input) or a FieldData")
+    binary = checks.boolean("binary", binary, OptionsError)
+    all_faces = checks.boolean("all_faces", all_faces, OptionsError)
+    if on_edges is not None:
+        on_edges = checks.boolean("on_edges", on_edges, OptionsError)
     if fmt is None:
         ext = os.path.splitext(os.fspath(path))[1].lower() if isinstance(path, (str, os.PathLike)) else ""
         if ext not in FORMATS:
