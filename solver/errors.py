@@ -30,7 +30,8 @@ class MeshingError(SymFramesError):
 
 class OptionsError(SymFramesError):
     """A solver option (an Options field, a command-line flag or the network
-    file's "options") has the wrong type or a value no solve can use."""
+    file's "options") has the wrong type or a value no solve can use; also
+    an argument of a public function of the wrong type, shape or range."""
 
 
 class OutputError(SymFramesError):

@@ -825,3 +825,14 @@ def test_fuzz_every_public_name(name, stored_field, stop_before_meshing, stop_be
             run_case(f"{name}{tuple(type(a).__name__ for a in args)}", lambda: f(*args))
         except (stop_before_meshing, stop_before_hex_stages):
             pass
+
+
+@pytest.mark.parametrize("method", ["develop", "curve_tets", "curve_faces", "curve_vertices"])
+def test_fuzz_result_methods(stored_field, method):
+    """A Result's methods with wrong indices (issue 52: Result.develop):
+    SymFrames errors only; a valid index still works."""
+    res = stored_field[2]
+    f = getattr(res, method)
+    for v in HEX_VALUES + [res.mesh.n_vertices, 10**30, -5, len(res.embedding.traces), np.int64(1)]:
+        run_case(f"Result.{method}({v!r:.40})", lambda: f(v))
+    assert len(f(0))
