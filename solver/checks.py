@@ -243,8 +243,14 @@ def array(name: str, value, error=SymFramesError, *, shape: tuple, kind: str = "
         a = np.asarray(value)
     except (ValueError, TypeError):
         _fail(error, name, value, expected)
-    if a.dtype.kind not in ("fiu" if kind == "f" else "iu") or a.ndim != len(shape) or \
-            any(s is not None and s != g for s, g in zip(shape, a.shape)):
+    if a.ndim != len(shape) or any(s is not None and s != g for s, g in zip(shape, a.shape)):
+        _fail(error, name, value, expected)
+    if kind == "i" and a.dtype.kind in "fb" or a.size == 0 and a.dtype.kind not in "fiub":
+        whole = a.size == 0 or a.dtype.kind == "f" and np.isfinite(a).all() and np.all(a == np.round(a))
+        if not whole:
+            _fail(error, name, value, expected)
+        a = a.astype(np.int64)
+    if a.dtype.kind not in ("fiu" if kind == "f" else "iu"):
         _fail(error, name, value, expected)
     if kind == "f":
         a = a.astype(float)
