@@ -168,17 +168,18 @@ def _check_overwrites(args, out: str | None, inputs) -> None:
     check_distinct(_outputs(args, out), inputs)
 
 
-def _hex_refusal(args, extent: float, volume: float, curves, sources=None) -> int:
+def _hex_refusal(args, size: tuple[float, float] | None, curves, sources=None) -> int:
     """The hex settings against the solid and the network, before any work
     (hexmesh.mesher.check_cell_size / check_indices); returns 0 when they
     fit.  A cell size the user gave that does not fit raises an
     OptionsError naming --cell-size (exit 1); a network no hex mesh can have
-    is said as the hex stage says it, and returns EXIT_NO_HEX_MESH."""
+    is said as the hex stage says it, and returns EXIT_NO_HEX_MESH.  size:
+    (the solid's smallest extent, its volume), None where unknown."""
     from .errors import HexMeshError
     from .hexmesh.mesher import check_cell_size, check_indices
 
-    if args.cell_size is not None:
-        check_cell_size(args.cell_size, extent, volume, subject=f"--cell-size {args.cell_size:g}", error=OptionsError)
+    if args.cell_size is not None and size is not None:
+        check_cell_size(args.cell_size, *size, subject=f"--cell-size {args.cell_size:g}", error=OptionsError)
     try:
         check_indices(curves, sources)
     except HexMeshError as e:
@@ -236,14 +237,14 @@ def _from_result(args) -> int:
     if args.output:
         raise OptionsError(f"-o {args.output} with --from-result: -o writes the result of a solve, and --from-result "
                            f"does not solve (the field stays in {args.from_result}); drop -o, or copy the file")
-    if args.root is not None or any(getattr(args, k) is not None for k in _SOLVE_FLAGS):
-        given = [f"--{k.replace('_', '-')}" for k in _SOLVE_FLAGS if getattr(args, k) is not None]
-        raise OptionsError(f"{', '.join(given or ['--root'])} with --from-result: a setting of the solve, and "
-                           "--from-result does not solve; drop it")
+    given = [f"--{k.replace('_', '-')}" for k in _SOLVE_FLAGS if getattr(args, k) not in (None, False)]
+    if given:
+        raise OptionsError(f"{', '.join(given)} with --from-result: a setting of the solve, and --from-result does "
+                           "not solve; drop it")
     _check_overwrites(args, None, [("--from-result", args.from_result)])
     _check_exports(args.export)
     inp = io.load_hex_input(args.from_result)
-    refused = _hex_refusal(args, *solid_size(inp), inp.network.curves, inp.network.source) if args.hex else 0
+    refused = _hex_refusal(args, solid_size(inp), inp.network.curves, inp.network.source) if args.hex else 0
     if refused:
         return refused
     if args.check:
@@ -266,7 +267,7 @@ def _from_result(args) -> int:
 
 
 _SOLVE_FLAGS = ("edge_length", "target_tets", "tets_ceiling", "grading", "max_tets", "refine", "mesher", "penalty",
-                "iterations", "init", "tag_convention", "tag_property", "sharp_angle")
+                "iterations", "init", "root", "no_snap", "profile", "tag_convention", "tag_property", "sharp_angle")
 """Command-line settings of a solve (and of its input), which --from-result has no use for."""
 
 
@@ -369,11 +370,15 @@ def _load(args):
     return V, F, net, file_opts, args.output or f"{stem}.npz"
 
 
-def _surface_size(V, F) -> tuple[float, float]:
-    """(smallest axis extent, enclosed volume) of a closed surface."""
+def _surface_size(V, F) -> tuple[float, float] | None:
+    """(smallest axis extent, enclosed volume) of a closed surface; None for
+    one that cannot be measured (the solve's checks then say what is wrong)."""
     import numpy as np
 
     V, F = np.asarray(V, float), np.asarray(F, np.int64)
+    if V.ndim != 2 or V.shape[1:] != (3,) or F.ndim != 2 or F.shape[1:] != (3,) or not len(F) or \
+            F.min() < 0 or F.max() >= len(V) or not np.isfinite(V).all():
+        return None
     ext = np.ptp(V[np.unique(F)], axis=0)
     a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
     # an open or folded surface (refused later, by the solve's checks) bounds no
@@ -392,7 +397,7 @@ def _check_only(args, V, F, net, opts) -> int:
           f"{found.boundary_components} boundary component(s)")
     print(f"resolution: {found.plan.describe()}")
     if args.hex:
-        refused = _hex_refusal(args, *_surface_size(V, F), net.curves)
+        refused = _hex_refusal(args, _surface_size(V, F), net.curves)
         if refused:
             return refused
         size = f"cell size {args.cell_size:g} fits the solid" if args.cell_size is not None else \
@@ -440,7 +445,7 @@ def main(argv: list[str] | None = None) -> int:
         _check_exports(args.export)
         if args.check:
             return _check_only(args, V, F, net, opts)
-        refused = _hex_refusal(args, *_surface_size(V, F), net.curves) if args.hex else 0
+        refused = _hex_refusal(args, _surface_size(V, F), net.curves) if args.hex else 0
         if refused:
             return refused
         progress = _progress(args.quiet)

@@ -264,3 +264,11 @@ def test_a_network_no_hex_mesh_can_have_is_refused_before_the_solve(tmp_path, ca
         _refused(capsys, [str(tmp_path / "c.json"), "--hex", str(tmp_path / "h.vtu")] + extra,
                  "the network admits none", "curve 0 'half0' has index +0.5", "valence 2", code=EXIT_NO_HEX_MESH)
     assert sorted(os.listdir(tmp_path)) == ["c.json", "c.obj"]
+
+
+def test_check_hex_says_the_hex_settings_fit(tmp_path, capsys):
+    capsys.readouterr()
+    assert main(["--example", "cube", "--check", "--hex", str(tmp_path / "h.vtu"), "--cell-size", "0.3"]) == 0
+    out = capsys.readouterr().out
+    assert "hex settings: cell size 0.3 fits the solid; no curve's index rules a hex mesh out" in out
+    assert not list(tmp_path.iterdir())
