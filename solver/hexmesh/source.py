@@ -129,9 +129,12 @@ def field_fault(mesh: TetMesh, frames, omega) -> str:
         return (f"{len(bad):,} of the {len(R):,} frames are not rotations, e.g. frame {k} (|R^T R - I| = "
                 f"{off[k]:.3g}, det {det[k]:.4g}); a frame has orthonormal columns and determinant +1")
     E = mesh.edges
-    carried = exp_so3(w) @ R[E[:, 0]]
-    M = np.einsum("nji,njk->nik", carried, R[E[:, 1]])
-    miss = np.degrees(rotation_angle(np.swapaxes(carried, 1, 2) @ R[E[:, 1]] @ CUBE_GROUP[closest_symmetry(M)]))
+    miss = np.empty(len(E))
+    for a in range(0, len(E), 100_000):  # in chunks: closest_symmetry holds 24 traces per edge
+        e = E[a:a + 100_000]
+        carried = exp_so3(w[a:a + 100_000]) @ R[e[:, 0]]
+        M = np.einsum("nji,njk->nik", carried, R[e[:, 1]])
+        miss[a:a + len(e)] = np.degrees(rotation_angle(M @ CUBE_GROUP[closest_symmetry(M)]))
     far = miss > CARRY_DEG
     if 2 * far.sum() >= len(E):
         return (f"omega does not carry the frames across their edges: on {far.sum():,} of the {len(E):,} edges it "
