@@ -486,8 +486,9 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
             if first_defective is not None:
                 return first_defective
             tried = ", ".join(f"{cell * x:.4g}" for x in steps[:k + 1])
-            raise HexMeshError((f"{failure} (cell sizes tried: {tried})" if len(steps) > 1 else failure)
-                               + "; try a smaller cell size, or a finer field (a smaller edge length)", report,
+            raise HexMeshError((f"{failure} (cell sizes tried: {tried}, {_whose(report)})" if len(steps) > 1
+                                else f"{failure} ({_whose(report)})")
+                               + f"; {_smaller(report)}, or a finer field (a smaller edge length)", report,
                                kind="map") from None
         if hm.report.valid or k + 1 == len(steps):
             return hm if hm.report.valid or first_defective is None else first_defective
@@ -497,6 +498,19 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
         clock.seconds = report.stage_seconds
         clock.say("quality", f"hex: {report.notes[-1]}")
     return first_defective
+
+
+def _whose(report: HexReport) -> str:
+    """Whose cell size it is, for a message."""
+    why = report.cell_reason
+    return "the cell size given" if why == "given" else f"the automatic cell size, for {why}"
+
+
+def _smaller(report: HexReport) -> str:
+    """What to change, for a message that asks for smaller cells."""
+    if report.cell_reason == "given":
+        return "choose a smaller cell size"
+    return "give a smaller cell size (cell_size, --cell-size) or aim at more cells (target_hexes, --hex-cells)"
 
 
 def _cell_count(inp: HexInput, cell: float) -> float:
@@ -567,8 +581,8 @@ def _mesh_at(inp: HexInput, cell: float, smooth: bool, clock: Stages, report: He
         raise _Retry(f"the map is not an integer-grid map ({raw.fractional} cut faces with a translation that is "
                      "not whole): a fault of SymFrames' rounding; please report this input", report, kind="map")
     if not len(raw.hexes):
-        raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g}; choose a smaller cell size", report,
-                           kind="settings")
+        raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g} ({_whose(report)}); "
+                           f"{_smaller(report)}", report, kind="settings")
     V, H = raw.vertices, raw.hexes
     sj0 = scaled_jacobian(V, H)
     report.sj_min_raw, report.sj_mean_raw = float(sj0.min()), float(sj0.mean())
