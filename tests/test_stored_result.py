@@ -272,3 +272,16 @@ def test_check_hex_says_the_hex_settings_fit(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "hex settings: cell size 0.3 fits the solid; no curve's index rules a hex mesh out" in out
     assert not list(tmp_path.iterdir())
+
+
+def test_a_field_stopped_after_one_iteration_from_a_random_start_is_read_not_refused(solved, tmp_path, capsys):
+    """Its omega is far from integrable, but the frames are developed from it
+    along a spanning tree: the file is whole, its field not converged (exit 3,
+    not a damaged file)."""
+    res = solved("cube", edge_length=0.4, max_iterations=1, init="random")
+    assert not res.report.converged
+    path = str(tmp_path / "r.npz")
+    io.save_result(path, res)
+    assert io.load_hex_input(path).status == "not converged"
+    _refused(capsys, ["--from-result", path, "--hex", str(tmp_path / "h.vtu")], "not converged",
+             code=EXIT_NOT_CONVERGED)
