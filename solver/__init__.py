@@ -28,7 +28,8 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
   ``input_from_arrays`` keep it beside a stored field); ``default_cell_size``.
 * Errors: ``SymFramesError`` and its subclasses (``HexMeshError`` when no
   valid hex mesh exists at the settings, ``OutputError`` when a file
-  cannot be written); ``Cancelled``.
+  cannot be written, ``ReadError`` when a stored result or interchange file
+  is damaged); ``Cancelled``.
 
 See README.md for the sign convention of the index sigma and the file formats.
 """
@@ -48,6 +49,7 @@ from .errors import (
     NetworkError,
     OptionsError,
     OutputError,
+    ReadError,
     SurfaceError,
     SymFramesError,
     TopologyError,
@@ -82,6 +84,7 @@ __all__ = [
     "Options",
     "OptionsError",
     "OutputError",
+    "ReadError",
     "Report",
     "Result",
     "Role",

@@ -16,8 +16,11 @@ written); 1 bad input or settings (nothing written; this includes a mesh
 past the tet / memory limit, see --max-tets); 2 usage; 3 solved but not
 converged (the result is written and the report says why: LM stopped at
 its cap or the structure penalty is above the discretisation level), or a
-hex mesh written that the quality report calls defective; 4 no hex mesh
-(the field's result is written, the reason printed); 130 cancelled.
+hex mesh written that the quality report calls defective, or (with
+--mesh-unconverged) one of a field that did not converge; 4 no hex mesh
+(the field's result is written, the reason printed; a network no hex mesh
+can have is said before the solve, and nothing is written); 130 cancelled.
+No output may name an input or another output (refused before any work).
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import time
 from . import checks, io
 from .errors import Cancelled, OptionsError, OutputError, SymFramesError
 from .examples import EXAMPLES, load_example
-from .io.atomic import check_output_path
+from .io.atomic import check_distinct, check_output_path
 from .pipeline import INITS, FieldProblem, solve_resolved
 from .precheck import check
 
@@ -73,7 +76,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-smooth", action="store_true", help="with --hex: keep the vertices where the integer-grid "
                    "map puts them (no optimisation of the cells' shape)")
     p.add_argument("--from-result", metavar="FILE.npz", help="with --hex: mesh the field stored in a result file "
-                   "instead of solving")
+                   "instead of solving (with --export: write that field too; with --check: only check the file and "
+                   "the hex settings)")
+    p.add_argument("--mesh-unconverged", action="store_true", help="with --hex: mesh a field that did not converge "
+                   "anyway (default: refused, exit 3); the exit status stays 3")
     p.add_argument("--edge-length", type=float, help="target tet edge length (default: automatic)")
     p.add_argument("--target-tets", type=int, help="tet count aimed at when the edge length is automatic (default "
                    "15,000, which the network may exceed up to --tets-ceiling; a count given here is held)")
@@ -126,19 +132,61 @@ def _check_exports(paths: list[str]) -> None:
 def _check_hex_outputs(args) -> None:
     """Refuse hex-mesh settings and outputs the run could not use, before
     any work."""
-    from .hexmesh.mesher import DEFAULT_HEXES
+    from .hexmesh.mesher import DEFAULT_HEXES, MAX_HEXES
     from .io.hexformats import HEX_FORMATS
 
     for path in args.hex:
         check_output_path(path, "--hex", HEX_FORMATS)
-    hexing = args.cell_size is not None or args.hex_cells is not None or args.no_smooth or args.from_result
+    hexing = args.cell_size is not None or args.hex_cells is not None or args.no_smooth or args.mesh_unconverged
     if hexing and not args.hex:
-        raise OptionsError("--cell-size, --hex-cells, --no-smooth and --from-result go with --hex FILE (the hex "
+        raise OptionsError("--cell-size, --hex-cells, --no-smooth and --mesh-unconverged go with --hex FILE (the hex "
                            "mesh to write)")
+    if args.from_result and not (args.hex or args.export or args.check):
+        raise OptionsError("--from-result reads a stored field for --hex FILE (a hex mesh), --export FILE (the "
+                           "field for another tool) or --check (check the file); give one of them")
     args.cell_size = checks.positive_float("--cell-size", args.cell_size, OptionsError, allow_none=True,
                                            fix="a length in the units of the surface")
-    args.hex_cells = checks.integer("--hex-cells", args.hex_cells, OptionsError, low=1, allow_none=True,
-                                    fix=f"a number of cells, the default is {DEFAULT_HEXES}")
+    args.hex_cells = checks.integer("--hex-cells", args.hex_cells, OptionsError, low=1, high=MAX_HEXES,
+                                    allow_none=True, fix=f"a number of cells, the default is {DEFAULT_HEXES}")
+
+
+def _outputs(args, out: str | None) -> list:
+    """Every file the run writes, as (how it was named, path)."""
+    from .io.interchange import MEDIT_SIDE_FILES
+
+    outs = [] if out is None else [("-o", out)]
+    for path in args.export:
+        outs.append(("--export", path))
+        if os.path.splitext(path)[1].lower() == ".mesh":
+            outs += [(f"--export {path} writes", os.path.splitext(path)[0] + s) for s in MEDIT_SIDE_FILES]
+    return outs + [("--hex", p) for p in args.hex]
+
+
+def _check_overwrites(args, out: str | None, inputs) -> None:
+    """Refuse, before any work, an output that names an input or another
+    output (atomic.check_distinct)."""
+    check_distinct(_outputs(args, out), inputs)
+
+
+def _hex_refusal(args, size: tuple[float, float] | None, curves, sources=None) -> int:
+    """The hex settings against the solid and the network, before any work
+    (hexmesh.mesher.check_cell_size / check_indices); returns 0 when they
+    fit.  A cell size the user gave that does not fit raises an
+    OptionsError naming --cell-size (exit 1); a network no hex mesh can have
+    is said as the hex stage says it, and returns EXIT_NO_HEX_MESH.  size:
+    (the solid's smallest extent, its volume), None where unknown."""
+    from .errors import HexMeshError
+    from .hexmesh.mesher import check_cell_size, check_indices
+
+    if args.cell_size is not None and size is not None:
+        check_cell_size(args.cell_size, *size, subject=f"--cell-size {args.cell_size:g}", error=OptionsError)
+    try:
+        check_indices(curves, sources)
+    except HexMeshError as e:
+        print(f"error: no hex mesh: {_HEX_KIND[e.kind]}{e}; nothing was solved or written (checked before any "
+              "work)", file=sys.stderr)
+        return EXIT_NO_HEX_MESH
+    return 0
 
 
 _HEX_KIND = {"network": "the network admits none: ", "settings": "not at this cell size: ",
@@ -154,14 +202,16 @@ def _hex(args, inp, progress) -> int:
     from .hexmesh.mesher import DEFAULT_HEXES
     from .io.hexformats import export_hexmesh
 
-    if getattr(inp, "status", "converged") != "converged":
+    converged = getattr(inp, "status", "converged") == "converged"
+    if not converged and not args.mesh_unconverged:
         # said before any hex work: the field's own status, not a hex failure
         print(f"error: no hex mesh: the field is {inp.status}, and a hex mesh needs a converged field; no hex file "
-              "written (solve it again: a finer edge length, or the advice above)", file=sys.stderr)
+              "written (solve it again: a finer edge length, or the advice above; --mesh-unconverged meshes it "
+              "anyway)", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     try:
         hm = hexmesh(inp, args.cell_size, smooth=not args.no_smooth, progress=progress,
-                     target_hexes=args.hex_cells or DEFAULT_HEXES)
+                     target_hexes=args.hex_cells or DEFAULT_HEXES, allow_unconverged=args.mesh_unconverged)
     except HexMeshError as e:
         print(f"error: no hex mesh: {_HEX_KIND.get(e.kind, '')}{e}", file=sys.stderr)
         return EXIT_NO_HEX_MESH
@@ -170,8 +220,55 @@ def _hex(args, inp, progress) -> int:
         print("wrote " + ", ".join(export_hexmesh(hm, path)))
     if not hm.report.valid:
         print(f"warning: the hex mesh is defective: {hm.report.reason}", file=sys.stderr)
-        return EXIT_NOT_CONVERGED
-    return 0
+    if not converged:
+        print(f"warning: the hex mesh is of a field that is {inp.status} (--mesh-unconverged)", file=sys.stderr)
+    return 0 if hm.report.valid and converged else EXIT_NOT_CONVERGED
+
+
+def _from_result(args) -> int:
+    """--from-result: check the stored field (io.load_hex_input) and the hex
+    settings against it, then mesh it (--hex) and write the field (--export),
+    or stop after the checks (--check).  -o is refused: no solve, no result."""
+    from .hexmesh.mesher import solid_size
+
+    if args.example or args.network or args.tet_network:
+        raise OptionsError("--from-result meshes a stored field: give no network, --example or --tet-network with "
+                           "it")
+    if args.output:
+        raise OptionsError(f"-o {args.output} with --from-result: -o writes the result of a solve, and --from-result "
+                           f"does not solve (the field stays in {args.from_result}); drop -o, or copy the file")
+    given = [f"--{k.replace('_', '-')}" for k in _SOLVE_FLAGS if getattr(args, k) not in (None, False)]
+    if given:
+        raise OptionsError(f"{', '.join(given)} with --from-result: a setting of the solve, and --from-result does "
+                           "not solve; drop it")
+    _check_overwrites(args, None, [("--from-result", args.from_result)])
+    _check_exports(args.export)
+    inp = io.load_hex_input(args.from_result)
+    refused = _hex_refusal(args, solid_size(inp), inp.network.curves, inp.network.source) if args.hex else 0
+    if refused:
+        return refused
+    if args.check:
+        print(f"{args.from_result}: a stored field of {inp.mesh.n_tets:,} tets, {len(inp.network.curves)} curves, "
+              f"{inp.status}; its arrays are complete and consistent")
+        if inp.status != "converged" and args.hex and not args.mesh_unconverged:
+            print(f"error: no hex mesh: the field is {inp.status} (--mesh-unconverged meshes it anyway)",
+                  file=sys.stderr)
+            return EXIT_NOT_CONVERGED
+        return 0
+    status = 0
+    for path in args.export:
+        print("wrote " + ", ".join(io.export_field(inp, path)))
+    if inp.status != "converged" and not args.hex:
+        print(f"warning: the stored field is {inp.status}", file=sys.stderr)
+        status = EXIT_NOT_CONVERGED
+    if args.hex:
+        status = max(status, _hex(args, inp, _progress(args.quiet)))
+    return status
+
+
+_SOLVE_FLAGS = ("edge_length", "target_tets", "tets_ceiling", "grading", "max_tets", "refine", "mesher", "penalty",
+                "iterations", "init", "root", "no_snap", "profile", "tag_convention", "tag_property", "sharp_angle")
+"""Command-line settings of a solve (and of its input), which --from-result has no use for."""
 
 
 def _progress(quiet: bool):
@@ -236,6 +333,79 @@ def _exit_on_signals() -> None:
             signal.signal(getattr(signal, name), stop)
 
 
+def _stem(args) -> str | None:
+    """The default result's path without .npz."""
+    if args.example:
+        return args.example
+    src = args.tet_network or args.network
+    return None if src is None else os.path.splitext(src)[0]
+
+
+def _load(args):
+    """(V, F, network, the network file's options, the result path) of the
+    input the arguments name, or None when they name none.  Outputs naming
+    an input are refused before the input is read (beyond the network
+    file, which names the surface)."""
+    stem = _stem(args)
+    if stem is None:
+        return None
+    out = None if args.check else args.output or f"{stem}.npz"
+    if args.example:
+        _check_overwrites(args, out, [])
+        V, F, net = load_example(args.example)
+        return V, F, net, {}, out
+    if args.tet_network:
+        from .io.tetnetwork import import_tet_network
+
+        _check_overwrites(args, out, [("--tet-network", args.tet_network)])
+        imp = import_tet_network(args.tet_network, args.tag_convention, args.tag_property, args.sharp_angle)
+        print(f"{args.tet_network}: {imp.describe()}")
+        return imp.V, imp.F, imp.network, {}, out
+    net, file_opts, surface = io.read_network(args.network)
+    surface = args.surface or surface
+    if surface is None:
+        raise SymFramesError("no surface: give SURFACE.obj or a 'surface' key in the network file")
+    _check_overwrites(args, out, [("network", args.network), ("surface", surface)])
+    V, F = io.read_obj(surface)
+    return V, F, net, file_opts, args.output or f"{stem}.npz"
+
+
+def _surface_size(V, F) -> tuple[float, float] | None:
+    """(smallest axis extent, enclosed volume) of a closed surface; None for
+    one that cannot be measured (the solve's checks then say what is wrong)."""
+    import numpy as np
+
+    V, F = np.asarray(V, float), np.asarray(F, np.int64)
+    if V.ndim != 2 or V.shape[1:] != (3,) or F.ndim != 2 or F.shape[1:] != (3,) or not len(F) or \
+            F.min() < 0 or F.max() >= len(V) or not np.isfinite(V).all():
+        return None
+    ext = np.ptp(V[np.unique(F)], axis=0)
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    # an open or folded surface (refused later, by the solve's checks) bounds no
+    # volume of its own: the box's stands in
+    vol = abs(float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0)
+    return float(ext.min()), min(vol, float(np.prod(ext)))
+
+
+def _check_only(args, V, F, net, opts) -> int:
+    """--check: validate the input (and the hex settings), print what was found."""
+    found = check(V, F, net, options=opts)
+    for rep in (found.repairs_text(), found.corners_text()):
+        if rep:
+            print(rep)
+    print(f"input is valid: {found.interior_curves} interior curves, {found.nodes} nodes, "
+          f"{found.boundary_components} boundary component(s)")
+    print(f"resolution: {found.plan.describe()}")
+    if args.hex:
+        refused = _hex_refusal(args, _surface_size(V, F), net.curves)
+        if refused:
+            return refused
+        size = f"cell size {args.cell_size:g} fits the solid" if args.cell_size is not None else \
+            "the cell size is chosen after the solve"
+        print(f"hex settings: {size}; no curve's index rules a hex mesh out")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if argv is None:  # run as a command, not called from Python (tests)
@@ -257,51 +427,27 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         _check_hex_outputs(args)
         if args.from_result:
-            if args.example or args.network or args.tet_network:
-                raise OptionsError("--from-result meshes a stored field: give no network, --example or "
-                                   "--tet-network with it")
-            inp = io.load_hex_input(args.from_result)
-            return _hex(args, inp, _progress(args.quiet))
-        if args.example:
-            V, F, net = load_example(args.example)
-            file_opts, stem = {}, args.example
-        elif args.tet_network:
-            from .io.tetnetwork import import_tet_network
-
-            imp = import_tet_network(args.tet_network, args.tag_convention, args.tag_property, args.sharp_angle)
-            V, F, net = imp.V, imp.F, imp.network
-            print(f"{args.tet_network}: {imp.describe()}")
-            file_opts, stem = {}, os.path.splitext(args.tet_network)[0]
-        elif args.network:
-            net, file_opts, surface = io.read_network(args.network)
-            surface = args.surface or surface
-            if surface is None:
-                raise SymFramesError("no surface: give SURFACE.obj or a 'surface' key in the network file")
-            V, F = io.read_obj(surface)
-            stem = os.path.splitext(args.network)[0]
-        else:
+            return _from_result(args)
+        loaded = _load(args)
+        if loaded is None:
             _parser().print_usage(sys.stderr)
             print("error: give a network file or --example NAME", file=sys.stderr)
             return 2
+        V, F, net, file_opts, out = loaded
         opts = _options(args, file_opts)
         # what can only fail at the end is checked before any work
         if args.root is not None and args.root < 0:
             raise OptionsError(f"--root {args.root}: must be a tet-mesh vertex index >= 0 (omit it for a boundary "
                                "vertex)")
-        out = args.output or f"{stem}.npz"
         if not args.check:
             # the result is always NumPy .npz, written at exactly this path
             check_output_path(out, "-o", (".npz",))
         _check_exports(args.export)
         if args.check:
-            found = check(V, F, net, options=opts)
-            for rep in (found.repairs_text(), found.corners_text()):
-                if rep:
-                    print(rep)
-            print(f"input is valid: {found.interior_curves} interior curves, {found.nodes} nodes, "
-                  f"{found.boundary_components} boundary component(s)")
-            print(f"resolution: {found.plan.describe()}")
-            return 0
+            return _check_only(args, V, F, net, opts)
+        refused = _hex_refusal(args, _surface_size(V, F), net.curves) if args.hex else 0
+        if refused:
+            return refused
         progress = _progress(args.quiet)
         profiler = None
         if args.profile:

@@ -220,3 +220,50 @@ def sequence(name: str, value, error=SymFramesError) -> list:
     if isinstance(value, (list, tuple)):
         return list(value)
     _fail(error, name, value, "a list [...]")
+
+
+def instance(name: str, value, types, error=SymFramesError, fix: str | None = None):
+    """value if it is one of ``types`` (a class or a tuple of them), else
+    ``error`` naming the argument, what it is and what it must be."""
+    if isinstance(value, types):
+        return value
+    kinds = types if isinstance(types, tuple) else (types,)
+    plain = not hasattr(value, "__dict__") or isinstance(value, np.ndarray)
+    shown = describe(value) if plain else f"a {type(value).__name__}"
+    msg = f"{name} = {shown}: must be " + " or ".join(f"a {k.__name__}" for k in kinds)
+    raise error(msg + (f"; {fix}" if fix else ""))
+
+
+def array(name: str, value, error=SymFramesError, *, shape: tuple, kind: str = "f", finite: bool = True) -> np.ndarray:
+    """value as a numpy array of dtype kind ``kind`` ('f' real numbers, 'i'
+    whole numbers) and shape ``shape`` (None: any length there)."""
+    want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+    expected = f"an array of shape {want} of {'numbers' if kind == 'f' else 'whole numbers'}"
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):
+        _fail(error, name, value, expected)
+    if a.ndim != len(shape) or any(s is not None and s != g for s, g in zip(shape, a.shape)):
+        _fail(error, name, value, expected)
+    if kind == "i" and a.dtype.kind in "fb" or a.size == 0 and a.dtype.kind not in "fiub":
+        whole = a.size == 0 or a.dtype.kind == "f" and np.isfinite(a).all() and np.all(a == np.round(a))
+        if not whole:
+            _fail(error, name, value, expected)
+        a = a.astype(np.int64)
+    if a.dtype.kind not in ("fiu" if kind == "f" else "iu"):
+        _fail(error, name, value, expected)
+    if kind == "f":
+        a = a.astype(float)
+        if finite and not np.isfinite(a).all():
+            _fail(error, name, value, expected + ", all finite")
+    return a
+
+
+def path(name: str, value, error=SymFramesError) -> str:
+    """A file path: a non-empty str (or os.PathLike), never an int (which
+    open() would take as a file descriptor)."""
+    import os
+
+    if isinstance(value, (str, os.PathLike)) and os.fspath(value):
+        return os.fspath(value)
+    _fail(error, name, value, "a file path (a non-empty string)")

@@ -30,7 +30,8 @@ class MeshingError(SymFramesError):
 
 class OptionsError(SymFramesError):
     """A solver option (an Options field, a command-line flag or the network
-    file's "options") has the wrong type or a value no solve can use."""
+    file's "options") has the wrong type or a value no solve can use; also
+    an argument of a public function of the wrong type, shape or range."""
 
 
 class OutputError(SymFramesError):
@@ -38,6 +39,17 @@ class OutputError(SymFramesError):
     the write, the path is a folder or a device, its extension is not a
     format SymFrames writes, or the disk filled up while writing (then the
     old file, or none, is left: never a partial one)."""
+
+
+class ReadError(SymFramesError):
+    """A file SymFrames reads back is not what its format says: a stored
+    result (``--from-result``, ``io.load_hex_input``) that is empty,
+    truncated, not a NumPy archive, or lacks an array or holds one of the
+    wrong type, shape or range (frames that are not rotations, a non-finite
+    omega, an index past its mesh); an interchange file (``.hexex``,
+    ``.fra``, ``.perm``, ``.qtn``) with a wrong count, a non-finite value or
+    an id out of range.  The message names the file, the array or line, and
+    the value."""
 
 
 class Cancelled(Exception):

@@ -366,7 +366,7 @@ class FieldProblem:
         if init == "linear":
             x, _ = self.volume.solve(np.zeros(n), max_iterations=3, linear=True, init="linear")
             return x
-        raise ValueError(f"unknown init {init!r}")
+        raise OptionsError(f"init = {checks.describe(init)}: must be one of {', '.join(INITS)}")
 
     def solve(self, init: str | None = None, penalty: float | None = None, max_iterations: int | None = None,
               root: int | None = None, progress=None, cancel=None) -> Result:
@@ -485,6 +485,8 @@ class Result:
         (#V, 3, 3) float array
             Columns are the cross axes.
         """
+        root = checks.integer("root", root, OptionsError, low=0, high=self.mesh.n_vertices - 1,
+                              fix=f"a vertex of the tet mesh, which has {self.mesh.n_vertices} vertices")
         return develop(self.mesh, self.omega, root, self.frames[root], self.problem.avoid_edges)
 
     def quaternions(self) -> np.ndarray:
@@ -494,16 +496,24 @@ class Result:
         q = Rotation.from_matrix(self.frames).as_quat()  # x y z w
         return np.c_[q[:, 3], q[:, :3]]
 
+    def _curve(self, i) -> int:
+        n = len(self.embedding.traces)
+        if n == 0:
+            raise OptionsError(f"curve {checks.describe(i)}: this field has no interior curves")
+        return checks.integer("curve", i, OptionsError, low=0, high=n - 1,
+                              fix=f"a prepared curve of this field, which has {n}")
+
     def curve_tets(self, i: int) -> np.ndarray:
         """Tets crossed by prepared curve i."""
-        return self.embedding.traces[i].tets
+        return self.embedding.traces[self._curve(i)].tets
 
     def curve_faces(self, i: int) -> np.ndarray:
         """Faces pierced by prepared curve i."""
-        return self.embedding.traces[i].faces
+        return self.embedding.traces[self._curve(i)].faces
 
     def curve_vertices(self, i: int) -> np.ndarray:
         """Vertices whose edges carry curve i's adaptation constraints."""
+        i = self._curve(i)
         cons = self.problem.constraints
         e = np.nonzero((cons.kind == TUBE) & (cons.tube_curve == i))[0]
         return np.unique(self.mesh.edges[e])
@@ -561,6 +571,7 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
     Cancelled
         When ``cancel()`` returned True.
     """
+    checks.instance("problem", problem, FieldProblem, OptionsError, "FieldProblem(V, F, network, options)")
     res = problem.solve(root=root, progress=progress, cancel=cancel)
     opts = problem.options
     if not _unresolved(res) or opts.edge_length is not None or not problem.meshed.stats.mesher:

@@ -344,11 +344,11 @@ def test_a_refused_run_leaves_the_scene_unchanged(cyl):
     reopen(cyl)
     before = scene_state()
     scene().symframes.hex_cell_size = 10.0  # larger than the solid
-    _refused(bpy.ops.symframes.hex_mesh, "cell size 10 is larger than half the solid's smallest extent")
+    _refused(bpy.ops.symframes.hex_mesh, "cell size 10 \\(the one given\\) is larger than half the solid's smallest")
     assert scene_state() == before
     # also on the stored field (a reopened file): the same refusal, nothing written
     job.forget_results()
-    _refused(bpy.ops.symframes.hex_mesh, "cell size 10 is larger than half")
+    _refused(bpy.ops.symframes.hex_mesh, "cell size 10 \\(the one given\\) is larger than half")
     assert scene_state() == before
 
 

@@ -4,6 +4,7 @@ the documented class whose message names the culprit and says what to do."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -660,3 +661,21 @@ def test_the_plane_side_early_out_never_hides_a_crossing():
     got = np.array([_crossing(S, f[i : i + 1], g[i : i + 1]) is not None for i in range(n)])
     assert 100 < want.sum() < n - 100
     assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("scale, words", [
+    ((1e-200,) * 3, "only 2e-200 across (its largest extent), too small for SymFrames' double-precision geometry"),
+    ((0.0,) * 3, "the surface has no size: all its"),
+    ((1, 1, 0), "the surface is flat: 2 across but 0 along z"),
+    ((1, 1e-300, 1), "along y"),
+])
+def test_a_surface_of_no_size_or_flat_is_refused_saying_so(scale, words):
+    """Issue 52: a surface scaled by 1e-200 or flattened (an add-on domain
+    with scale (1, 1, 0)) says what it is, not "zero size" or "degenerate
+    triangles"; 1e-40 of the cube still checks."""
+    from solver import check
+
+    V, F = box(n=2)
+    with pytest.raises(SurfaceError, match=re.escape(words)):
+        check(V * np.array(scale, float), F, Network(sharp_angle=30))
+    check(V * 1e-40, F, Network(sharp_angle=30))

@@ -16,6 +16,7 @@ import contextlib
 import json
 import signal
 import sys
+import zlib
 
 import numpy as np
 import pytest
@@ -599,3 +600,239 @@ def test_fuzz_tiny_solves(seed):
     assert E.shape == (out["r"].mesh.n_vertices, 3, 3)
     assert np.all(np.isfinite(E))
     assert np.allclose(np.einsum("vji,vjk->vik", E, E), np.eye(3), atol=1e-6)
+
+
+# ------------------------------------------------ hex names, stored results, interchange readers (issue 52)
+@pytest.fixture(scope="module")
+def stored_field(solved, tmp_path_factory):
+    """A solved cylinder's result file, its arrays and its Result."""
+    res = solved("cylinder")
+    path = tmp_path_factory.mktemp("stored") / "c.npz"
+    io.save_result(str(path), res)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    return str(path), arrays, res
+
+
+@pytest.fixture
+def stop_before_hex_stages(monkeypatch):
+    """Arguments that get as far as the hex stages are accepted: stop there."""
+    from solver.hexmesh import mesher
+
+    class Reached(BaseException):  # past run_case's net: a pass, not a failure
+        pass
+
+    def stop(*a, **k):
+        raise Reached
+
+    monkeypatch.setattr(mesher, "_mesh_at", stop)
+    return Reached
+
+
+HEX_VALUES = WEIRD + ["result.npz", np.zeros((3, 3)), object()]
+
+
+def _hex_call(rng, seed, path, arrays, res, tmp):
+    """One call of a public hex name with some arguments replaced."""
+    from solver import HexInput, default_cell_size, hex_source_arrays, hexmesh, input_from_arrays
+    from solver.hexmesh import field_on_edges
+
+    def pick(good, p=0.5):
+        return HEX_VALUES[int(rng.integers(len(HEX_VALUES)))] if rng.random() < p else good
+
+    inp = HexInput.from_result(res)
+    hex_arrays = {k: v for k, v in arrays.items() if k.startswith("hex_")}
+    if rng.random() < 0.5:
+        k = str(rng.choice(sorted(hex_arrays)))
+        if rng.random() < 0.5:
+            del hex_arrays[k]
+        else:
+            hex_arrays[k] = pick(None, 1.0)
+    if rng.random() < 0.3:  # a HexInput made by hand, one field wrong
+        import dataclasses
+
+        name = str(rng.choice([f.name for f in dataclasses.fields(HexInput)]))
+        inp = dataclasses.replace(inp, **{name: pick(None, 1.0)})
+    k = seed % 8
+    if k == 0:
+        return lambda: hexmesh(pick(inp, 0.4), pick(None), smooth=pick(True, 0.2), target_hexes=pick(3000, 0.3),
+                               progress=pick(None, 0.2), allow_unconverged=pick(False, 0.2))
+    if k == 1:
+        return lambda: default_cell_size(pick(inp), pick(3000))
+    if k == 2:
+        return lambda: input_from_arrays(pick(inp.mesh, 0.2), pick(inp.frames, 0.2), pick(inp.omega, 0.2),
+                                         pick(hex_arrays, 0.2))
+    if k == 3:
+        return lambda: hex_source_arrays(pick(inp, 0.8))
+    if k == 4:
+        return lambda: io.export_hexmesh(pick(None, 1.0), pick(str(tmp / "h.vtu"), 0.5))
+    if k == 5:
+        return lambda: HexInput.from_result(pick(res, 0.8))
+    if k == 6:
+        return lambda: field_on_edges(pick(inp, 0.8))
+    return lambda: io.load_hex_input(pick(path, 0.8))
+
+
+@pytest.mark.parametrize("seed", range(64))
+def test_fuzz_hex_api(stored_field, stop_before_hex_stages, tmp_path, seed):
+    """The public hex names with wrong types in each place: SymFrames errors
+    only (hexmesh("result.npz"), hexmesh(None), target_hexes=0,
+    input_from_arrays(..., {}), export_hexmesh(None, ...))."""
+    path, arrays, res = stored_field
+    rng = np.random.default_rng(9000 + seed)
+    fn = _hex_call(rng, seed, path, arrays, res, tmp_path)
+    try:
+        run_case(f"hex API seed {9000 + seed}", fn)
+    except stop_before_hex_stages:
+        pass
+
+
+def _mutate_arrays(rng, arrays):
+    a = dict(arrays)
+    for _ in range(int(rng.integers(1, 3))):
+        k = str(rng.choice(sorted(a)))
+        v = np.asarray(a[k])
+        r = rng.random()
+        if r < 0.15:
+            del a[k]
+        elif r < 0.3 and v.size and v.dtype.kind != "U":
+            w = v.astype(float).copy()
+            w.flat[int(rng.integers(v.size))] = rng.choice([np.nan, np.inf, -1, 1e9, 0.5])
+            a[k] = w
+        elif r < 0.45 and v.ndim:
+            a[k] = v[: int(rng.integers(len(v) + 1))]
+        elif r < 0.55 and v.dtype.kind in "fi":
+            a[k] = v * rng.choice([0, -1, 2, 1e-3])
+        elif r < 0.65 and v.dtype.kind in "fiu" and v.size:
+            a[k] = v + rng.choice([1, -1, 10**6])
+        elif r < 0.75 and v.dtype.kind != "U":
+            a[k] = v.astype(rng.choice(["float32", "int32", "U8", "bool", "complex128"]))
+        elif r < 0.85 and v.ndim == 2:
+            a[k] = v.T
+        else:
+            a[k] = np.asarray(weird(rng)) if not isinstance(weird(rng), dict) else np.zeros(0)
+    return a
+
+
+@pytest.mark.parametrize("seed", range(64))
+def test_fuzz_result_file(stored_field, tmp_path, seed):
+    """Damaged result files (arrays dropped, cut, scaled, shifted, retyped;
+    the file's bytes cut or overwritten): read back, or a ReadError naming
+    the file, never a traceback."""
+    path, arrays, _ = stored_field
+    rng = np.random.default_rng(9500 + seed)
+    p = tmp_path / "r.npz"
+    if seed % 4 == 3:
+        raw = bytearray(open(path, "rb").read())
+        if rng.random() < 0.5:
+            raw = raw[: int(rng.integers(len(raw)))]
+        else:
+            i = int(rng.integers(len(raw) - 64))
+            raw[i:i + int(rng.integers(1, 64))] = rng.bytes(64)[: len(raw[i:i + 64])][: 64]
+        p.write_bytes(bytes(raw))
+    else:
+        np.savez(p, **_mutate_arrays(rng, arrays))
+    outcome = run_case(f"result file seed {9500 + seed}", lambda: io.load_hex_input(str(p)))
+    assert outcome in ("ok", "ReadError"), outcome
+
+
+@pytest.fixture(scope="module")
+def interchange_texts():
+    """Valid .hexex, .fra, .perm and .qtn texts of a small field."""
+    from solver.io.interchange import fra_text, perm_text
+    from tests.meshes import box_mesh
+
+    rng = np.random.default_rng(1)
+    mesh = box_mesh(2)
+    U = rng.normal(size=(mesh.n_tets, 4, 3))
+    hexex = f"{mesh.n_vertices}\n" + "\n".join(" ".join(f"{x:.17g}" for x in r) for r in mesh.vertices) + \
+        f"\n{mesh.n_tets}\n" + "\n".join(" ".join(str(x) for x in t) + " " + " ".join(f"{u:.6g}" for u in p.ravel())
+                                         for t, p in zip(mesh.tets, U)) + "\n"
+    R = np.linalg.qr(rng.normal(size=(mesh.n_tets, 3, 3)))[0]
+    pairs = mesh.face_tets[~mesh.is_boundary_face][:20]
+    perms = np.tile([1, 2, 3], (len(pairs), 1)) * rng.choice([-1, 1], size=(len(pairs), 3))
+    q = rng.normal(size=(mesh.n_tets, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return {".hexex": hexex, ".fra": fra_text(R), ".perm": perm_text(mesh.n_tets, pairs, perms, keep_identity=True),
+            ".qtn": "\n".join(" ".join(f"{x:.17g}" for x in r) for r in q) + "\n"}
+
+
+@pytest.mark.parametrize("seed", range(64))
+def test_fuzz_interchange_readers(interchange_texts, tmp_path, seed):
+    """Mutated .hexex / .fra / .perm / .qtn files: read, or a ReadError naming
+    the file (and the line), never a plain ValueError or a traceback."""
+    from solver.io.interchange import read_fra, read_perm, read_qtn
+
+    ext = [".hexex", ".fra", ".perm", ".qtn"][seed % 4]
+    rng = np.random.default_rng(9800 + seed)
+    p = tmp_path / f"f{ext}"
+    p.write_text(mutate_tet_text(rng, interchange_texts[ext]))
+    fn = {".hexex": io.read_hexex, ".fra": read_fra, ".perm": read_perm, ".qtn": read_qtn}[ext]
+    outcome = run_case(f"{ext} seed {9800 + seed}", lambda: fn(str(p)))
+    assert outcome in ("ok", "ReadError"), outcome
+
+
+def test_fuzz_interchange_readers_read_their_own_files(interchange_texts, tmp_path):
+    """Not vacuous: the unmutated files read back."""
+    from solver.io.interchange import read_fra, read_perm, read_qtn
+
+    for ext, fn in {".hexex": io.read_hexex, ".fra": read_fra, ".perm": read_perm, ".qtn": read_qtn}.items():
+        p = tmp_path / f"f{ext}"
+        p.write_text(interchange_texts[ext])
+        fn(str(p))
+
+
+def _public_names():
+    import inspect
+
+    import solver
+    import solver.io
+
+    out = []
+    for mod in (solver, solver.io):
+        for name in mod.__all__:
+            f = getattr(mod, name)
+            if callable(f) and name not in ("Role", "Torsion") and not (
+                    inspect.isclass(f) and issubclass(f, BaseException)):
+                out.append(f"{mod.__name__}.{name}")
+    return out
+
+
+@pytest.mark.parametrize("name", _public_names())
+def test_fuzz_every_public_name(name, stored_field, stop_before_meshing, stop_before_hex_stages, tmp_path,
+                                monkeypatch):
+    """Every public callable of solver and solver.io, called with wrong values
+    in each place (an int where a path goes would open a file descriptor;
+    None, strings, NaN, dicts, arrays of the wrong shape): SymFrames errors
+    only, 12 calls each."""
+    import importlib
+    import inspect
+
+    module, _, attr = name.rpartition(".")
+    f = getattr(importlib.import_module(module), attr)
+    monkeypatch.chdir(tmp_path)
+    values = HEX_VALUES + [0, 1, stored_field[0], np.zeros((4, 3)), np.zeros(0)]
+    rng = np.random.default_rng(zlib.crc32(name.encode()))
+    for _ in range(12):
+        args = [values[int(rng.integers(len(values)))] for _ in range(int(rng.integers(0, 5)))]
+        try:
+            inspect.signature(f).bind(*args)
+        except TypeError:
+            continue  # a call Python itself refuses (arity)
+        except ValueError:
+            pass  # no signature to check against
+        try:
+            run_case(f"{name}{tuple(type(a).__name__ for a in args)}", lambda: f(*args))
+        except (stop_before_meshing, stop_before_hex_stages):
+            pass
+
+
+@pytest.mark.parametrize("method", ["develop", "curve_tets", "curve_faces", "curve_vertices"])
+def test_fuzz_result_methods(stored_field, method):
+    """A Result's methods with wrong indices (issue 52: Result.develop):
+    SymFrames errors only; a valid index still works."""
+    res = stored_field[2]
+    f = getattr(res, method)
+    for v in HEX_VALUES + [res.mesh.n_vertices, 10**30, -5, len(res.embedding.traces), np.int64(1)]:
+        run_case(f"Result.{method}({v!r:.40})", lambda: f(v))
+    assert len(f(0))

@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from solver import OptionsError
 from solver.hexmesh import HexInput, HexMeshError, default_cell_size, hexmesh
 from solver.hexmesh.quality import scaled_jacobian
 
@@ -72,8 +73,12 @@ def test_a_cell_larger_than_the_solid_is_refused_before_any_work(solved):
     res = solved("cube")
     with pytest.raises(HexMeshError, match="larger than half the solid"):
         hexmesh(res, 10.0)
-    with pytest.raises(HexMeshError, match="positive"):
-        hexmesh(res, -1.0)
+    # a value no cell size can have is the caller's setting: OptionsError (issue 52)
+    for bad in (-1.0, 0.0, float("nan"), "0.1"):
+        with pytest.raises(OptionsError, match="cell_size = .*: must be a finite number > 0"):
+            hexmesh(res, bad)
+    with pytest.raises(HexMeshError, match="would make about 10"):
+        hexmesh(res, 1e-300)
 
 
 def test_the_memory_estimate_is_said_before_the_work_and_guards_it(solved, monkeypatch):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from solver import io
-from solver.__main__ import EXIT_NO_HEX_MESH, main
+from solver.__main__ import main
 from solver.hexmesh import HexInput, hexmesh
 from solver.hexmesh.transitions import edge_rings
 from solver.io.interchange import permutation_matrix, read_fra, read_perm
@@ -45,10 +45,10 @@ def test_a_stored_field_is_meshed_again_from_its_result_file(cylinder_npz, tmp_p
     assert np.all(np.linalg.det(U[:, 1:] - U[:, :1]) > 0)  # locally injective
 
 
-def test_a_cell_size_no_map_fits_exits_4_and_writes_nothing(cylinder_npz, tmp_path):
+def test_a_cell_size_that_does_not_fit_exits_1_before_any_work_and_writes_nothing(cylinder_npz, tmp_path):
     _, npz = cylinder_npz
     out = tmp_path / "big.vtu"
-    assert main(["--from-result", npz, "--hex", str(out), "--cell-size", "5", "-q"]) == EXIT_NO_HEX_MESH
+    assert main(["--from-result", npz, "--hex", str(out), "--cell-size", "5", "-q"]) == 1
     assert not out.exists()
     assert not [f for f in os.listdir(tmp_path) if f.startswith(".symframes-")]
 

@@ -28,6 +28,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial.transform import Rotation
 
+from .. import checks
+from ..errors import OptionsError
 from ..field.constraints import TUBE
 from ..field.develop import develop
 from ..field.matchings import omega_matchings
@@ -67,6 +69,16 @@ def monodromy_angles(mesh: TetMesh, omega: np.ndarray, faces: np.ndarray | None 
     (k,) float array
         Angles in radians, 0 where omega is integrable around the face.
     """
+    checks.instance("mesh", mesh, TetMesh, OptionsError)
+    omega = checks.array("omega", omega, OptionsError, shape=(mesh.n_edges, 3))
+    if faces is not None:
+        faces = checks.array("faces", faces, OptionsError, shape=(None,), kind="i")
+        if len(faces) and (faces.min() < 0 or faces.max() >= mesh.n_faces):
+            raise OptionsError(f"faces: ids run from 0 to {mesh.n_faces - 1}, found {faces.min()}..{faces.max()}")
+    if Omega is not None:
+        Omega = checks.array("Omega", Omega, OptionsError, shape=(None, 3))
+        if len(Omega) not in (mesh.n_faces, mesh.n_faces if faces is None else len(faces)):
+            raise OptionsError(f"Omega has {len(Omega)} rows: one per face ({mesh.n_faces}) or per face given")
     M = face_monodromy(mesh, omega, faces)
     if Omega is not None:
         faces_ = np.arange(mesh.n_faces) if faces is None else np.asarray(faces)
@@ -215,6 +227,10 @@ def singular_faces(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, network
     -------
     SingularFaces
     """
+    checks.instance("mesh", mesh, TetMesh, OptionsError)
+    omega = checks.array("omega", omega, OptionsError, shape=(mesh.n_edges, 3))
+    frames = checks.array("frames", frames, OptionsError, shape=(mesh.n_vertices, 3, 3))
+    network_faces = _face_ids(mesh, network_faces)
     network = np.zeros(mesh.n_faces, bool)
     network[np.asarray(network_faces, dtype=np.int64)] = True
     return SingularFaces(singular=omega_singular_faces(mesh, omega, frames),
@@ -492,6 +508,8 @@ def vertex_normal_adaptation(result) -> np.ndarray:
         axis at each boundary vertex off the sharp features; -1 at interior
         and sharp-feature vertices.
     """
+    if not all(hasattr(result, a) for a in ("mesh", "frames", "problem")):
+        raise OptionsError(f"result = {checks.describe(result)}: must be the Result of solve(...)")
     mesh = result.mesh
     out = np.full(mesh.n_vertices, -1.0)
     free = ~np.asarray(result.problem.boundary.is_feature_vertex, bool)
@@ -689,6 +707,14 @@ def vertices_near_polylines(X: np.ndarray, polylines, distance: float) -> np.nda
     return near
 
 
+def _face_ids(mesh: TetMesh, faces) -> np.ndarray:
+    faces = checks.array("network_faces", faces, OptionsError, shape=(None,), kind="i")
+    if len(faces) and (faces.min() < 0 or faces.max() >= mesh.n_faces):
+        raise OptionsError(f"network_faces: face ids run from 0 to {mesh.n_faces - 1}, found "
+                           f"{faces.min()}..{faces.max()}")
+    return faces
+
+
 def regular_face_mask(mesh: TetMesh, network_faces: np.ndarray) -> np.ndarray:
     """The faces whose monodromy should vanish: interior faces the network
     does not pass through.
@@ -704,6 +730,8 @@ def regular_face_mask(mesh: TetMesh, network_faces: np.ndarray) -> np.ndarray:
     -------
     (#F,) bool array
     """
+    checks.instance("mesh", mesh, TetMesh, OptionsError)
+    network_faces = _face_ids(mesh, network_faces)
     mask = ~mesh.is_boundary_face
     mask[np.asarray(network_faces, dtype=np.int64)] = False
     return mask

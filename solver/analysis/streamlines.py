@@ -34,6 +34,8 @@ from functools import cached_property
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .. import checks
+from ..errors import OptionsError
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.embed import TetLocator
 from ..mesh.tetmesh import TetMesh
@@ -209,13 +211,13 @@ def barycentric_karcher_mean(frames: np.ndarray, weights: np.ndarray, iterations
     E = np.asarray(frames, dtype=float)
     w = np.asarray(weights, dtype=float)
     if E.ndim != 4 or E.shape[2:] != (3, 3) or w.shape != E.shape[:2]:
-        raise ValueError(
+        raise OptionsError(
             f"frames must be (k, j, 3, 3) and weights (k, j); got {E.shape} and {w.shape}"
         )
     w = np.clip(w, 0.0, None)
     total = w.sum(axis=1, keepdims=True)
     if np.any(total <= 0):
-        raise ValueError("every row of weights needs a positive entry")
+        raise OptionsError("every row of weights needs a positive entry")
     w = w / total
     q = _to_quaternions(E)
     ref = q[np.arange(len(q)), np.argmax(w, axis=1)]
@@ -241,31 +243,39 @@ class FrameField:
     """
 
     def __init__(self, vertices, tets, frames, mesh: TetMesh | None = None):
-        V = np.asarray(vertices, dtype=float)
-        T = np.asarray(tets)
-        E = np.asarray(frames, dtype=float)
+        try:
+            V = np.asarray(vertices, dtype=float)
+            T = np.asarray(tets)
+            E = np.asarray(frames, dtype=float)
+        except (TypeError, ValueError, OverflowError) as e:
+            raise OptionsError(f"FrameField: vertices, tets and frames must be arrays of numbers ({e})") from None
+        if T.dtype.kind not in "iu" and not (T.dtype.kind == "f" and np.isfinite(T).all() and np.all(T == np.round(T))):
+            raise OptionsError(f"FrameField: tets must be whole-number vertex ids; got {T.dtype}")
+        T = T.astype(np.int64) if T.size else T.reshape(-1, 4).astype(np.int64)
+        if mesh is not None and not isinstance(mesh, TetMesh):
+            raise OptionsError(f"FrameField: mesh must be a TetMesh or None; got a {type(mesh).__name__}")
         if V.ndim != 2 or V.shape[1] != 3:
-            raise ValueError(f"vertices must be an (n, 3) array; got shape {V.shape}")
+            raise OptionsError(f"vertices must be an (n, 3) array; got shape {V.shape}")
         if T.ndim != 2 or T.shape[1] != 4 or len(T) == 0:
-            raise ValueError(f"tets must be a non-empty (m, 4) int array; got shape {T.shape}")
+            raise OptionsError(f"tets must be a non-empty (m, 4) int array; got shape {T.shape}")
         if T.min() < 0 or T.max() >= len(V):
-            raise ValueError(f"tets index vertices 0..{len(V) - 1}; found indices {T.min()}..{T.max()}")
+            raise OptionsError(f"tets index vertices 0..{len(V) - 1}; found indices {T.min()}..{T.max()}")
         if E.shape != (len(V), 3, 3):
-            raise ValueError(f"frames must be (n, 3, 3) with n = {len(V)} vertices; got shape {E.shape}")
+            raise OptionsError(f"frames must be (n, 3, 3) with n = {len(V)} vertices; got shape {E.shape}")
         if not np.all(np.isfinite(E)):
-            raise ValueError("frames contain NaN or inf; solve the field again")
+            raise OptionsError("frames contain NaN or inf; solve the field again")
         err = np.abs(np.einsum("nji,njk->nik", E, E) - np.eye(3)).max()
         if err > 1e-6 or np.any(np.linalg.det(E) < 0):
-            raise ValueError(
+            raise OptionsError(
                 f"frames must be rotation matrices (orthonormal, det +1); max |E^T E - I| = {err:.2g}. "
                 "Re-orthonormalise them, e.g. with scipy's Rotation.from_matrix(E).as_matrix()"
             )
         self.mesh = mesh if mesh is not None else TetMesh(V, T)
         if self.mesh.n_vertices != len(V) or self.mesh.n_tets != len(T):
-            raise ValueError("mesh does not match vertices and tets")
+            raise OptionsError("mesh does not match vertices and tets")
         flat = np.abs(self.mesh.tet_volumes) <= 1e-12 * self.mesh.mean_edge_length**3
         if np.any(flat):
-            raise ValueError(
+            raise OptionsError(
                 f"{int(flat.sum())} tets have (almost) zero volume, e.g. tet {int(np.argmax(flat))}; "
                 "points cannot be located in them: remove them or remesh"
             )
@@ -441,11 +451,14 @@ _REACHED, _LEFT, _FAILED = 0, 1, 2
 
 
 def _as_points(points, name: str) -> np.ndarray:
-    P = np.asarray(points, dtype=float)
+    try:
+        P = np.asarray(points, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise OptionsError(f"{name} must be a (k, 3) array of positions; got {checks.describe(points)}") from None
     if P.ndim == 1 and P.shape == (3,):
         P = P[None]
     if P.ndim != 2 or P.shape[1] != 3:
-        raise ValueError(f"{name} must be a (k, 3) array of positions; got shape {P.shape}")
+        raise OptionsError(f"{name} must be a (k, 3) array of positions; got shape {P.shape}")
     return P
 
 
@@ -454,7 +467,7 @@ def _as_field(field) -> FrameField:
         return field
     if hasattr(field, "mesh") and hasattr(field, "frames"):
         return FrameField.from_result(field)
-    raise TypeError("field must be a FrameField or a solved solver.Result")
+    checks.instance("field", field, FrameField, OptionsError, "or a solved solver.Result")
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -464,7 +477,7 @@ def _unit(v: np.ndarray) -> np.ndarray:
 def _plane_basis(normal) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n = np.asarray(normal, dtype=float).reshape(3)
     if not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
-        raise ValueError(f"a plane normal must be a nonzero 3-vector; got {normal!r}")
+        raise OptionsError(f"a plane normal must be a nonzero 3-vector; got {normal!r}")
     n = n / np.linalg.norm(n)
     u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
     u /= np.linalg.norm(u)
@@ -499,7 +512,7 @@ def seed_points(field, count: int, mode: str = "volume", plane_origin=None, plan
     f = _as_field(field)
     count = int(count)
     if count < 0:
-        raise ValueError(f"count must be nonnegative; got {count}")
+        raise OptionsError(f"count must be nonnegative; got {count}")
     rng = np.random.default_rng(seed)
     mesh = f.mesh
     if mode == "volume":
@@ -510,7 +523,7 @@ def seed_points(field, count: int, mode: str = "volume", plane_origin=None, plan
         w /= w.sum(axis=1, keepdims=True)
         return np.einsum("ki,kij->kj", w, mesh.vertices[mesh.tets[t]])
     if mode != "plane":
-        raise ValueError(f"mode must be 'volume' or 'plane'; got {mode!r}")
+        raise OptionsError(f"mode must be 'volume' or 'plane'; got {mode!r}")
     lo, hi = f.bounds
     o = 0.5 * (lo + hi) if plane_origin is None else np.asarray(plane_origin, dtype=float).reshape(3)
     n, u, v = _plane_basis((0.0, 0.0, 1.0) if plane_normal is None else plane_normal)
@@ -529,7 +542,7 @@ def seed_points(field, count: int, mode: str = "volume", plane_origin=None, plan
     # the section's area, from the share of a coarse grid that lands inside
     probe, total = on_plane(np.sqrt(area) / 64)
     if len(probe) == 0:
-        raise ValueError(
+        raise OptionsError(
             f"the plane through {np.round(o, 4).tolist()} with normal {np.round(n, 4).tolist()} does not cut "
             "the solid; move plane_origin inside it"
         )
@@ -549,7 +562,7 @@ def _jittered_grid(lo: np.ndarray, hi: np.ndarray, spacing: float, jitter: float
     Returns (k, d)."""
     shape = np.maximum(np.ceil((hi - lo) / spacing).astype(np.int64), 1)
     if np.prod(shape) > max_points:
-        raise ValueError(f"spacing {spacing:.3g} gives {np.prod(shape):,} grid points; use a larger spacing")
+        raise OptionsError(f"spacing {spacing:.3g} gives {np.prod(shape):,} grid points; use a larger spacing")
     idx = np.indices(shape).reshape(len(shape), -1).T
     return lo + (idx + 0.5 + jitter * rng.uniform(-0.5, 0.5, idx.shape)) * spacing
 
@@ -586,11 +599,11 @@ def sample_glyphs(field, count: int | None = None, spacing: float | None = None,
     """
     f = _as_field(field)
     if count is not None and spacing is not None:
-        raise ValueError("give either count or spacing, not both")
+        raise OptionsError("give either count or spacing, not both")
     if clip_origin is not None and clip_normal is None:
-        raise ValueError("clip_origin needs clip_normal: the side p . normal <= origin . normal is kept")
+        raise OptionsError("clip_origin needs clip_normal: the side p . normal <= origin . normal is kept")
     if not 0.0 <= jitter <= 1.0:
-        raise ValueError(f"jitter must lie in [0, 1]; got {jitter}")
+        raise OptionsError(f"jitter must lie in [0, 1]; got {jitter}")
     rng = np.random.default_rng(seed)
     mesh = f.mesh
     lo, hi = f.bounds
@@ -614,7 +627,7 @@ def sample_glyphs(field, count: int | None = None, spacing: float | None = None,
         spacing = 0.98 * (vol.sum() / count) ** (1.0 / 3.0)
     spacing = float(spacing)
     if not spacing > 0:
-        raise ValueError(f"spacing must be positive; got {spacing}")
+        raise OptionsError(f"spacing must be positive; got {spacing}")
     P = _jittered_grid(lo, hi, spacing, jitter, rng)
     if clip is not None:
         P = P[(P - clip[0]) @ clip[1] <= 0]
@@ -678,19 +691,19 @@ def trace_streamlines(field, seeds, family=0, step: float | None = None, max_len
     S = _as_points(seeds, "seeds")
     if isinstance(family, str):
         if family != "all":
-            raise ValueError(f"family must be 0, 1, 2 or 'all'; got {family!r}")
+            raise OptionsError(f"family must be 0, 1, 2 or 'all'; got {family!r}")
         families = np.arange(3)
     else:
         if family not in (0, 1, 2):
-            raise ValueError(f"family must be 0, 1, 2 or 'all'; got {family!r}")
+            raise OptionsError(f"family must be 0, 1, 2 or 'all'; got {family!r}")
         families = np.array([int(family)])
     if method not in _TABLEAUX:
-        raise ValueError(f"method must be one of {', '.join(_TABLEAUX)}; got {method!r}")
+        raise OptionsError(f"method must be one of {', '.join(_TABLEAUX)}; got {method!r}")
     lo, hi = f.bounds
     step = 0.25 * f.mean_edge_length if step is None else float(step)
     max_length = float(np.linalg.norm(hi - lo)) if max_length is None else float(max_length)
     if not step > 0 or not max_length > 0:
-        raise ValueError(f"step and max_length must be positive; got {step} and {max_length}")
+        raise OptionsError(f"step and max_length must be positive; got {step} and {max_length}")
 
     t0 = f.locate(S)
     inside = np.nonzero(t0 >= 0)[0]

@@ -15,9 +15,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import Cancelled, HexMeshError
+from .. import checks
+from ..errors import Cancelled, HexMeshError, OptionsError
+from ..mesh.embed import Embedding
 from ..mesh.resolution import RAM_FRACTION, physical_memory_mb
+from ..mesh.tetmesh import TetMesh
+from ..network.network import PreparedNetwork
 from ..stages import Stages
+from ..surface.trisurface import TriSurface
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
 from .extract import ExtractionError, extract_hexes, snap
 from .quality import (
@@ -33,7 +38,7 @@ from .quantize import integer_grid_map, optimise_map, seamless_map
 from .report import DEFECTIVE, VALID, CurveMatch, HexReport
 from .seamless import MapError, build_map_system, degenerate_tets
 from .smooth import BoundaryMotion, optimise
-from .source import HexInput
+from .source import HexInput, field_fault
 from .transitions import build_transitions
 
 SHARP_DIHEDRAL = 30.0
@@ -126,6 +131,9 @@ def default_cell_size(inp: HexInput, target_hexes: int = DEFAULT_HEXES) -> float
         shortest singular curve and between two singular curves that share
         no node (so that the rounding keeps them one cell long, and apart)
     """
+    inp = _hex_input(inp, "default_cell_size")
+    target_hexes = checks.integer("target_hexes", target_hexes, OptionsError, low=1, high=MAX_HEXES,
+                                  fix=f"the number of cells aimed at (default {DEFAULT_HEXES})")
     return cell_choice(inp, target_hexes)[0]
 
 
@@ -188,21 +196,64 @@ def _closest_apart(net, sing: list, cell: float) -> tuple[float, tuple]:
     return best, pair
 
 
-def _check_cell(inp: HexInput, cell: float) -> None:
-    ext = np.ptp(inp.mesh.vertices, axis=0)
-    vol = float(np.sum(inp.mesh.tet_volumes))
-    if cell >= 0.5 * ext.min():
-        raise HexMeshError(
-            f"cell size {cell:.4g} is larger than half the solid's smallest extent ({ext.min():.4g}): the solid "
-            f"would be less than two cells thick; choose a cell size below {0.25 * ext.min():.4g}", kind="settings")
-    n = vol / cell**3
+def _cells(volume: float, cell: float) -> tuple[float, str]:
+    """About how many cells of this size the volume holds, and that in words
+    (in powers of ten past 10^12, where cell**3 may underflow)."""
+    log = np.log10(volume) - 3 * np.log10(cell)
+    return (10.0**log if log < 300 else np.inf), (f"{10.0**log:,.0f}" if log < 12 else f"10^{log:.0f}")
+
+
+def solid_size(inp: HexInput) -> tuple[float, float]:
+    """(the solid's smallest axis extent, its volume) from the field's tet mesh."""
+    return float(np.ptp(inp.mesh.vertices, axis=0).min()), float(np.sum(inp.mesh.tet_volumes))
+
+
+def check_cell_size(cell: float, extent: float, volume: float, subject: str | None = None,
+                    fix: str = "", error=None) -> None:
+    """Refuse a cell size that does not fit the solid.
+
+    Parameters
+    ----------
+    cell : float
+        a positive cell size
+    extent, volume : float
+        the solid's smallest axis extent and its volume (``solid_size``, or
+        the surface's before any tet mesh exists)
+    subject : str, optional
+        the cell size and whose it is, opening the message (default
+        "cell size 0.1 (the one given)"; "--cell-size 0.1" on the command
+        line, the automatic one with its reason)
+    fix : str
+        what else to change, ending the message
+    error : callable(message) -> exception, optional
+        default: a HexMeshError of kind 'settings'
+
+    Raises
+    ------
+    HexMeshError (or what ``error`` makes)
+        a cell of at least half the smallest extent (less than two cells
+        across), or more than MAX_HEXES cells
+    """
+    fail = error or (lambda msg: HexMeshError(msg, kind="settings"))
+    subject = subject or f"cell size {cell:.4g} (the one given)"
+    if cell >= 0.5 * extent:
+        raise fail(f"{subject} is larger than half the solid's smallest extent ({extent:.4g}): "
+                   f"the solid would be less than two cells thick; choose a cell size below {0.25 * extent:.4g}{fix}")
+    n, words = _cells(volume, cell)
     if n > MAX_HEXES:
-        raise HexMeshError(f"cell size {cell:.4g} would make about {n:,.0f} hexahedra (the limit is "
-                           f"{MAX_HEXES:,}); choose a cell size of at least {(vol / MAX_HEXES) ** (1 / 3):.4g}",
-                           kind="settings")
-    why = memory_refusal(inp, cell)
-    if why:
-        raise HexMeshError(why, kind="settings")
+        raise fail(f"{subject} would make about {words} hexahedra (the limit is {MAX_HEXES:,}); "
+                   f"choose a cell size of at least {(volume / MAX_HEXES) ** (1 / 3):.4g}{fix}")
+
+
+def _check_cell(inp: HexInput, cell: float, why: str = "given") -> None:
+    if why == "given":
+        check_cell_size(cell, *solid_size(inp))
+    else:
+        check_cell_size(cell, *solid_size(inp), subject=f"the automatic cell size {cell:.4g} (for {why})",
+                        fix="; give a cell size (cell_size, --cell-size) instead")
+    refusal = memory_refusal(inp, cell)
+    if refusal:
+        raise HexMeshError(refusal, kind="settings")
 
 
 def hex_memory_mb(cells: float, tets: int) -> float:
@@ -241,16 +292,37 @@ def memory_refusal(inp: HexInput, cell: float) -> str | None:
             "mesh on a machine with more memory")
 
 
-def _check_indices(inp: HexInput) -> None:
-    """A curve of index sigma becomes hex edges of valence 4 - 4 sigma;
-    valence 2 or less means cells meeting flat: no valid hex mesh has them."""
-    for i, c in enumerate(inp.network.curves):
-        if c.sigma >= 0.5:
+def check_indices(curves, sources=None, error=None) -> None:
+    """Refuse a network no hex mesh can have, from the network alone: a
+    curve of index sigma becomes hex edges of valence 4 - 4 sigma, and
+    valence 2 or less means cells meeting flat, which no valid hex mesh has.
+
+    Parameters
+    ----------
+    curves : list of network.Curve
+        the network's curves (a Network's or a PreparedNetwork's)
+    sources : list of int, optional
+        the number of each curve as the user gave it (default: its position)
+    error : callable(message) -> exception, optional
+        default: a HexMeshError of kind 'network'
+
+    Raises
+    ------
+    HexMeshError (or what ``error`` makes)
+        naming the first curve of index +1/2 or more
+    """
+    fail = error or (lambda msg: HexMeshError(msg, kind="network"))
+    for i, c in enumerate(curves):
+        if float(c.sigma) >= 0.5:
             name = f" '{c.name}'" if c.name else ""
-            raise HexMeshError(
-                f"curve {inp.network.source[i]}{name} has index {c.sigma:+g}: its hex edges would have valence "
-                f"{int(round(4 - 4 * c.sigma))}, cells meeting flat, which no valid hex mesh has; use curves of "
-                "index +1/4 (valence 3) or negative indices (valence 5, 6, ...)", kind="network")
+            raise fail(f"curve {i if sources is None else sources[i]}{name} has index {float(c.sigma):+g}: its hex "
+                       f"edges would have valence {int(round(4 - 4 * float(c.sigma)))}, cells meeting flat, which "
+                       "no valid hex mesh has; use curves of index +1/4 (valence 3) or negative indices (valence 5, "
+                       "6, ...)")
+
+
+def _check_indices(inp: HexInput) -> None:
+    check_indices(inp.network.curves, inp.network.source)
 
 
 # ------------------------------------------------------------ the stages
@@ -336,12 +408,58 @@ or thin parts that are about a cell apart; a smaller cell keeps them apart).
 A cell size the caller gives is tried alone."""
 
 
+def _given_ok(given) -> bool:
+    if not isinstance(given, list):
+        return False
+    for g in given:
+        if not isinstance(g, tuple) or len(g) != 4:
+            return False
+        P = np.asarray(g[0]) if isinstance(g[0], np.ndarray) else None
+        if P is None or P.ndim != 2 or P.shape[1:] != (3,) or len(P) < 2 or P.dtype.kind not in "fi" or \
+                not np.isfinite(P).all() or not checks._is_real(g[1]) or not np.isfinite(float(g[1])):
+            return False
+    return True
+
+
+def _hex_input(result, what: str) -> HexInput:
+    """The HexInput of a Result or HexInput argument, its field checked."""
+    if not isinstance(result, HexInput):
+        if isinstance(result, (str, bytes)) or hasattr(result, "__fspath__"):
+            raise OptionsError(f"{what}: result = {result!r} is a path; a stored result file is read first: "
+                               f"{what}(solver.io.load_hex_input({str(result)!r}))")
+        inp = HexInput.from_result(result)
+    else:
+        inp = result
+    for name, cls in (("mesh", TetMesh), ("embedding", Embedding), ("network", PreparedNetwork),
+                      ("surface", TriSurface)):
+        if not isinstance(getattr(inp, name), cls):
+            raise OptionsError(f"{what}: the HexInput's {name} is {type(getattr(inp, name)).__name__}, not a "
+                               f"{cls.__name__} (HexInput.from_result(result) or io.load_hex_input(path) make one)")
+    sharp = np.asarray(inp.sharp)
+    if sharp.shape != (len(inp.surface.edges),) or sharp.dtype.kind != "b":
+        raise OptionsError(f"{what}: the HexInput's sharp is {sharp.shape} {sharp.dtype}, not one boolean per "
+                           f"surface edge ({len(inp.surface.edges)})")
+    if len(inp.embedding.traces) != len(inp.network.curves):
+        raise OptionsError(f"{what}: the HexInput's embedding traces {len(inp.embedding.traces)} curves, its network "
+                           f"has {len(inp.network.curves)}")
+    if inp.given is not None and not _given_ok(inp.given):
+        raise OptionsError(f"{what}: the HexInput's given = {checks.describe(inp.given)}: must be None or a list of "
+                           "(points (n, 3), sigma, curve id, name) per singular curve as the user gave it")
+    if inp.status not in ("converged", "not converged"):
+        raise OptionsError(f"{what}: the HexInput's status = {checks.describe(inp.status)}: must be 'converged' or "
+                           "'not converged'")
+    fault = field_fault(inp.mesh, inp.frames, inp.omega)
+    if fault:
+        raise HexMeshError(f"the field is not one a hex mesh can follow: {fault}", kind="field")
+    return inp
+
+
 class _Retry(HexMeshError):
     """A failure of the map at this cell size that a smaller cell may undo."""
 
 
 def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, progress=None, cancel=None,
-            target_hexes: int = DEFAULT_HEXES) -> HexMesh:
+            target_hexes: int = DEFAULT_HEXES, allow_unconverged: bool = False) -> HexMesh:
     """A pure hexahedral mesh of a solved field whose irregular edges are the
     prescribed curves.
 
@@ -364,6 +482,9 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     target_hexes : int
         the number of cells the default cell size aims at (ignored when
         cell_size is given)
+    allow_unconverged : bool
+        mesh a field that did not converge anyway (``report.notes`` says
+        so); by default such a field is refused
 
     Returns
     -------
@@ -380,20 +501,29 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
         (SymFrames' map failed: a limit of SymFrames); the message says how
         many tets and where
     """
-    inp = result if isinstance(result, HexInput) else HexInput.from_result(result)
+    inp = _hex_input(result, "hexmesh")
+    cell_size = checks.positive_float("cell_size", cell_size, OptionsError, allow_none=True,
+                                      fix="the hex edge length in the units of the surface (None: automatic)")
+    target_hexes = checks.integer("target_hexes", target_hexes, OptionsError, low=1, high=MAX_HEXES,
+                                  fix=f"the number of cells the automatic cell size aims at (default {DEFAULT_HEXES})")
+    smooth = checks.boolean("smooth", smooth, OptionsError)
+    allow_unconverged = checks.boolean("allow_unconverged", allow_unconverged, OptionsError)
+    for name, fn in (("progress", progress), ("cancel", cancel)):
+        if fn is not None and not callable(fn):
+            raise OptionsError(f"{name} = {checks.describe(fn)}: must be a function or None")
     status = getattr(inp, "status", "converged")
-    if status != "converged":
+    if status != "converged" and not allow_unconverged:
         raise HexMeshError(
             f"the field is {status}: a field that did not converge is not one a hex mesh can follow (its "
             "transitions need not close around the curves); solve it again (a finer edge length, or the "
             "advice of the solve's report) and mesh the converged field", kind="field")
     report = HexReport()
+    if status != "converged":
+        report.notes.append(f"the field is {status}; meshed as asked (allow_unconverged)")
     clock = Stages(STAGE_WEIGHTS, report.stage_seconds, progress, cancel)
     auto = cell_size is None
     cell, why = (float(cell_size), "given") if not auto else cell_choice(inp, target_hexes)
-    if not np.isfinite(cell) or cell <= 0:
-        raise HexMeshError(f"cell size must be a positive length, got {cell_size!r}", kind="settings")
-    _check_cell(inp, cell)
+    _check_cell(inp, cell, why)
     _check_indices(inp)
     steps = AUTO_STEPS if auto else (1.0,)
     first_defective, failure = None, ""
@@ -421,8 +551,9 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
             if first_defective is not None:
                 return first_defective
             tried = ", ".join(f"{cell * x:.4g}" for x in steps[:k + 1])
-            raise HexMeshError((f"{failure} (cell sizes tried: {tried})" if len(steps) > 1 else failure)
-                               + "; try a smaller cell size, or a finer field (a smaller edge length)", report,
+            raise HexMeshError((f"{failure} (cell sizes tried: {tried}, {_whose(report)})" if len(steps) > 1
+                                else f"{failure} ({_whose(report)})")
+                               + f"; {_smaller(report)}, or a finer field (a smaller edge length)", report,
                                kind="map") from None
         if hm.report.valid or k + 1 == len(steps):
             return hm if hm.report.valid or first_defective is None else first_defective
@@ -443,9 +574,22 @@ def _too_many(inp: HexInput, cell: float) -> str | None:
     return memory_refusal(inp, cell)
 
 
+def _whose(report: HexReport) -> str:
+    """Whose cell size it is, for a message."""
+    why = report.cell_reason
+    return "the cell size given" if why == "given" else f"the automatic cell size, for {why}"
+
+
+def _smaller(report: HexReport) -> str:
+    """What to change, for a message that asks for smaller cells."""
+    if report.cell_reason == "given":
+        return "choose a smaller cell size"
+    return "give a smaller cell size (cell_size, --cell-size) or aim at more cells (target_hexes, --hex-cells)"
+
+
 def _cell_count(inp: HexInput, cell: float) -> float:
     """About how many cells of this size the solid holds."""
-    return float(np.sum(inp.mesh.tet_volumes)) / cell**3
+    return _cells(float(np.sum(inp.mesh.tet_volumes)), cell)[0]
 
 
 def _fresh_report(old: HexReport, note: str) -> HexReport:
@@ -483,6 +627,10 @@ def _mesh_at(inp: HexInput, cell: float, smooth: bool, clock: Stages, report: He
         raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}; this is a limit of the "
                            "field's tet mesh, not of the network", report,
                            kind="map") from None
+    except (ArithmeticError, ValueError, IndexError, KeyError, TypeError, RuntimeError) as e:
+        raise HexMeshError(f"SymFrames' hex stage 'curves onto edges' failed on this field ({type(e).__name__}: "
+                           f"{e}); this is a limit of SymFrames, not a fault of the network: try a finer field (a "
+                           "smaller edge length), and please report this input", report, kind="map") from None
     cem, tr, ms, flat = _stage(clock, "transitions", _map_system, cem, inp, cell, report)
     report.sizes.update(cem.stats)
     report.sizes.update(ms.stats)
@@ -507,8 +655,8 @@ def _mesh_at(inp: HexInput, cell: float, smooth: bool, clock: Stages, report: He
         raise _Retry(f"the map is not an integer-grid map ({raw.fractional} cut faces with a translation that is "
                      "not whole): a fault of SymFrames' rounding; please report this input", report, kind="map")
     if not len(raw.hexes):
-        raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g}; choose a smaller cell size", report,
-                           kind="settings")
+        raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g} ({_whose(report)}); "
+                           f"{_smaller(report)}", report, kind="settings")
     V, H = raw.vertices, raw.hexes
     sj0 = scaled_jacobian(V, H)
     report.sj_min_raw, report.sj_mean_raw = float(sj0.min()), float(sj0.mean())
@@ -852,7 +1000,7 @@ def field_on_edges(result) -> EdgeField:
         transitions do not close as the network prescribes (then no hex
         mesher can use it either)
     """
-    inp = result if isinstance(result, HexInput) else HexInput.from_result(result)
+    inp = _hex_input(result, "field_on_edges")
     try:
         cem = curves_on_edges(inp.mesh, inp.embedding, inp.network)
     except CurveEdgeError as e:

@@ -14,10 +14,14 @@ import json
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
-from ..mesh.embed import CurveTrace, Embedding
+from ..errors import OptionsError
+from ..linalg.rotations import CUBE_GROUP, closest_symmetry, exp_so3, rotation_angle
+from ..mesh.embed import Embedding
 from ..mesh.tetmesh import TetMesh
-from ..network.network import Curve, Node, PreparedNetwork
+from ..network.network import PreparedNetwork
 from ..surface.trisurface import TriSurface
 
 
@@ -72,6 +76,9 @@ class HexInput:
         -------
         HexInput
         """
+        if not all(hasattr(result, a) for a in ("problem", "mesh", "omega", "frames", "embedding", "report")):
+            raise OptionsError(f"HexInput.from_result: result = {_describe(result)}: must be a solver Result "
+                               "(solve(...)); a stored result file is read by solver.io.load_hex_input(path)")
         checked = result.problem.checked
         given = getattr(result.problem, "given", None)
         if given is not None:
@@ -80,6 +87,66 @@ class HexInput:
         return cls(result.mesh, np.asarray(result.omega), np.asarray(result.frames), result.embedding,
                    result.problem.network, checked.surface, np.asarray(checked.features.sharp, bool),
                    result.report.status, given)
+
+
+def _describe(x) -> str:
+    from ..checks import describe
+
+    return describe(x) if not hasattr(x, "__dict__") else f"a {type(x).__name__}"
+
+
+ROTATION_TOL = 1e-6
+"""Largest |R^T R - I| entry and |det R - 1| of a field's frame (a solve
+gives rotations to about 1e-12)."""
+EXACT_DEG = 1e-4
+"""A solve develops its frames from omega along a spanning tree of edges
+(Eq. 8, §4.3), where omega carries the frame at one end to the other's
+exactly (to about 1e-12 degrees; 1e-4 leaves room for float32 storage).
+So the edges omega carries within EXACT_DEG connect every vertex, converged
+or not, whatever the rest of the field does; a zeroed, scaled or shuffled
+omega leaves the mesh in pieces (2,373 of the cylinder's 2,375 vertices
+alone, zeroed)."""
+
+
+def field_fault(mesh: TetMesh, frames, omega) -> str:
+    """What is wrong with a field's frames and omega on its mesh, or ''.
+
+    Checks the shapes ((#V, 3, 3) and (#E, 3)), that every value is
+    finite, that the frames are rotations (orthonormal, determinant +1,
+    within ROTATION_TOL) and that omega carries them exactly along edges
+    that connect every vertex (EXACT_DEG)."""
+    R, w = np.asarray(frames), np.asarray(omega)
+    if R.shape != (mesh.n_vertices, 3, 3) or R.dtype.kind not in "fi":
+        return f"frames have shape {R.shape} ({R.dtype}), not ({mesh.n_vertices}, 3, 3) floats: one per vertex"
+    if w.shape != (mesh.n_edges, 3) or w.dtype.kind not in "fi":
+        return f"omega has shape {w.shape} ({w.dtype}), not ({mesh.n_edges}, 3) floats: one per tet edge"
+    for name, a in (("frames", R), ("omega", w)):
+        bad = np.argwhere(~np.isfinite(a))
+        if len(bad):
+            return f"{name} hold {a[tuple(bad[0])]} at {tuple(int(x) for x in bad[0])}: values must be finite"
+    off = np.abs(np.einsum("nki,nkj->nij", R, R) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(R)
+    bad = np.nonzero((off > ROTATION_TOL) | (np.abs(det - 1) > ROTATION_TOL))[0]
+    if len(bad):
+        k = bad[0]
+        return (f"{len(bad):,} of the {len(R):,} frames are not rotations, e.g. frame {k} (|R^T R - I| = "
+                f"{off[k]:.3g}, det {det[k]:.4g}); a frame has orthonormal columns and determinant +1")
+    E = mesh.edges
+    miss = np.empty(len(E))
+    for a in range(0, len(E), 100_000):  # in chunks: closest_symmetry holds 24 traces per edge
+        e = E[a:a + 100_000]
+        carried = exp_so3(w[a:a + 100_000]) @ R[e[:, 0]]
+        M = np.einsum("nji,njk->nik", carried, R[e[:, 1]])
+        miss[a:a + len(e)] = np.degrees(rotation_angle(M @ CUBE_GROUP[closest_symmetry(M)]))
+    exact = miss < EXACT_DEG
+    graph = sp.coo_matrix((np.ones(int(exact.sum())), (E[exact, 0], E[exact, 1])), shape=(len(R), len(R)))
+    pieces = connected_components(graph, directed=False)[0]
+    if pieces > 1:
+        return (f"omega does not carry the frames across their edges: a solve develops the frames from omega along "
+                f"a spanning tree, where omega carries them exactly, but here the edges it carries (within "
+                f"{EXACT_DEG:g} degrees) leave the mesh in {pieces:,} pieces (median miss {np.median(miss):.3g} "
+                "degrees); omega and the frames are not one field (Eq. 8)")
+    return ""
 
 
 def _flat(parts):
@@ -110,6 +177,9 @@ def hex_source_arrays(inp: HexInput) -> dict:
         sharp edges), for ``numpy.savez`` or any array store;
         ``input_from_arrays`` rebuilds the HexInput from them
     """
+    if not isinstance(inp, HexInput):
+        raise OptionsError(f"hex_source_arrays: inp = {_describe(inp)}: must be a HexInput "
+                           "(HexInput.from_result(result))")
     emb, net = inp.embedding, inp.network
     tr = emb.traces
     out = {}
@@ -136,43 +206,3 @@ def hex_source_arrays(inp: HexInput) -> dict:
     out["hex_surface_faces"] = inp.surface.F
     out["hex_surface_sharp"] = inp.sharp
     return out
-
-
-def input_from_arrays(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray, arrays: dict) -> HexInput:
-    """The HexInput of a stored field.
-
-    Parameters
-    ----------
-    mesh : TetMesh
-        the field's tet mesh, with the solve's exact vertex positions
-    frames : (#V, 3, 3) float array
-    omega : (#E, 3) float array
-    arrays : dict
-        what ``hex_source_arrays`` returned for this field
-
-    Returns
-    -------
-    HexInput
-    """
-    meta = json.loads(str(arrays["hex_meta"]))
-    parts = {k: _split(arrays[f"hex_{k}"], arrays[f"hex_{k}_offsets"])
-             for k in ("tets", "faces", "points", "tangents", "polyline", "curve_points", "node_region")}
-    curves, traces = [], []
-    for i, c in enumerate(meta["curves"]):
-        curves.append(Curve(parts["curve_points"][i], c["sigma"], c["role"], name=c["name"], closed=c["closed"]))
-        s, e = arrays["hex_ends"][i]
-        traces.append(CurveTrace(parts["tets"][i].astype(np.int64), parts["faces"][i].astype(np.int64),
-                                 parts["tangents"][i], parts["points"][i], int(s), int(e), parts["polyline"][i]))
-    nodes = [Node(np.asarray(nd["position"], float), [tuple(x) for x in nd["ends"]]) for nd in meta["nodes"]]
-    net = PreparedNetwork(curves, [c["source"] for c in meta["curves"]], [c["start"] for c in meta["curves"]],
-                          [c["end"] for c in meta["curves"]], nodes)
-    emb = Embedding(traces, np.asarray(arrays["hex_node_tets"], np.int64),
-                    [r.astype(np.int64) for r in parts["node_region"]], np.zeros((mesh.n_faces, 3)),
-                    np.zeros(mesh.n_faces, bool), np.zeros(mesh.n_faces, np.int64))
-    S = TriSurface(np.asarray(arrays["hex_surface_vertices"], float), np.asarray(arrays["hex_surface_faces"], np.int64))
-    given = None
-    if "given" in meta and "hex_given_points" in arrays:
-        pts = _split(np.asarray(arrays["hex_given_points"], float), arrays["hex_given_points_offsets"])
-        given = [(P, float(g["sigma"]), int(g["curve"]), g["name"]) for P, g in zip(pts, meta["given"])]
-    return HexInput(mesh, np.asarray(omega, float), np.asarray(frames, float), emb, net, S,
-                    np.asarray(arrays["hex_surface_sharp"], bool), meta.get("status", "converged"), given)

@@ -5,7 +5,6 @@ need of a solved field kept elsewhere (a .blend); a network read from a tet
 mesh with tagged edges (tetnetwork.py)."""
 
 from .formats import (
-    load_hex_input,
     load_result,
     network_from_dict,
     network_to_dict,
@@ -18,6 +17,7 @@ from .formats import (
 )
 from .hexformats import HEX_FORMATS, export_hexmesh, read_hexex
 from .interchange import FieldData, export_field, field_data, quaternion_frames
+from .stored import load_hex_input
 from .tetnetwork import TetNetworkImport, import_tet_network, read_tet_network
 
 __all__ = [

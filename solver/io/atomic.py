@@ -97,6 +97,10 @@ def write_files(files: dict, what: str = "") -> list[str]:
     mode = 0o666 & ~_umask()
     temps: list[tuple[str, str]] = []
     current = ""
+    for path in files:
+        if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+            raise OutputError((f"{what}: " if what else "") + f"output path {path!r}: must be a file path (a "
+                              "non-empty string)")
     try:
         for path, data in files.items():
             current = os.fspath(path)
@@ -209,3 +213,52 @@ def _check_folder(path: str, where: str) -> None:
         raise OutputError(f"{where}: the disk holding {folder} is full ({free:,} bytes free); free some space or "
                           "write to another disk (checked before any work)")
 
+
+
+def same_file(a, b) -> bool:
+    """Whether two paths name one file: the same path after resolving
+    symbolic links and ``..``, or (both existing) one file under two names
+    (a hard link, a case-insensitive file system)."""
+    ra, rb = os.path.realpath(os.fspath(a)), os.path.realpath(os.fspath(b))
+    if os.path.normcase(ra) == os.path.normcase(rb):
+        return True
+    try:
+        return os.path.samefile(ra, rb)
+    except OSError:  # one of them does not exist (yet)
+        return False
+
+
+def check_distinct(outputs, inputs=()) -> None:
+    """Refuse, before any work, an output that would replace an input or
+    another output of the same run.
+
+    Parameters
+    ----------
+    outputs : iterable of (what, path)
+        every file the run writes, named as the user named it (e.g.
+        ``("--hex", "x.vtu")``; a MEDIT export's ``.fra`` and ``.perm`` as
+        ``("--export a.mesh", "a.fra")``)
+    inputs : iterable of (what, path)
+        every file the run reads (None paths are skipped)
+
+    Raises
+    ------
+    OutputError
+        naming both paths and how each was given
+    """
+    outs = [(w, os.fspath(p)) for w, p in outputs if p is not None]
+    ins = [(w, os.fspath(p)) for w, p in inputs if p is not None]
+    for what, path in outs:
+        for iw, ip in ins:
+            if same_file(path, ip):
+                real = os.path.realpath(ip)
+                link = "" if os.path.abspath(path) == os.path.abspath(ip) else f" (the same file, {real})"
+                raise OutputError(f"{what} {path}: this is the {iw} input {ip}{link}; writing it would replace the "
+                                  "input. Give the output another name (checked before any work; nothing was "
+                                  "written)")
+    for k, (what, path) in enumerate(outs):
+        for w2, p2 in outs[:k]:
+            if same_file(path, p2):
+                raise OutputError(f"{w2} {p2} and {what} {path} name the same file: the second would replace the "
+                                  "first. Give each output its own name (checked before any work; nothing was "
+                                  "written)")

@@ -40,7 +40,7 @@ from io import BytesIO
 import numpy as np
 
 from .. import checks
-from ..errors import NetworkError, OptionsError, SurfaceError, SymFramesError
+from ..errors import NetworkError, OptionsError, SurfaceError
 from ..network.network import Curve, Network
 from ..surface.polygons import triangulate_polygons
 from ..surface.trisurface import MAX_COORDINATE
@@ -136,7 +136,19 @@ def write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
     V : (n, 3) float array
     F : (m, 3) int array
         0-based (written 1-based).
+
+    Raises
+    ------
+    SurfaceError
+        V not (n, 3) finite numbers, F not (m, 3) vertex indices of V
+    OutputError
+        a path that cannot be written
     """
+    V = checks.array("write_obj: V", V, SurfaceError, shape=(None, 3))
+    F = checks.array("write_obj: F", F, SurfaceError, shape=(None, 3), kind="i")
+    if len(F) and (F.min() < 0 or F.max() >= len(V)):
+        raise SurfaceError(f"write_obj: F holds vertex index {int(F.min() if F.min() < 0 else F.max())}, outside "
+                           f"0..{len(V) - 1}")
     write_text(path, "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in V)
                + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in F))
 
@@ -228,7 +240,15 @@ def network_to_dict(net: Network, options: dict | None = None) -> dict:
     -------
     dict
         Plain lists and numbers, ready for ``json.dump``.
+
+    Raises
+    ------
+    NetworkError, OptionsError
+        net not a Network, options not a dict or None
     """
+    checks.instance("network", net, Network, NetworkError, "e.g. Network(curves=[...])")
+    if options is not None:
+        checks.mapping("options", options, OptionsError)
     d: dict = {"curves": [{"name": c.name, "points": np.asarray(c.points).tolist(), "sigma": c.sigma,
                            "role": c.role.value, "torsion": c.torsion.value, "closed": bool(c.closed)}
                           for c in net.curves]}
@@ -302,6 +322,7 @@ def write_network(path: str, net: Network, surface: str | None = None, options: 
     """
     d = network_to_dict(net, options)
     if surface is not None:
+        surface = checks.text("surface", surface, NetworkError)
         d = {"surface": surface, **d}
     write_text(path, json.dumps(d, indent=1))
 
@@ -349,7 +370,17 @@ def save_result(path: str, result) -> None:
     ----------
     path : str
     result : Result
+
+    Raises
+    ------
+    OptionsError
+        result not a solver Result
+    OutputError
+        a path that cannot be written
     """
+    from ..pipeline import Result
+
+    checks.instance("save_result: result", result, Result, OptionsError, "the Result of solve(...)")
     mesh = result.mesh
     n = len(result.embedding.traces)
     cf, cfo = _flat([result.curve_faces(i) for i in range(n)])
@@ -373,40 +404,6 @@ def save_result(path: str, result) -> None:
     write_files({path: buf.getbuffer()})
 
 
-def load_hex_input(path: str):
-    """The field of a saved result, to mesh it again without solving
-    (``python -m solver --from-result``).
-
-    Parameters
-    ----------
-    path : str
-        a result ``.npz`` written by ``save_result``
-
-    Returns
-    -------
-    hexmesh.HexInput
-
-    Raises
-    ------
-    SymFramesError
-        when the file cannot be read or lacks what hex meshing needs
-    """
-    from ..hexmesh import input_from_arrays
-    from ..mesh.tetmesh import TetMesh
-
-    try:
-        with np.load(path) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as e:
-        raise SymFramesError(f"cannot read result file {path!r}: {e}") from None
-    missing = [k for k in ("vertices", "tets", "omega", "frames", "hex_meta") if k not in arrays]
-    if missing:
-        raise SymFramesError(f"{path}: not a SymFrames result with what hex meshing needs (missing "
-                             f"{', '.join(missing)}); solve the network again to write one")
-    mesh = TetMesh(arrays["vertices"], arrays["tets"])
-    return input_from_arrays(mesh, arrays["frames"], arrays["omega"], arrays)
-
-
 def load_result(path: str) -> dict:
     """The arrays of a saved result.
 
@@ -420,8 +417,26 @@ def load_result(path: str) -> dict:
     dict
         Array name -> array; ``"report"`` parsed back to a dict
         (``solver.Report.from_dict(out["report"])`` makes it a Report).
+
+    Raises
+    ------
+    ReadError
+        a file that is missing, empty, truncated, not an ``.npz`` or damaged,
+        or has no report
     """
-    with np.load(path) as z:
-        out = {k: z[k] for k in z.files}
-    out["report"] = json.loads(str(out["report"]))
+    import zipfile
+    import zlib
+
+    from ..errors import ReadError
+    from .stored import open_archive
+
+    open_archive(path).close()  # an empty, truncated or foreign file is refused, naming it
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            out = {k: z[k] for k in z.files}
+        out["report"] = json.loads(str(out["report"]))
+    except KeyError:
+        raise ReadError(f"{path}: the array 'report' is missing: not a SymFrames result") from None
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError) as e:
+        raise ReadError(f"{path}: a damaged result file ({type(e).__name__}: {str(e)[:100]})") from None
     return out

@@ -23,7 +23,7 @@ import os
 
 import numpy as np
 
-from ..errors import OutputError
+from ..errors import OutputError, ReadError
 from .atomic import check_output_path, write_text
 from .interchange import _fmt_rows, _vtu_array
 
@@ -114,19 +114,34 @@ def read_hexex(path: str):
 
     Raises
     ------
-    ValueError
-        when the file is not a complete .hexex file
+    ReadError
+        a count the file does not hold, a value that is not a finite number,
+        a vertex id that is fractional or outside 0..n-1, a tet with a
+        repeated vertex, or data after the last tet; naming the file, the
+        line and the value
     """
-    with open(path, encoding="ascii") as fh:
-        tok = fh.read().split()
-    try:
-        n = int(tok[0])
-        V = np.asarray(tok[1:1 + 3 * n], float).reshape(n, 3)
-        m = int(tok[1 + 3 * n])
-        rows = np.asarray(tok[2 + 3 * n:2 + 3 * n + 16 * m], float).reshape(m, 16)
-    except (IndexError, ValueError) as e:
-        raise ValueError(f"{path}: not a complete .hexex file ({e})") from None
-    return V, rows[:, :4].astype(np.int64), rows[:, 4:].reshape(m, 4, 3)
+    from .interchange import _end, _text_tokens
+
+    tok = _text_tokens(path, ".hexex (integer-grid map)")
+    n = tok.count("vertices", 3)
+    V = tok.block(n, 3, "vertex coordinates")
+    m = tok.count("tets", 16)
+    first = tok.pos
+    rows = tok.block(m, 16, "tets")
+    _end(tok, "the last tet")
+    ids = rows[:, :4]
+    line = tok.lines[first::16] if m else tok.lines[:0]
+    bad = np.nonzero((ids != np.round(ids)).any(axis=1) | ((ids < 0) | (ids >= n)).any(axis=1))[0]
+    if len(bad):
+        shown = " ".join(f"{x:g}" for x in ids[bad[0]])
+        raise ReadError(f"{tok.path}:{line[bad[0]]}: tet {bad[0]} has vertex ids {shown}: they must "
+                        f"be whole numbers from 0 to {n - 1} (the file has {n} vertices; ids are 0-based)")
+    T = ids.astype(np.int64)
+    S = np.sort(T, axis=1)
+    bad = np.nonzero((S[:, 1:] == S[:, :-1]).any(axis=1))[0]
+    if len(bad):
+        raise ReadError(f"{tok.path}:{line[bad[0]]}: tet {bad[0]} {T[bad[0]].tolist()} repeats a vertex")
+    return V, T, rows[:, 4:].reshape(m, 4, 3)
 
 
 def export_hexmesh(hex_mesh, path: str) -> list[str]:
@@ -146,10 +161,17 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     Raises
     ------
     OutputError
-        an unknown extension, a path that cannot be written (checked before
+        hex_mesh not a HexMesh, an unknown extension, a path that cannot be written (checked before
         anything is made: atomic.check_output_path), ``.hexex`` for a mesh
         without its map, or a write that fails (the old file, or none, is left)
     """
+    from ..hexmesh import HexMesh
+
+    if not isinstance(hex_mesh, HexMesh):
+        from ..checks import describe
+
+        shown = describe(hex_mesh) if not hasattr(hex_mesh, "__dict__") else f"a {type(hex_mesh).__name__}"
+        raise OutputError(f"export_hexmesh: hex_mesh = {shown}: must be a HexMesh (hexmesh(result))")
     check_output_path(path, "hex mesh", HEX_FORMATS)
     ext = os.path.splitext(path)[1].lower()
     V, H = hex_mesh.vertices, hex_mesh.hexes

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..analysis.measures import matched_singular_faces, monodromy_angles, omega_singular_faces
-from ..errors import NetworkError, OutputError
+from ..errors import NetworkError, OutputError, ReadError
 from ..field.matchings import FaceMatchings, TetFrames, face_matchings, omega_tet_frames
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.tetmesh import TetMesh
@@ -136,7 +136,8 @@ def field_data(result) -> FieldData:
 
     Parameters
     ----------
-    result : solver.Result
+    result : solver.Result, or a hexmesh.HexInput (a stored field: its
+        prescribed Omega is not kept, ``face_omega`` is None)
 
     Returns
     -------
@@ -144,13 +145,23 @@ def field_data(result) -> FieldData:
         The result's mesh, frames and omega, the curve crossing each tet,
         the node-region tets and the prescribed Omega per face.
     """
+    from .. import checks
+    from ..errors import OptionsError
+    from ..hexmesh import HexInput
+    from ..pipeline import Result
+
+    checks.instance("field_data: result", result, (Result, HexInput), OptionsError, "the Result of solve(...)")
     mesh, emb = result.mesh, result.embedding
     curve = np.full(mesh.n_tets, -1, dtype=np.int64)
-    for i in range(len(emb.traces)):
-        curve[result.curve_tets(i)] = i
+    for i, tr in enumerate(emb.traces):
+        curve[tr.tets] = i
     node = np.zeros(mesh.n_tets, bool)
     node[emb.node_region_tets] = True
-    return FieldData(mesh, np.asarray(result.frames), np.asarray(result.omega), curve, node, emb.face_omega)
+    from ..hexmesh import HexInput
+
+    # a stored field keeps no prescribed Omega: unknown
+    face_omega = None if isinstance(result, HexInput) else emb.face_omega
+    return FieldData(mesh, np.asarray(result.frames), np.asarray(result.omega), curve, node, face_omega)
 
 
 def field_export(result) -> FieldExport:
@@ -485,17 +496,37 @@ def fra_text(frames: np.ndarray) -> str:
 
 def read_fra(path: str) -> np.ndarray:
     """Per-tet frames of a ``.fra`` file with 3 vectors per tet -> (#T, 3, 3),
-    the vectors as columns."""
-    tok = _tokens(path)
-    if len(tok) < 5 or tok[0] != "FRA" or tok[1] != "1":
-        raise ValueError(f"{path}: not a version-1 .fra file (expected 'FRA 1')")
-    n, vpt = int(tok[2]), int(tok[3])
+    the vectors as columns.
+
+    Raises
+    ------
+    ReadError
+        not a version-1 ``.fra``, a count that the file does not hold, a
+        value that is not a finite number, or data after the last frame;
+        naming the file, the line and the value
+    """
+    tok = _text_tokens(path, ".fra (CubeCover frames)")
+    if tok.next("'FRA'") != "FRA" or tok.next("the version") != "1":
+        tok.fail("not a version-1 .fra file (it must start with 'FRA 1')", 0)
+    n = tok.count("frames", 9)
+    vpt = tok.count("vectors per frame", 0)
     if vpt != 3:
-        raise ValueError(f"{path}: {vpt} vectors per tet; only frames of 3 vectors are supported")
-    vals = np.asarray(tok[5:5 + 9 * n], dtype=float)
-    if len(vals) != 9 * n:
-        raise ValueError(f"{path}: expected {9 * n} numbers for {n} frames, found {len(vals)}")
+        tok.fail(f"{vpt} vectors per frame; only frames of 3 vectors are read", tok.pos - 1)
+    tok.next("the frame type")
+    vals = tok.block(3 * n, 3, "frame vectors")
+    _end(tok, "the last frame")
     return np.transpose(vals.reshape(n, 3, 3), (0, 2, 1))
+
+
+def _text_tokens(path, what: str) -> Tokens:
+    """The words of an interchange text file, with their lines (ReadError)."""
+    return Tokens(read_text(path, ReadError, what), os.fspath(path), ReadError)
+
+
+def _end(tok: Tokens, what: str) -> None:
+    if not tok.done:
+        tok.fail(f"{tok.words[tok.pos]!r} after {what}: the count in the header is smaller than the data (or the "
+                 "file has extra data)")
 
 
 def write_perm(path: str, n_tets: int, tets: np.ndarray, perms: np.ndarray, keep_identity: bool = False) -> None:
@@ -531,23 +562,41 @@ def perm_text(n_tets: int, tets: np.ndarray, perms: np.ndarray, keep_identity: b
 
 
 def read_perm(path: str) -> tuple[int, np.ndarray, np.ndarray]:
-    """(#tets, (k, 2) tet pairs, (k, 3) signed permutations) of a ``.perm`` file."""
-    tok = _tokens(path)
-    if len(tok) < 5 or tok[0] != "PERM" or tok[1] != "1":
-        raise ValueError(f"{path}: not a version-1 .perm file (expected 'PERM 1')")
-    nt, nf, nv = int(tok[2]), int(tok[3]), int(tok[4])
+    """(#tets, (k, 2) tet pairs, (k, 3) signed permutations) of a ``.perm`` file.
+
+    Raises
+    ------
+    ReadError
+        not a version-1 ``.perm``, a count the file does not hold, a tet id
+        outside 0..#tets-1, a face of a tet with itself, or a permutation
+        that is not a signed permutation of 1, 2, 3; naming the file, the line
+        and the value
+    """
+    tok = _text_tokens(path, ".perm (CubeCover face matchings)")
+    if tok.next("'PERM'") != "PERM" or tok.next("the version") != "1":
+        tok.fail("not a version-1 .perm file (it must start with 'PERM 1')", 0)
+    nt = tok.count("tets", 0)
+    nf = tok.count("face lines", 5)
+    nv = tok.count("assignments per face", 0)
     if nv != 3:
-        raise ValueError(f"{path}: {nv} assignments per face; only 3 are supported")
-    vals = np.asarray(tok[5:5 + 5 * nf], dtype=np.int64)
-    if len(vals) != 5 * nf:
-        raise ValueError(f"{path}: expected {nf} face lines of 5 integers")
-    vals = vals.reshape(nf, 5)
-    return nt, vals[:, :2], vals[:, 2:]
-
-
-def _tokens(path: str) -> list[str]:
-    with open(path, encoding="ascii", errors="replace") as fh:
-        return fh.read().split()
+        tok.fail(f"{nv} assignments per face; only 3 are read", tok.pos - 1)
+    first = tok.pos
+    vals = tok.block(nf, 5, "face lines", "int")
+    _end(tok, "the last face line")
+    T, P = vals[:, :2], vals[:, 2:]
+    line = tok.lines[first::5] if nf else tok.lines[:0]
+    bad = np.nonzero(((T < 0) | (T >= nt)).any(axis=1))[0]
+    if len(bad):
+        raise ReadError(f"{tok.path}:{line[bad[0]]}: face line {T[bad[0]].tolist()} names a tet outside 0..{nt - 1} "
+                        f"(the header says {nt} tets; ids are 0-based)")
+    bad = np.nonzero(T[:, 0] == T[:, 1])[0]
+    if len(bad):
+        raise ReadError(f"{tok.path}:{line[bad[0]]}: face line {T[bad[0]].tolist()} matches a tet with itself")
+    bad = np.nonzero(np.any(np.sort(np.abs(P), axis=1) != [1, 2, 3], axis=1))[0]
+    if len(bad):
+        raise ReadError(f"{tok.path}:{line[bad[0]]}: the permutation {P[bad[0]].tolist()} is not a signed "
+                        "permutation of 1, 2, 3 (each of +-1, +-2, +-3 once)")
+    return nt, T, P
 
 
 # ======================================================================= QTN
@@ -564,11 +613,25 @@ def write_qtn(path: str, quaternions: np.ndarray) -> None:
 
 
 def read_qtn(path: str) -> np.ndarray:
-    """(n, 4) quaternions w, x, y, z of a ``.qtn`` file."""
-    vals = np.asarray(_tokens(path), dtype=float)
-    if len(vals) % 4:
-        raise ValueError(f"{path}: {len(vals)} numbers is not four per cell")
-    return vals.reshape(-1, 4)
+    """(n, 4) quaternions w, x, y, z of a ``.qtn`` file.
+
+    Raises
+    ------
+    ReadError
+        a value that is not a finite number, a count that is not four per
+        cell, or a quaternion of zero length; naming the file, line and value
+    """
+    tok = _text_tokens(path, ".qtn (AlgoHex quaternions)")
+    if len(tok) % 4:
+        raise ReadError(f"{tok.path}: {len(tok)} numbers is not four per cell (w x y z); the file is truncated or "
+                        f"has extra data (line {tok.line(len(tok) - 1)})")
+    q = tok.block(len(tok) // 4, 4, "quaternions")
+    norm = np.linalg.norm(q, axis=1)
+    bad = np.nonzero(norm < 1e-9)[0]
+    if len(bad):
+        raise ReadError(f"{tok.path}:{tok.lines[4 * bad[0]]}: quaternion {bad[0]} is {q[bad[0]].tolist()}: of zero "
+                        "length, no rotation")
+    return q
 
 
 def quaternion_frames(q: np.ndarray) -> np.ndarray:
@@ -583,7 +646,19 @@ def quaternion_frames(q: np.ndarray) -> np.ndarray:
     -------
     (n, 3, 3) float array
         Rotation matrices, columns the cross axes.
+
+    Raises
+    ------
+    OptionsError
+        q not (n, 4) finite numbers, or a quaternion of zero length
     """
+    from .. import checks
+    from ..errors import OptionsError
+
+    q = checks.array("quaternions", q, OptionsError, shape=(None, 4))
+    zero = np.nonzero(np.linalg.norm(q, axis=1) < 1e-12)[0]
+    if len(zero):
+        raise OptionsError(f"quaternion {zero[0]} is {q[zero[0]].tolist()}: of zero length, no rotation")
     return Rotation.from_quat(np.asarray(q, float), scalar_first=True).as_matrix()
 
 
@@ -918,6 +993,17 @@ def export_field(result, path: str, fmt: str | None = None, binary: bool = True,
       0 on the boundary);
     * qtn: the tet quaternions w, x, y, z.
     """
+    from .. import checks
+    from ..errors import OptionsError
+    from ..hexmesh import HexInput
+    from ..pipeline import Result
+
+    checks.instance("export_field: result", result, (Result, HexInput, FieldData), OptionsError,
+                    "the Result of solve(...), a stored field (io.load_hex_input) or a FieldData")
+    binary = checks.boolean("binary", binary, OptionsError)
+    all_faces = checks.boolean("all_faces", all_faces, OptionsError)
+    if on_edges is not None:
+        on_edges = checks.boolean("on_edges", on_edges, OptionsError)
     if fmt is None:
         ext = os.path.splitext(os.fspath(path))[1].lower() if isinstance(path, (str, os.PathLike)) else ""
         if ext not in FORMATS:

@@ -103,8 +103,9 @@ def read_tagged_tet_mesh(path: str, edge_property: str | None = None) -> TaggedT
 
     path : ``.ovm`` (OpenVolumeMesh ASCII; the tags are an integer edge
         property: ``edge_property`` by name, else the only integer/bool edge
-        property, else the first one with a nonzero value) or ``.mesh`` (MEDIT;
-        the tags are the reference numbers of the ``Edges`` section, 0 meaning
+        property, else the only one with a nonzero value; several such are
+        refused, naming them) or ``.mesh`` (MEDIT; the tags are the reference
+        numbers of the ``Edges`` section, 0 meaning
         untagged).
 
     Raises NetworkError naming the file, the line and the value of anything
@@ -149,6 +150,11 @@ def read_tagged_tet_mesh(path: str, edge_property: str | None = None) -> TaggedT
                 raise NetworkError(f"{path}: no integer edge property with a nonzero value (found "
                                    f"{sorted(d.props['edge']) or 'no edge properties'}); name the one holding "
                                    "the tags (--tag-property NAME, Python: edge_property=)")
+            if len(used) > 1:
+                counts = ", ".join(f"{k!r} ({int(np.count_nonzero(eprops[k])):,} nonzero edges)" for k in used)
+                raise NetworkError(f"{path}: {len(used)} integer edge properties could hold the tags: {counts}; "
+                                   "SymFrames does not guess which: name it (--tag-property NAME, Python: "
+                                   f"edge_property={used[0]!r})")
             name = used[0]
             tags = eprops[name]
         tags = np.asarray(tags).astype(np.int64)

@@ -30,6 +30,8 @@ def read_text(path, error, what: str, kind: str = "text") -> str:
     what  : what the file is, for messages ("surface file", "tet mesh")
     kind  : what text it must be ("JSON text"), for messages
     """
+    if not isinstance(path, (str, bytes, os.PathLike)) or not os.fspath(path):
+        raise error(f"{what} {path!r}: must be a file path (a non-empty string)")
     try:
         with open(path, "rb") as fh:
             raw = fh.read()

@@ -533,9 +533,8 @@ def validate_surface(V: np.ndarray, F: np.ndarray, check_intersections: bool = T
         Naming the first problem found, where it is and how to fix it.
     """
     V, F = _surface_arrays(V, F)
+    _check_size(V, F)
     S = TriSurface(V, F)
-    if S.bbox_diagonal <= 0:
-        raise SurfaceError("surface has zero size")
     _check_degenerate(S)
     _check_closed(S)
     _check_orientation(S)
@@ -559,6 +558,39 @@ def _is_complex(V) -> bool:
 
 # coordinates beyond this overflow squared distances and volumes (1e200**2 = inf)
 MAX_COORDINATE = 1e100
+
+
+MIN_EXTENT = 1e-50
+"""A surface smaller than this across underflows the geometry: a small
+triangle's area (a product of two lengths) or a tet's volume (of three)
+rounds to 0 long before the double range ends (1e-308)."""
+
+
+FLAT_RATIO = 1e-9
+"""A surface thinner than this fraction of its size along an axis is flat:
+no tet mesh or field fits in it."""
+
+
+def _check_size(V: np.ndarray, F: np.ndarray) -> None:
+    """Refuse a surface of no size or too small for floating-point geometry,
+    saying its size and the scale that would fix it."""
+    P = V[np.unique(F)]
+    ext = float(np.ptp(P, axis=0).max())
+    if ext == 0:
+        raise SurfaceError(f"the surface has no size: all its {len(P)} vertices are at {P[0].tolist()}; give the "
+                           "surface of a solid")
+    ptp = np.ptp(P, axis=0)
+    flat = np.nonzero(ptp <= FLAT_RATIO * ext)[0]
+    if len(flat):
+        axes = " and ".join("xyz"[i] for i in flat)
+        raise SurfaceError(f"the surface is flat: {ext:.4g} across but {float(ptp[flat[0]]):.3g} along {axes}, so it "
+                           "bounds (almost) no volume (an object scaled to 0 along an axis, e.g. Blender scale "
+                           "(1, 1, 0)?); give the surface of a solid: a non-zero scale on every axis")
+    if ext < MIN_EXTENT:
+        k = int(np.ceil(-np.log10(ext)))
+        raise SurfaceError(f"the surface is only {ext:.3g} across (its largest extent), too small for SymFrames' "
+                           f"double-precision geometry (below {MIN_EXTENT:g} across, areas and volumes round to 0); "
+                           f"a model in the wrong units: scale it up (e.g. by 1e{k}, to about 1 across)")
 
 
 def _surface_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
