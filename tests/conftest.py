@@ -203,3 +203,19 @@ def solved():
     """solved(example, **options) -> a copy of the session's Result for the
     example and options."""
     return lambda example, **options: _SESSION.solved(example, options)
+
+
+@pytest.fixture(scope="module")
+def stored_field(solved, tmp_path_factory):
+    """A solved cylinder's result file (io.save_result), its arrays and its
+    Result: what the stored-result readers are tested on."""
+    import numpy as np
+
+    from solver import io
+
+    res = solved("cylinder")
+    path = tmp_path_factory.mktemp("stored") / "c.npz"
+    io.save_result(str(path), res)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    return str(path), arrays, res

@@ -603,15 +603,6 @@ def test_fuzz_tiny_solves(seed):
 
 
 # ------------------------------------------------ hex names, stored results, interchange readers (issue 52)
-@pytest.fixture(scope="module")
-def stored_field(solved, tmp_path_factory):
-    """A solved cylinder's result file, its arrays and its Result."""
-    res = solved("cylinder")
-    path = tmp_path_factory.mktemp("stored") / "c.npz"
-    io.save_result(str(path), res)
-    with np.load(path) as z:
-        arrays = {k: z[k] for k in z.files}
-    return str(path), arrays, res
 
 
 @pytest.fixture

@@ -18,14 +18,9 @@ from solver.examples import load_example
 
 
 @pytest.fixture(scope="module")
-def stored(solved, tmp_path_factory):
-    """A small solved field's result file, and its arrays."""
-    res = solved("cylinder")
-    path = tmp_path_factory.mktemp("stored") / "c.npz"
-    io.save_result(str(path), res)
-    with np.load(path) as z:
-        arrays = {k: z[k] for k in z.files}
-    return str(path), arrays
+def stored(stored_field):
+    """A small solved field's result file, and its arrays (conftest)."""
+    return stored_field[:2]
 
 
 @pytest.fixture(scope="module")
