@@ -11,10 +11,14 @@ from solver import hexmesh, solve
 from testkit.hexnet import hexnet_input
 
 
-@pytest.mark.parametrize("kind", ["cylinder", "plate", "genus2"])
-def test_a_network_read_off_a_hex_mesh_gives_a_hex_mesh_with_every_bar(kind):
+# The genus-2 plate is meshed by TetGen (the same mesh each run): on about
+# one fTetWild mesh in five of it SymFrames' seamless map folds before
+# rounding (234 of 8,877 tets, at a side wall; docs/limitations.md), which is
+# SymFrames' limit, said as such, but not a bar this test may depend on.
+@pytest.mark.parametrize("kind, mesher", [("cylinder", None), ("plate", None), ("genus2", "TetGen")])
+def test_a_network_read_off_a_hex_mesh_gives_a_hex_mesh_with_every_bar(kind, mesher):
     d = hexnet_input(kind, 0)
-    r = solve(d["V"], d["F"], d["network"])
+    r = solve(d["V"], d["F"], d["network"], **({"mesher": mesher} if mesher else {}))
     assert r.report.converged, r.report.status_reason
     hm = hexmesh(r)
     h = hm.report

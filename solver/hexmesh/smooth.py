@@ -133,7 +133,9 @@ class BoundaryMotion:
         if len(sv):
             a = np.where(np.abs(N[sv, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
             t1 = np.cross(N[sv], a)
-            t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+            # a vertex whose quads' normals cancel has no tangent plane: zero
+            # directions, so it stays where it is (was NaN on a genus-2 part)
+            t1 /= np.maximum(np.linalg.norm(t1, axis=1, keepdims=True), 1e-300)
             t2 = np.cross(N[sv], t1)
             out.append((sv, np.stack([t1, t2], axis=2)))
         fv = np.nonzero(self.feature)[0]

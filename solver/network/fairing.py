@@ -75,7 +75,8 @@ BAND = 1.0  # least bending keeps every point within BAND * l of the input, at m
 ROUGH = 3.0  # ... and within ROUGH times the input's own roughness (roughness())
 SMOOTH_BAND = 0.2  # ... but never closer than SMOOTH_BAND * h: a smooth input is kept to a fifth of an edge
 END_REACH = 4.0  # ... and near a boundary end within its slide, over END_REACH * l
-SLIDE_MAX = 0.5  # a boundary end slides along the surface by at most this many l while faired
+SLIDE_MAX = 0.5  # a boundary end slides along the surface by at most this many l while faired ...
+FREE_SLIDE_MAX = 1.0  # ... this many where no slide limit is given (an end far off the normal)
 
 
 def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
@@ -193,7 +194,8 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
     """Steps 1-5 of the module docstring.  slide: {0 or -1: outward normal}
     of boundary ends that may slide along the surface (``_laplacian_fair``;
     by at most ``SLIDE_MAX * l``, or by slide_limit[end] (a length) where
-    given and smaller; project: its surface projection).
+    given and smaller; with no slide_limit, by ``FREE_SLIDE_MAX * l``, every
+    point within ``BAND * l``; project: its surface projection).
     Returns (points, merged count, fairing length l, corner count, fixed
     mask)."""
     Pm = merge_close(P, MERGE * h, closed)
@@ -227,8 +229,16 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
     # (a smooth bent bar's curves, read off a hex mesh, were straightened by
     # a whole l towards least bending, 0.15 on average: 20 % of them then
     # lay within a cell of the hex mesh's irregular edges)
-    band_at = np.clip(ROUGH * roughness(Pm), SMOOTH_BAND * h, BAND * ell)
-    lim = {e: min(SLIDE_MAX * ell, float((slide_limit or {}).get(e, np.inf))) for e in (slide or {})}
+    if slide_limit is None and slide:
+        # an end far off the normal (intake.FREE_SLIDE): the curve moves as
+        # the chain's own uncertainty allows, a whole edge (a radial curve
+        # bowed by 0.45 of its length, 69 degrees off, held to its roughness
+        # and half an edge, kinked by 66 degrees at every local scale)
+        band_at = np.full(len(Pm), BAND * ell)
+        lim = {e: FREE_SLIDE_MAX * ell for e in slide}
+    else:
+        band_at = np.clip(ROUGH * roughness(Pm), SMOOTH_BAND * h, BAND * ell)
+        lim = {e: min(SLIDE_MAX * ell, float((slide_limit or {}).get(e, np.inf))) for e in (slide or {})}
     # near a boundary end the curve turns onto the normal: there it may
     # move as far as the end may slide, less and less over END_REACH l (a
     # bow reaching the caps 32 degrees off, held to its roughness, turned

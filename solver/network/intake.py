@@ -46,7 +46,7 @@ from .polyline import hausdorff, merge_close, resample, turning
 TETS_PER_H3 = 15.0  # as mesh/resolution.py's (network/ sits below mesh/)
 SLIDE_PER_TAN = 6.0  # an end slides at most this many h times the tangent of its angle to the normal ...
 SHARP_CLEAR = 0.1  # ... and stays this many h off the sharp edges
-FREE_SLIDE = 30.0  # ... unless fairing turns it more than this many degrees off the normal
+FREE_SLIDE = 30.0  # ... unless fairing turns it more than this many degrees off the normal (then as a chain: an edge)
 LOCAL_LEVELS = 3  # an end repair that kinks at h is redone at h / 2, h / 4, h / 8 (the mesh is refined there)
 # the repair's own bar: under the kink check's MAX_KINK (45 degrees over h),
 # with a margin for the mesh's sampling of the curve
