@@ -10,6 +10,8 @@ solver/io/formats.py), solves, prints the report and writes the result (.npz).
     python -m solver --tet-network field.ovm --tag-convention valence  # a tagged tet mesh's network
     python -m solver part.json --hex part.vtu --cell-size 0.1   # solve, then a hex mesh (docs/hexmesh.md)
     python -m solver --from-result part.npz --hex part.mesh     # a hex mesh of a stored field, no solve
+    python -m solver part.obj --suggest-network part.json      # a network for a bare surface (docs/suggest.md)
+    python -m solver part.obj --hex part.vtu                    # no network: suggest one, solve, mesh
 
 Exit status: 0 solved and converged (and with --hex: a valid hex mesh
 written); 1 bad input or settings (nothing written; this includes a mesh
@@ -47,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("network", nargs="?", help="network JSON file (may name its surface)")
     p.add_argument("surface", nargs="?", help="surface OBJ file (default: the one the JSON names)")
     p.add_argument("--example", choices=sorted(EXAMPLES), help="solve a built-in example instead")
+    p.add_argument("--suggest-network", metavar="FILE.json", help="with a bare SURFACE.obj (no network): write the "
+                   "suggested network there (docs/suggest.md) and exit unless --hex or --export asks for more; a "
+                   "bare SURFACE.obj without it has its network suggested and solved")
     p.add_argument("--export-example", nargs=2, metavar=("NAME", "DIR"),
                    help="write a built-in example as NAME.obj + NAME.json into DIR and exit")
     p.add_argument("--tet-network", metavar="FILE", help="read the domain and network from a tet mesh whose edges "
@@ -174,6 +179,25 @@ def _hex(args, inp, progress) -> int:
     return 0
 
 
+def _suggested(args):
+    """A bare surface: its suggested network (solver/suggest), written with
+    --suggest-network; (V, F, None) when that is all that was asked."""
+    from .suggest import suggest_network
+
+    if args.suggest_network:
+        check_output_path(args.suggest_network, "--suggest-network", (".json",))
+    V, F = io.read_obj(args.network)
+    net, rep = suggest_network(V, F)
+    print(rep.summary())
+    if args.suggest_network:
+        rel = os.path.relpath(os.path.abspath(args.network), os.path.dirname(os.path.abspath(args.suggest_network)))
+        io.write_network(args.suggest_network, net, surface=rel)
+        print(f"wrote {args.suggest_network}")
+        if not args.hex and not args.export:
+            return V, F, None
+    return V, F, net
+
+
 def _progress(quiet: bool):
     if quiet:
         return None
@@ -272,7 +296,14 @@ def main(argv: list[str] | None = None) -> int:
             V, F, net = imp.V, imp.F, imp.network
             print(f"{args.tet_network}: {imp.describe()}")
             file_opts, stem = {}, os.path.splitext(args.tet_network)[0]
+        elif args.network and args.network.lower().endswith(".obj") and args.surface is None:
+            V, F, net = _suggested(args)
+            if net is None:
+                return 0
+            file_opts, stem = {}, os.path.splitext(args.network)[0]
         elif args.network:
+            if args.suggest_network:
+                raise OptionsError("--suggest-network takes a bare SURFACE.obj, with no network file")
             net, file_opts, surface = io.read_network(args.network)
             surface = args.surface or surface
             if surface is None:

@@ -132,8 +132,9 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
     t0 = time.perf_counter()
     S = validate_surface(V, F)
     if S.n_components != 1:
-        raise NetworkError(f"no network suggested: the surface has {S.n_components} connected components; suggest "
-                           "one per solid (split the mesh) or draw the network by hand (docs/suggest.md)")
+        raise NetworkError(f"no network suggested: the surface has {S.n_components} connected components (a "
+                           "solid with cavities), and the polycube route takes one; draw the network by hand "
+                           "(docs/suggest.md)")
     notes = []
     sharp, dropped = sharp_creases(S, sharp_angle)
     if dropped:

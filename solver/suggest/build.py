@@ -280,5 +280,6 @@ def padding_network(S: TriSurface, R: np.ndarray, G: ChartGraph, depth: float | 
         curves.append(Curve(P, sigma=sigma, name=name))
         info.append(SuggestedCurve(name, sigma, "radial", labs, float(np.linalg.norm(b - a))))
     if dc.min() < delta * (1 - 1e-9):
-        notes.append(f"padding depth {dc.min():.3g} to {dc.max():.3g} by chart: thin in the polycube's thin directions")
+        notes.append(f"padding depth {dc.min():.3g} to {dc.max():.3g} by chart: lowered where a chart boundary "
+                     "between two nodes is short")
     return curves, info, float(dc.min()), notes

@@ -48,7 +48,9 @@ class ChartGraph:
 
 
 def _where(S: TriSurface, faces) -> str:
-    return _fmt(S.V[S.F[np.asarray(faces)]].reshape(-1, 3).mean(axis=0))
+    """A point of the faces: the centroid of the one nearest their mean."""
+    C = S.V[S.F[np.asarray(faces)]].mean(axis=1)
+    return _fmt(C[np.argmin(np.linalg.norm(C - C.mean(axis=0), axis=1))])
 
 
 def _check_charts(S: TriSurface, chart: np.ndarray, chart_label: np.ndarray) -> None:
