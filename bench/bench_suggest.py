@@ -82,6 +82,22 @@ def _twisted(turn_deg: float, bend: float = 0.0):
     return V, F
 
 
+def _top_fillets(r: float = 0.4):
+    """A cube whose four top edges (and corners) are rounded with radius r,
+    the vertical and bottom edges sharp."""
+    from solver.examples import box
+
+    V, F = box(n=20)  # grid lines at the fillets' tangent lines (r a multiple of 0.1)
+    c = 1.0 - r
+    q = np.c_[np.clip(V[:, 0], -c, c), np.clip(V[:, 1], -c, c), np.full(len(V), c)]
+    d = V - q
+    n = np.linalg.norm(d, axis=1)
+    m = (V[:, 2] > c) & (n > 1e-12)
+    V = V.copy()
+    V[m] = q[m] + r * d[m] / n[m, None]
+    return V, F
+
+
 def _voxels(shape: str):
     from solver.examples import voxel_surface
 
@@ -122,6 +138,7 @@ def solids() -> dict:
         "box": lambda: box(n=2),
         "box_2x1x1": lambda: box((-1, -0.5, -0.5), (1, 0.5, 0.5), n=4),
         "box_rot": rot(lambda: box((-1, -0.6, -0.4), (1, 0.6, 0.4), n=4), 3),
+        "box_top_fillets": _top_fillets,
         "L_part": lambda: _voxels("L"),
         "T_part": lambda: _voxels("T"),
         "U_part": lambda: _voxels("U"),
@@ -179,9 +196,11 @@ def run_one(name: str) -> dict:
     row.update(curves=len(net.curves), plus=sum(c.sigma > 0 for c in rep.curves),
                minus=sum(c.sigma < 0 for c in rep.curves), nodes=rep.nodes, charts=rep.charts,
                sharp_boundaries=rep.sharp_boundaries, boundaries=rep.chart_boundaries,
-               depth=round(rep.depth, 4), suggest_s=round(t_s, 1))
+               depth=round(rep.depth, 4), feature=round(rep.feature_size, 4), target_tets=rep.target_tets,
+               suggest_s=round(t_s, 1))
     try:
-        r = solve(V, F, net)
+        # as `python -m solver SURFACE.obj --hex` does: the budget the network asks for
+        r = solve(V, F, net, **({"target_tets": rep.target_tets} if rep.target_tets else {}))
     except SymFramesError as e:
         row.update(error=str(e), error_kind=type(e).__name__, stage="solve",
                    total_s=round(time.perf_counter() - t0, 1))

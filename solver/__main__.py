@@ -181,7 +181,8 @@ def _hex(args, inp, progress) -> int:
 
 def _suggested(args):
     """A bare surface: its suggested network (solver/suggest), written with
-    --suggest-network; (V, F, None) when that is all that was asked."""
+    --suggest-network, and the options it asks for; (V, F, None, {}) when
+    writing it is all that was asked."""
     from .suggest import suggest_network
 
     if args.suggest_network:
@@ -189,13 +190,15 @@ def _suggested(args):
     V, F = io.read_obj(args.network)
     net, rep = suggest_network(V, F)
     print(rep.summary())
+    opts = {"target_tets": rep.target_tets} if rep.target_tets else {}
     if args.suggest_network:
         rel = os.path.relpath(os.path.abspath(args.network), os.path.dirname(os.path.abspath(args.suggest_network)))
-        io.write_network(args.suggest_network, net, surface=rel)
+        io.write_network(args.suggest_network, net, surface=rel, options=opts or None)
         print(f"wrote {args.suggest_network}")
         if not args.hex and not args.export:
-            return V, F, None
-    return V, F, net
+            return V, F, None, {}
+    # the budget the network asks for, unless the resolution is given
+    return V, F, net, opts if args.target_tets is None and args.edge_length is None else {}
 
 
 def _progress(quiet: bool):
@@ -297,10 +300,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{args.tet_network}: {imp.describe()}")
             file_opts, stem = {}, os.path.splitext(args.tet_network)[0]
         elif args.network and args.network.lower().endswith(".obj") and args.surface is None:
-            V, F, net = _suggested(args)
+            V, F, net, file_opts = _suggested(args)
             if net is None:
                 return 0
-            file_opts, stem = {}, os.path.splitext(args.network)[0]
+            stem = os.path.splitext(args.network)[0]
         elif args.network:
             if args.suggest_network:
                 raise OptionsError("--suggest-network takes a bare SURFACE.obj, with no network file")

@@ -57,6 +57,15 @@ class SuggestReport:
         One per curve of the network, in its order.
     notes : list of str
         What was simplified or adjusted (small charts merged, depth lowered).
+    feature_size : float
+        The smallest length the suggested network asks the mesh to
+        resolve (check_input's; 0 when not checked).
+    target_tets : int or None
+        A tet budget whose edge length resolves that length (a third of it
+        or finer, within the default ceiling of 60,000), for the network's
+        solve; None when the default budget does (or not checked).  The
+        command line uses it for a bare surface unless --target-tets or
+        --edge-length is given.
     seconds : float
     """
 
@@ -70,6 +79,8 @@ class SuggestReport:
     depth: float = 0.0
     curves: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    feature_size: float = 0.0
+    target_tets: int | None = None
     seconds: float = 0.0
 
     def summary(self) -> str:
@@ -86,6 +97,9 @@ class SuggestReport:
             f"  polycube: {self.charts} charts, {self.chart_boundaries} chart boundaries ({self.sharp_boundaries} on "
             f"sharp creases, kept as sharp edges), {self.corners} corners; padding depth {self.depth:.4g}",
         ]
+        if self.target_tets:
+            lines.append(f"  its shortest feature, {self.feature_size:.3g}, asks for a tet budget of "
+                         f"{self.target_tets:,}")
         lines += [f"  note: {n}" for n in self.notes]
         lines.append(f"  {self.seconds:.2f} s")
         return "\n".join(lines)
@@ -158,7 +172,9 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
         from ..network.validation import check_input
 
         try:
-            check_input(V, F, net, target_tets=target_tets)
+            ci = check_input(V, F, net, target_tets=target_tets)
+            rep.feature_size = float(ci.feature_size) if np.isfinite(ci.feature_size) else 0.0
+            rep.target_tets = resolving_budget(S, ci.feature_size, target_tets)
             break
         except (NetworkError, TopologyError) as e:
             if attempt + 1 < tries and curves:
@@ -170,6 +186,22 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
                                "of the input: draw the network by hand (docs/suggest.md)") from None
     rep.seconds = time.perf_counter() - t0
     return net, rep
+
+
+def resolving_budget(S, feature_size: float, target_tets: int = 15000, per_feature: float = 3.2,
+                     ceiling: int = 60000) -> int | None:
+    """The tet budget at which the solid's edge length (intake.solid_scale)
+    is feature_size / per_feature, within [target_tets, ceiling]; None when
+    target_tets already gets there.  Edge length goes as budget^(-1/3)."""
+    from ..network.intake import solid_scale
+
+    if not np.isfinite(feature_size) or feature_size <= 0:
+        return None
+    h = solid_scale(S, target_tets)
+    need = target_tets * (per_feature * h / feature_size) ** 3
+    if need <= target_tets:
+        return None
+    return int(min(ceiling, np.ceil(need / 1000.0) * 1000))
 
 
 def sharp_creases(S, sharp_angle: float, min_length: float = 0.05) -> tuple[np.ndarray, int]:

@@ -91,26 +91,31 @@ class _Plan:
 
 
 def _plan(S: TriSurface, G: ChartGraph) -> _Plan:
-    """Count the smooth chains at each corner; refuse a corner with two."""
+    """Pad the smooth chains; count them at each corner; refuse a corner
+    where two smooth chains meet a sharp one.  (Padding both faces of the
+    sharp one leaves a regular edge under it, valence 4 with the block
+    between the two pads; the node under the corner would then join two
+    +1/4 curves, that regular edge and a radial of valence 2, which no hex
+    mesh has.)"""
+    for ch in G.chains:
+        ch.padded = not ch.sharp
     smooth_at, third = {}, {}
     for cn in G.corners:
-        ks = [k for k in cn.chains if not G.chains[k].sharp]
-        smooth_at[cn.vertex] = len(ks)
-        for k in cn.chains:
-            off = [c for c in cn.charts if c not in G.chains[k].charts]
-            third[(k, cn.vertex)] = int(G.chart_label[off[0]]) if off else -1
-        if len(ks) == 2:
-            raise NetworkError(
-                f"no network suggested: at the surface point {_fmt(S.V[cn.vertex])} two smooth chart boundaries meet "
-                "a sharp one, a corner the padded polycube does not handle yet (the smooth boundaries would need a "
-                "node and no admissible one joins them there); draw the network near it by hand "
-                "(docs/suggest.md)"
-            )
         if len(cn.chains) != 3:
             raise NetworkError(
                 f"no network suggested: the polycube corner at {_fmt(S.V[cn.vertex])} joins {len(cn.chains)} chart "
                 "boundaries, not 3; draw the network near it by hand (docs/suggest.md)"
             )
+        smooth_at[cn.vertex] = sum(G.chains[k].padded for k in cn.chains)
+        if smooth_at[cn.vertex] == 2:
+            raise NetworkError(
+                f"no network suggested: at the surface point {_fmt(S.V[cn.vertex])} two smooth chart boundaries meet "
+                "a sharp crease (a crease running out into a fillet), a corner the padded polycube does not handle "
+                "(its node would need an edge of valence 2); draw the network near it by hand (docs/suggest.md)"
+            )
+        for k in cn.chains:
+            off = [c for c in cn.charts if c not in G.chains[k].charts]
+            third[(k, cn.vertex)] = int(G.chart_label[off[0]]) if off else -1
     return _Plan(smooth_at, third)
 
 
@@ -128,7 +133,7 @@ def chart_depths(S: TriSurface, G: ChartGraph, plan, delta: float) -> np.ndarray
     cons = []
     for _k, ch in enumerate(G.chains):
         a, b = int(ch.vertices[0]), int(ch.vertices[-1])
-        if ch.sharp or plan.smooth_at.get(a) != 3 or plan.smooth_at.get(b) != 3:
+        if not ch.padded or plan.smooth_at.get(a) != 3 or plan.smooth_at.get(b) != 3:
             continue
         ends = []
         for v in (a, b):
@@ -188,7 +193,7 @@ def _geometry(S, R, G, plan, dc):
             nodes[cn.vertex] = S.V[cn.vertex] + _inward(R, G, cn.charts, dc)
     polys = []
     for k, ch in enumerate(G.chains):
-        if ch.sharp:
+        if not ch.padded:
             continue
         P = S.V[ch.vertices] + _inward(R, G, ch.charts, dc)
         delta = float(dc[list(ch.charts)].min())
@@ -240,7 +245,7 @@ def padding_network(S: TriSurface, R: np.ndarray, G: ChartGraph, depth: float | 
     between the ends of the smooth chart boundaries, lowered until every
     curve point is at least 0.7 depth from the surface)."""
     plan = _plan(S, G)
-    smooth = [ch for ch in G.chains if not ch.sharp]
+    smooth = [ch for ch in G.chains if ch.padded]
     notes = []
     if not smooth:
         return [], [], 0.0, ["every chart boundary lies on a sharp crease: no padding curve"]

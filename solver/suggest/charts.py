@@ -22,6 +22,7 @@ class Chain:
     vertices: np.ndarray  # surface vertex ids, first and last are corners
     sharp: bool = False  # lies on the input's sharp creases
     convex: bool = True  # the polycube edge is convex (the solid turns away)
+    padded: bool = False  # a padding curve runs under it (build.py)
 
 
 @dataclass
@@ -53,35 +54,16 @@ def _where(S: TriSurface, faces) -> str:
     return _fmt(C[np.argmin(np.linalg.norm(C - C.mean(axis=0), axis=1))])
 
 
-def _check_charts(S: TriSurface, chart: np.ndarray, chart_label: np.ndarray) -> None:
-    """Each chart must be a disk: one boundary loop, Euler characteristic 1."""
-    n = len(chart_label)
-    nf = np.bincount(chart, minlength=n)
-    fe = S.face_edges
-    ne = np.array([len(np.unique(fe[chart == c])) for c in range(n)])
-    nv = np.array([len(np.unique(S.F[chart == c])) for c in range(n)])
-    chi = nv - ne + nf
-    bad = np.nonzero(chi != 1)[0]
-    if len(bad):
-        c = int(bad[0])
-        raise NetworkError(
-            f"no network suggested: the {LABEL_NAMES[chart_label[c]]} chart near "
-            f"{_where(S, np.nonzero(chart == c)[0])} "
-            f"is not a disk (Euler characteristic {chi[c]}, a disk has 1), so it is no face of a polycube; this "
-            "happens around handles and through-holes (the polycube route covers solids without them so far). "
-            "Draw the network by hand (docs/suggest.md)"
-        )
-
-
 def chart_graph(S: TriSurface, labels: np.ndarray, sharp: np.ndarray, R: np.ndarray) -> ChartGraph:
     """Charts, chains and corners of the labelling, refused (NetworkError,
-    naming where) when it is no polycube: a chart that is not a disk, a
-    vertex where four or more charts meet, opposite labels side by side, a
+    naming where) when it is no polycube: a vertex where four or more
+    charts meet, opposite labels side by side, a
     chart boundary with no corner."""
     n, chart = charts_of(S, labels)
     chart_label = np.zeros(n, int)
     chart_label[chart] = labels
-    _check_charts(S, chart, chart_label)
+    # a chart need not be a disk: the top of a square ring is an annulus; the
+    # network is judged by check_input (Poincare-Hopf per patch) instead
     ef = S.edge_faces
     ca, cb = chart[ef[:, 0]], chart[ef[:, 1]]
     bnd = np.nonzero(ca != cb)[0]
