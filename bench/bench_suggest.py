@@ -4,6 +4,7 @@ solve -> hex mesh with default options, each run in a fresh process.
     ./dev.sh python bench/bench_suggest.py                    # every solid: a line per run
     ./dev.sh python bench/bench_suggest.py --solids sphere box_2x1x1
     ./dev.sh python bench/bench_suggest.py --write            # also bench/suggest.json
+    ./dev.sh python bench/bench_suggest.py --known --write    # the hand-made networks of the same solids
 
 The solids are generated here (no data): spheres and ellipsoids, smooth
 random radial blobs, rounded boxes, boxes and voxel L-, T- and U-parts,
@@ -179,15 +180,31 @@ def bars(row: dict) -> list:
     return miss
 
 
-def run_one(name: str) -> dict:
+KNOWN = {"ball_example": "ball", "cylinder": "cylinder", "plate_example": "plate"}
+
+
+def _hand(name: str):
+    """The hand-made network of a solid that has one (the examples'), as
+    (network, a report-like object)."""
+    from types import SimpleNamespace
+
+    from solver.examples import load_example
+
+    net = load_example(KNOWN[name])[2]
+    curves = [SimpleNamespace(sigma=c.sigma, kind="hand") for c in net.curves]
+    return net, SimpleNamespace(curves=curves, nodes=-1, charts=0, sharp_boundaries=0, chart_boundaries=0,
+                                depth=0.0, feature_size=0.0, target_tets=None)
+
+
+def run_one(name: str, hand: bool = False) -> dict:
     from solver import HexMeshError, SymFramesError, hexmesh, solve
     from solver.suggest import suggest_network
 
     V, F = solids()[name]()
-    row = dict(solid=name, triangles=int(len(F)))
+    row = dict(solid=name + (" (hand-made network)" if hand else ""), triangles=int(len(F)))
     t0 = time.perf_counter()
     try:
-        net, rep = suggest_network(V, F)
+        net, rep = _hand(name) if hand else suggest_network(V, F)
     except SymFramesError as e:
         row.update(error=str(e), error_kind=type(e).__name__, stage="suggest",
                    total_s=round(time.perf_counter() - t0, 1))
@@ -227,15 +244,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--solids", nargs="+", default=None)
     ap.add_argument("--write", action="store_true", help="write the rows to bench/suggest.json")
+    ap.add_argument("--known", action="store_true", help="the solids with a hand-made network (ball, cylinder, "
+                    "plate), solved and meshed with it, for comparison (bench/suggest_known.json with --write)")
     ap.add_argument("--one", help=argparse.SUPPRESS)
+    ap.add_argument("--hand", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.one:
-        print(json.dumps(run_one(a.one)))
+        print(json.dumps(run_one(a.one, a.hand)))
         return
     rows = []
-    for name in a.solids or list(solids()):
+    for name in a.solids or (list(KNOWN) if a.known else list(solids())):
         t = time.perf_counter()
-        p = subprocess.run([sys.executable, __file__, "--one", name], capture_output=True, text=True, cwd=ROOT)
+        p = subprocess.run([sys.executable, __file__, "--one", name] + (["--hand"] if a.known else []),
+                           capture_output=True, text=True, cwd=ROOT)
         if p.returncode:
             lines = p.stderr.strip().splitlines() or ["?"]
             row = dict(solid=name, error=lines[-1], error_kind="crash", total_s=round(time.perf_counter() - t, 1))
@@ -248,7 +269,7 @@ def main() -> None:
     refused = sum(1 for r in rows if r.get("stage") == "suggest")
     print(f"met every bar: {met} of {len(rows)}; refused with a reason at the suggestion: {refused}")
     if a.write:
-        with open(os.path.join(ROOT, "bench", "suggest.json"), "w") as fh:
+        with open(os.path.join(ROOT, "bench", "suggest_known.json" if a.known else "suggest.json"), "w") as fh:
             json.dump(rows, fh, indent=1)
 
 

@@ -81,9 +81,40 @@ def test_cylinder_gets_the_o_grid():
     check_input(V, F, net)
 
 
+def test_torus_gets_a_square_ring():
+    """A torus is labelled as a square ring: 10 charts (the top and bottom
+    ones annuli), 16 corners, each a node with a radial curve: +1/4 at the
+    8 outer corners, -1/4 at the 8 inner ones (one chart turns by 270
+    degrees there), so that the ends add up to the torus' Euler
+    characteristic 0; the hole's 4 vertical boundaries are concave."""
+    V, F = torus_surface(1.0, 0.45, 40, 14)
+    net, rep = suggest_network(V, F)
+    assert rep.charts == 10 and rep.corners == 16 and rep.nodes == 16
+    radial = [c for c in rep.curves if c.kind == "radial"]
+    assert sorted(c.sigma for c in radial) == [-0.25] * 8 + [0.25] * 8
+    assert sum(c.sigma for c in radial) == 0
+    minus = [c for c in rep.curves if c.kind == "padding" and c.sigma < 0]
+    assert len(minus) == 4
+    for c in net.curves:
+        if c.name in {m.name for m in minus}:
+            # under the hole's wall, running up and down the axis
+            assert np.ptp(c.points[:, 2]) > 3 * np.ptp(np.linalg.norm(c.points[:, :2], axis=1))
+
+
+def _top_fillets(r=0.4):
+    V, F = box(n=20)
+    c = 1.0 - r
+    q = np.c_[np.clip(V[:, 0], -c, c), np.clip(V[:, 1], -c, c), np.full(len(V), c)]
+    d = V - q
+    n = np.linalg.norm(d, axis=1)
+    m = (V[:, 2] > c) & (n > 1e-12)
+    V[m] = q[m] + r * d[m] / n[m, None]
+    return V, F
+
+
 def test_refusals_name_the_reason_and_the_place():
-    V, F = torus_surface(1.0, 0.4, 32, 12)
-    with pytest.raises(NetworkError, match=r"chart near \(.*\) is not a disk"):
+    V, F = _top_fillets()  # the vertical creases run out into the top fillets
+    with pytest.raises(NetworkError, match=r"at the surface point \(.*\) two smooth chart boundaries meet a sharp"):
         suggest_network(V, F)
     V1, F1 = icosphere(1)
     V2 = np.vstack([V1, 0.3 * V1])  # a ball with a cavity inside

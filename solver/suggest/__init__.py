@@ -128,9 +128,13 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
         Weight of the box projection against the normals in the labels
         (``label_faces``): 0 labels by the normals alone.
     check : bool
-        Run ``check_input`` on the suggestion (with ``target_tets``), so
-        that a network it would refuse is refused here, as the
-        suggestion's failure.
+        Run ``check_input`` on the suggestion, so that a network it would
+        refuse is refused here, as the suggestion's failure (after up to
+        two shallower paddings), and fill in the report's feature size and
+        tet budget.
+    target_tets : int
+        The tet budget the check measures the curves at (the solve's
+        default).
 
     Returns
     -------
