@@ -367,6 +367,10 @@ def main(argv: list[str] | None = None) -> int:
 
             hex_status = _hex(args, HexInput.from_result(result), progress)
             status = max(status, hex_status)
+            if hex_status and (args.network or "").lower().endswith(".obj") and args.surface is None:
+                print("the network was suggested (docs/suggest.md): write it with --suggest-network FILE.json, edit "
+                      "the curves or nodes named above (move them inward, lengthen short ones, or remove a radial "
+                      "pair) and solve that file", file=sys.stderr)
         return status
     except (SymFramesError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -138,3 +138,16 @@ def test_cli_writes_the_suggestion_and_refuses_it_with_a_network(tmp_path, capsy
     assert "bare SURFACE.obj" in capsys.readouterr().err
     with open(out) as fh:
         assert json.load(fh)["surface"] == os.path.join("..", "s.obj")
+
+
+def test_cli_meshes_a_bare_surface(tmp_path, capsys):
+    """`python -m solver SURFACE.obj --hex out.vtu` with no network: the
+    suggestion (the cylinder's O-grid) is solved and meshed."""
+    V, F = cylinder_surface(1.0, 2.0)
+    obj = os.path.join(tmp_path, "c.obj")
+    write_obj(obj, V, F)
+    vtu = os.path.join(tmp_path, "c.vtu")
+    assert main([obj, "--hex", vtu, "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "suggested network (padded polycube): 4 curves" in out and "hex mesh: valid" in out
+    assert os.path.getsize(vtu) > 0 and os.path.exists(os.path.join(tmp_path, "c.npz"))
