@@ -240,17 +240,46 @@ def run_one(name: str, hand: bool = False) -> dict:
     return row
 
 
+def table(rows: list) -> str:
+    """The rows as a markdown table for bench/RESULTS.md."""
+    out = ["| solid | tris | curves (+1/4 / -1/4) | nodes | charts (sharp boundaries) | budget | field | tets | hexes "
+           "| SJ min / mean | s: suggest / field / hex / total | verdict |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r.get("stage") == "suggest":
+            out.append(f"| {r['solid']} | {r['triangles']} | refused: {r['error'][:150]} | | | | | | | | "
+                       f"{r['total_s']} | refused |")
+            continue
+        curves = f"{r['curves']} ({r['plus']} / {r['minus']})"
+        field = r.get("status", r.get("error_kind", ""))
+        q = f"{r['sj_min']} / {r['sj_mean']}" if "sj_min" in r else ""
+        secs = f"{r.get('suggest_s', '')} / {r.get('field_s', '')} / {r.get('hex_s', '')} / {r.get('total_s', '')}"
+        verdict = "met" if not r["missed"] else "; ".join(m[:90] for m in r["missed"])
+        nodes = r["nodes"] if r["nodes"] >= 0 else ""
+        charts = f"{r['charts']} ({r['sharp_boundaries']}/{r['boundaries']})" if r["charts"] else ""
+        out.append(f"| {r['solid']} | {r['triangles']} | {curves} | {nodes} | {charts} | {r.get('target_tets') or ''} "
+                   f"| {field} | {r.get('tets', '')} | {r.get('hexes', '')} | {q} | {secs} | {verdict} |")
+    return "\n".join(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--solids", nargs="+", default=None)
     ap.add_argument("--write", action="store_true", help="write the rows to bench/suggest.json")
     ap.add_argument("--known", action="store_true", help="the solids with a hand-made network (ball, cylinder, "
                     "plate), solved and meshed with it, for comparison (bench/suggest_known.json with --write)")
+    ap.add_argument("--table", action="store_true", help="print bench/suggest.json and suggest_known.json as "
+                    "markdown tables and exit")
     ap.add_argument("--one", help=argparse.SUPPRESS)
     ap.add_argument("--hand", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.one:
         print(json.dumps(run_one(a.one, a.hand)))
+        return
+    if a.table:
+        for name in ("suggest.json", "suggest_known.json"):
+            with open(os.path.join(ROOT, "bench", name)) as fh:
+                print(table(json.load(fh)) + "\n")
         return
     rows = []
     for name in a.solids or (list(KNOWN) if a.known else list(solids())):

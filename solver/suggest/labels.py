@@ -91,7 +91,31 @@ def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: floa
     for _ in range(k):
         s = 0.5 * s + 0.5 * (P @ s)
     s = np.where(deg[:, None] > 0, s, score)
-    return np.argmax(s + 1e-9 * score, axis=1)
+    labels = np.argmax(s + 1e-9 * score, axis=1)
+    return _flat_patches_whole(S, sharp, labels, np.maximum(np.c_[D[:, 0], -D[:, 0], D[:, 1], -D[:, 1], D[:, 2],
+                                                                     -D[:, 2]], 0.0))
+
+
+def _flat_patches_whole(S: TriSurface, sharp: np.ndarray, labels: np.ndarray, normal_score: np.ndarray,
+                        flat_deg: float = 5.0) -> np.ndarray:
+    """One label per flat patch (faces between sharp edges whose normals
+    stay within flat_deg of their mean): the one its normal scores best,
+    so that no chart boundary crosses a flat face (a padding curve under a
+    flat face would make the field turn where nothing turns)."""
+    n, comp = connected_components(face_adjacency(S, ~sharp), directed=False)
+    A = S.face_areas
+    N = np.zeros((n, 3))
+    np.add.at(N, comp, S.face_normals * A[:, None])
+    N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+    dev = np.zeros(n)
+    np.maximum.at(dev, comp, 1.0 - np.einsum("ij,ij->i", S.face_normals, N[comp]))
+    flat = dev < 1.0 - np.cos(np.radians(flat_deg))
+    best = np.zeros((n, 6))
+    np.add.at(best, comp, normal_score * A[:, None])
+    out = labels.copy()
+    m = flat[comp]
+    out[m] = np.argmax(best, axis=1)[comp[m]]
+    return out
 
 
 def charts_of(S: TriSurface, labels: np.ndarray) -> tuple[int, np.ndarray]:
