@@ -156,10 +156,11 @@ def _offsets_ok(S: TriSurface, G: ChartGraph, polys: list, nodes: dict, dc: np.n
     """Every padding point inside the solid, at least 0.7 delta from the
     surface (but near an end that runs on to the surface) and from the
     other padding curves (but near a shared node)."""
-    keep, owner = [], []
+    keep, owner, own_depth = [], [], []
     delta = float(dc.min())
     for i, (k, P) in enumerate(polys):
         ch = G.chains[k]
+        own_depth.append(float(dc[list(ch.charts)].min()))
         m = np.ones(len(P), bool)
         for v in (int(ch.vertices[0]), int(ch.vertices[-1])):
             if v not in nodes:
@@ -175,8 +176,10 @@ def _offsets_ok(S: TriSurface, G: ChartGraph, polys: list, nodes: dict, dc: np.n
     Y = np.vstack(keep) if keep else np.zeros((0, 3))
     if len(Y) < 2:
         return True
-    i, j = cKDTree(Y).query_pairs(0.7 * delta, output_type="ndarray").T
-    other = own[i] != own[j]
+    depth = np.array(own_depth)[own]
+    i, j = cKDTree(Y).query_pairs(0.7 * float(depth.max()), output_type="ndarray").T
+    # two curves closer than 0.7 times the shallower one's depth
+    other = (own[i] != own[j]) & (np.linalg.norm(Y[i] - Y[j], axis=1) < 0.7 * np.minimum(depth[i], depth[j]))
     if nodes and np.any(other):
         N = np.array(list(nodes.values()))
         near = cKDTree(N).query(Y[i[other]])[0] < 1.5 * delta

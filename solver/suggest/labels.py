@@ -80,7 +80,10 @@ def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: floa
         lo, hi = X.min(axis=0), X.max(axis=0)
         Y = (X - 0.5 * (lo + hi)) / np.maximum(0.5 * (hi - lo), 1e-300)
         Y /= np.maximum(np.linalg.norm(Y, axis=1, keepdims=True), 1e-300)
-        score = score + position * np.maximum(np.c_[Y[:, 0], -Y[:, 0], Y[:, 1], -Y[:, 1], Y[:, 2], -Y[:, 2]], 0.0)
+        # only where the face looks away from the centre (not in a hole or
+        # a dent, where the direction from the centre is no guide)
+        w = position * np.maximum(np.einsum("ij,ij->i", Y, D), 0.0)[:, None]
+        score = score + w * np.maximum(np.c_[Y[:, 0], -Y[:, 0], Y[:, 1], -Y[:, 1], Y[:, 2], -Y[:, 2]], 0.0)
     W = face_adjacency(S, ~sharp)
     deg = np.asarray(W.sum(axis=1)).ravel()
     P = sp.diags(1.0 / np.maximum(deg, 1e-300)) @ W
