@@ -177,6 +177,8 @@ def bars(row: dict) -> list:
         miss.append("mean SJ < 0.90")
     if row["hex_status"] != "valid":
         miss.append("hex " + row["hex_status"])
+    if row["total_s"] > 180:
+        miss.append("over 180 s")
     return miss
 
 
@@ -246,6 +248,11 @@ def table(rows: list) -> str:
            "| SJ min / mean | s: suggest / field / hex / total | verdict |",
            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
+        if "curves" not in r:
+            out.append(f"| {r['solid']} | | {r['error_kind']}: {r['error'][:150]} | | | | | | | | {r['total_s']} | "
+                       f"{r['error_kind']} |")
+            continue
+        r["missed"] = bars(r) if "error" not in r or r.get("stage") != "suggest" else r["missed"]
         if r.get("stage") == "suggest":
             out.append(f"| {r['solid']} | {r['triangles']} | refused: {r['error'][:150]} | | | | | | | | "
                        f"{r['total_s']} | refused |")
