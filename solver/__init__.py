@@ -26,6 +26,8 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
   solved field (``HexMesh``, its ``HexReport``); ``HexInput`` is what it
   needs of the field (``HexInput.from_result``; ``hex_source_arrays`` /
   ``input_from_arrays`` keep it beside a stored field); ``default_cell_size``.
+* No network yet (docs/suggest.md): ``suggest_network`` suggests one for a
+  closed surface (a padded polycube), with its ``SuggestReport``.
 * Errors: ``SymFramesError`` and its subclasses (``HexMeshError`` when no
   valid hex mesh exists at the settings, ``OutputError`` when a file
   cannot be written, ``ReadError`` when a stored result or interchange file
@@ -67,6 +69,7 @@ from .network.network import Curve, Network, Role, Torsion
 from .pipeline import FieldProblem, Options, Result, solve, solve_resolved
 from .precheck import CheckResult, check
 from .report import Report
+from .suggest import SuggestReport, suggest_network
 
 __all__ = [
     "Cancelled",
@@ -87,6 +90,7 @@ __all__ = [
     "ReadError",
     "Report",
     "Result",
+    "SuggestReport",
     "Role",
     "SingularFaces",
     "SurfaceError",
@@ -105,6 +109,7 @@ __all__ = [
     "singular_faces",
     "solve",
     "solve_resolved",
+    "suggest_network",
     "trace_streamlines",
     "vertex_normal_adaptation",
 ]

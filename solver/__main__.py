@@ -10,6 +10,8 @@ solver/io/formats.py), solves, prints the report and writes the result (.npz).
     python -m solver --tet-network field.ovm --tag-convention valence  # a tagged tet mesh's network
     python -m solver part.json --hex part.vtu --cell-size 0.1   # solve, then a hex mesh (docs/hexmesh.md)
     python -m solver --from-result part.npz --hex part.mesh     # a hex mesh of a stored field, no solve
+    python -m solver part.obj --suggest-network part.json      # a network for a bare surface (docs/suggest.md)
+    python -m solver part.obj --hex part.vtu                    # no network: suggest one, solve, mesh
 
 Exit status: 0 solved and converged (and with --hex: a valid hex mesh
 written); 1 bad input or settings (nothing written; this includes a mesh
@@ -50,6 +52,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("network", nargs="?", help="network JSON file (may name its surface)")
     p.add_argument("surface", nargs="?", help="surface OBJ file (default: the one the JSON names)")
     p.add_argument("--example", choices=sorted(EXAMPLES), help="solve a built-in example instead")
+    p.add_argument("--suggest-network", metavar="FILE.json", help="with a bare SURFACE.obj (no network): write the "
+                   "suggested network there (docs/suggest.md) and exit unless --hex or --export asks for more; a "
+                   "bare SURFACE.obj without it has its network suggested and solved")
     p.add_argument("--export-example", nargs=2, metavar=("NAME", "DIR"),
                    help="write a built-in example as NAME.obj + NAME.json into DIR and exit")
     p.add_argument("--tet-network", metavar="FILE", help="read the domain and network from a tet mesh whose edges "
@@ -159,6 +164,7 @@ def _outputs(args, out: str | None) -> list:
         outs.append(("--export", path))
         if os.path.splitext(path)[1].lower() == ".mesh":
             outs += [(f"--export {path} writes", os.path.splitext(path)[0] + s) for s in MEDIT_SIDE_FILES]
+    outs += [("--suggest-network", args.suggest_network)] if args.suggest_network else []
     return outs + [("--hex", p) for p in args.hex]
 
 
@@ -271,6 +277,28 @@ _SOLVE_FLAGS = ("edge_length", "target_tets", "tets_ceiling", "grading", "max_te
 """Command-line settings of a solve (and of its input), which --from-result has no use for."""
 
 
+def _suggested(args):
+    """A bare surface: its suggested network (solver/suggest), written with
+    --suggest-network, and the options it asks for; (V, F, None, {}) when
+    writing it is all that was asked."""
+    from .suggest import suggest_network
+
+    if args.suggest_network:
+        check_output_path(args.suggest_network, "--suggest-network", (".json",))
+    V, F = io.read_obj(args.network)
+    net, rep = suggest_network(V, F)
+    print(rep.summary())
+    opts = {"target_tets": rep.target_tets} if rep.target_tets else {}
+    if args.suggest_network:
+        rel = os.path.relpath(os.path.abspath(args.network), os.path.dirname(os.path.abspath(args.suggest_network)))
+        io.write_network(args.suggest_network, net, surface=rel, options=opts or None)
+        print(f"wrote {args.suggest_network}")
+        if not args.hex and not args.export:
+            return V, F, None, {}
+    # the budget the network asks for, unless the resolution is given
+    return V, F, net, opts if args.target_tets is None and args.edge_length is None else {}
+
+
 def _progress(quiet: bool):
     if quiet:
         return None
@@ -361,6 +389,13 @@ def _load(args):
         imp = import_tet_network(args.tet_network, args.tag_convention, args.tag_property, args.sharp_angle)
         print(f"{args.tet_network}: {imp.describe()}")
         return imp.V, imp.F, imp.network, {}, out
+    if args.network.lower().endswith(".obj") and args.surface is None:
+        # a bare surface: its network is suggested (None: only written)
+        _check_overwrites(args, out, [("surface", args.network)])
+        V, F, net, file_opts = _suggested(args)
+        return V, F, net, file_opts, out
+    if args.suggest_network:
+        raise OptionsError("--suggest-network takes a bare SURFACE.obj, with no network file")
     net, file_opts, surface = io.read_network(args.network)
     surface = args.surface or surface
     if surface is None:
@@ -434,6 +469,8 @@ def main(argv: list[str] | None = None) -> int:
             print("error: give a network file or --example NAME", file=sys.stderr)
             return 2
         V, F, net, file_opts, out = loaded
+        if net is None:  # --suggest-network alone: written
+            return 0
         opts = _options(args, file_opts)
         # what can only fail at the end is checked before any work
         if args.root is not None and args.root < 0:
@@ -479,6 +516,10 @@ def main(argv: list[str] | None = None) -> int:
 
             hex_status = _hex(args, HexInput.from_result(result), progress)
             status = max(status, hex_status)
+            if hex_status and (args.network or "").lower().endswith(".obj") and args.surface is None:
+                print("the network was suggested (docs/suggest.md): write it with --suggest-network FILE.json, edit "
+                      "the curves or nodes named above (move them inward, lengthen short ones, or remove a radial "
+                      "pair) and solve that file", file=sys.stderr)
         return status
     except (SymFramesError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -61,6 +61,21 @@ def _material(name: str, colour, alpha: float = 1.0):
     return mat
 
 
+def add_network_curves(network, net, diag: float) -> None:
+    """The network's curves as curve objects in the collection, with their
+    index, role and torsion (editable as any drawn curve)."""
+    curve_mat = _material("SymFrames Network Curve", CURVE_COLOUR) if net.curves else None
+    for k, c in enumerate(net.curves):
+        cname = c.name or f"curve {k}"
+        cu = curve_from_points(cname, c.points, c.closed, bevel=0.006 * diag)
+        cu.materials.append(curve_mat)
+        obj = bpy.data.objects.new(cname, cu)
+        obj.symframes.index = int(round(4 * c.sigma))
+        obj.symframes.role = c.role.value
+        obj.symframes.torsion = c.torsion.value
+        network.objects.link(obj)
+
+
 def add_domain_and_network(scene, title: str, V: np.ndarray, F: np.ndarray, net, group: str | None = None) -> tuple:
     """A domain mesh object ``title`` and a network collection of curve
     objects (with their index, role and torsion) in a new collection
@@ -78,16 +93,7 @@ def add_domain_and_network(scene, title: str, V: np.ndarray, F: np.ndarray, net,
         _mark_sharp(domain.data, np.asarray(net.sharp_edges, np.int64))
     network = bpy.data.collections.new(f"{title} Network")
     root.children.link(network)
-    curve_mat = _material("SymFrames Network Curve", CURVE_COLOUR) if net.curves else None
-    for k, c in enumerate(net.curves):
-        cname = c.name or f"curve {k}"
-        cu = curve_from_points(cname, c.points, c.closed, bevel=0.006 * diag)
-        cu.materials.append(curve_mat)
-        obj = bpy.data.objects.new(cname, cu)
-        obj.symframes.index = int(round(4 * c.sigma))
-        obj.symframes.role = c.role.value
-        obj.symframes.torsion = c.torsion.value
-        network.objects.link(obj)
+    add_network_curves(network, net, diag)
     s = scene.symframes
     s.domain = domain
     s.network = network

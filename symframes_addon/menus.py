@@ -17,6 +17,7 @@ from ..solver.examples import EXAMPLES
 
 # (operator bl_idname, icon), in menu order, shown under their bl_label; None: a separator
 OBJECT_ENTRIES = (
+    ("symframes.suggest_network", "CURVE_DATA"),
     ("symframes.check_network", "CHECKMARK"),
     ("symframes.compute", "PLAY"),
     None,

@@ -158,6 +158,40 @@ class SYMFRAMES_OT_check_network(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SYMFRAMES_OT_suggest_network(bpy.types.Operator):
+    """Suggest a singularity network for the domain (a padded polycube, docs/suggest.md), written as editable
+    curves into a new network collection"""
+
+    bl_idname = "symframes.suggest_network"
+    bl_label = "Suggest Network"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        from ..solver import suggest_network
+
+        s = context.scene.symframes
+        try:
+            V, F, _ = scene_io.read_domain(s.domain, context.evaluated_depsgraph_get())
+            net, rep = suggest_network(V, F, sharp_angle=float(np.degrees(s.sharp_angle)))
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, f"SymFrames: no network suggested; the scene is unchanged: {error_text(e)}")
+            return {"CANCELLED"}
+        print(rep.summary())
+        if net.sharp_edges is not None:  # noise left smooth: marks would have to be written on the domain
+            self.report({"WARNING"}, "SymFrames: the domain's sharp creases were chosen edge by edge (noise "
+                                     "left smooth); the network is solved with the Sharp Angle instead")
+        network = bpy.data.collections.new(f"{s.domain.name} Suggested Network")
+        context.scene.collection.children.link(network)
+        examples.add_network_curves(network, net, float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))))
+        s.network = network
+        s.use_sharp_angle = True
+        if rep.target_tets:
+            s.target_tets = max(int(s.target_tets), int(rep.target_tets))
+        self.report({"INFO"}, f"SymFrames: suggested {len(net.curves)} curve(s), {rep.nodes} node(s) in "
+                              f"'{network.name}'; edit them, then Compute Field")
+        return {"FINISHED"}
+
+
 class _Threaded:
     """An operator whose work is a job.Job: in a worker thread polled by a
     modal timer when invoked from the UI (progress in the status bar and the
@@ -591,6 +625,7 @@ class SYMFRAMES_OT_apply_hex_preset(bpy.types.Operator):
 
 CLASSES = (
     SYMFRAMES_OT_check_network,
+    SYMFRAMES_OT_suggest_network,
     SYMFRAMES_OT_compute,
     SYMFRAMES_OT_hex_mesh,
     SYMFRAMES_OT_show_glyphs,

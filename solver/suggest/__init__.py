@@ -1,0 +1,233 @@
+"""Suggest a singularity network for a solid that has none (docs/suggest.md).
+
+``suggest_network(V, F)`` labels the boundary as a polycube (+-X, +-Y, +-Z
+per triangle in a frame aligned to the solid), keeps the chart boundaries
+on sharp creases as sharp edges and pads the ones across smooth regions:
+singular curves of index +-1/4 under them, nodes under the corners where
+three of them meet, radial curves from there out to the surface.  It
+returns the network, which ``check_input`` accepts, and a report of what it
+chose; where no network can be suggested it raises ``NetworkError`` saying
+why and where.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..errors import NetworkError, TopologyError
+from ..network.network import Network
+from ..surface.features import sharp_edges_by_angle
+from ..surface.trisurface import validate_surface
+from .build import SuggestedCurve, padding_network
+from .charts import chart_graph
+from .labels import LABEL_NAMES, align_frame, label_faces, merge_small_charts
+
+__all__ = ["SuggestReport", "SuggestedCurve", "suggest_network"]
+
+
+@dataclass
+class SuggestReport:
+    """What ``suggest_network`` chose and why.
+
+    Attributes
+    ----------
+    frame : (3, 3) array
+        Rows: the polycube's X, Y, Z axes in world coordinates.
+    labels : (#F,) int array
+        The polycube label of each input triangle, 0..5 for +X, -X, +Y,
+        -Y, +Z, -Z.
+    charts : int
+        Number of charts (connected regions of one label).
+    chart_boundaries : int
+        Chart boundaries between corners; ``sharp_boundaries`` of them on
+        the input's sharp creases (no curve), the others padded.
+    sharp_boundaries : int
+    corners : int
+        Polycube corners (surface points where three charts meet);
+        ``nodes`` of them have three smooth boundaries and became nodes.
+    nodes : int
+    depth : float
+        The padding depth: how far under the surface the padding curves run.
+    curves : list of SuggestedCurve
+        One per curve of the network, in its order.
+    notes : list of str
+        What was simplified or adjusted (small charts merged, depth lowered).
+    feature_size : float
+        The smallest length the suggested network asks the mesh to
+        resolve (check_input's; 0 when not checked).
+    target_tets : int or None
+        A tet budget whose edge length resolves that length (a third of it
+        or finer, within the default ceiling of 60,000), for the network's
+        solve; None when the default budget does (or not checked).  The
+        command line uses it for a bare surface unless --target-tets or
+        --edge-length is given.
+    seconds : float
+    """
+
+    frame: np.ndarray
+    labels: np.ndarray
+    charts: int = 0
+    chart_boundaries: int = 0
+    sharp_boundaries: int = 0
+    corners: int = 0
+    nodes: int = 0
+    depth: float = 0.0
+    curves: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    feature_size: float = 0.0
+    target_tets: int | None = None
+    seconds: float = 0.0
+
+    def summary(self) -> str:
+        """A few lines for a person: charts, curves by kind and index, notes."""
+        n_pos = sum(1 for c in self.curves if c.sigma > 0)
+        n_neg = sum(1 for c in self.curves if c.sigma < 0)
+        kinds = {}
+        for c in self.curves:
+            kinds[c.kind] = kinds.get(c.kind, 0) + 1
+        lines = [
+            f"suggested network (padded polycube): {len(self.curves)} curves "
+            f"({', '.join(f'{v} {k}' for k, v in sorted(kinds.items())) or 'none'}; {n_pos} of index +1/4, "
+            f"{n_neg} of -1/4), {self.nodes} nodes",
+            f"  polycube: {self.charts} charts, {self.chart_boundaries} chart boundaries ({self.sharp_boundaries} on "
+            f"sharp creases, kept as sharp edges), {self.corners} corners; padding depth {self.depth:.4g}",
+        ]
+        if self.target_tets:
+            lines.append(f"  its shortest feature, {self.feature_size:.3g}, asks for a tet budget of "
+                         f"{self.target_tets:,}")
+        lines += [f"  note: {n}" for n in self.notes]
+        lines.append(f"  {self.seconds:.2f} s")
+        return "\n".join(lines)
+
+
+def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None, smoothing: float | None = None,
+                    check: bool = True, target_tets: int = 15000,
+                    position: float = 0.4) -> tuple[Network, SuggestReport]:
+    """Suggest a singularity network for the closed surface (V, F).
+
+    Parameters
+    ----------
+    V, F : (n, 3) float, (m, 3) int arrays
+        A closed, oriented triangle surface (as ``solve`` takes).
+    sharp_angle : float
+        Edges whose faces' normals differ by more than this many degrees
+        are sharp creases; the network carries it as its ``sharp_angle``.
+    depth : float or None
+        How far under the surface the padding curves run (None: about a
+        third of the typical chart boundary's length, lowered where the
+        solid is thin).
+    smoothing : float or None
+        Length over which the labels are made compact (None: 1/10 of the
+        bounding box diagonal).
+    position : float
+        Weight of the box projection against the normals in the labels
+        (``label_faces``): 0 labels by the normals alone.
+    check : bool
+        Run ``check_input`` on the suggestion, so that a network it would
+        refuse is refused here, as the suggestion's failure (after up to
+        two shallower paddings), and fill in the report's feature size and
+        tet budget.
+    target_tets : int
+        The tet budget the check measures the curves at (the solve's
+        default).
+
+    Returns
+    -------
+    (Network, SuggestReport)
+
+    Raises
+    ------
+    NetworkError
+        No network can be suggested: the message says why and where.
+    SurfaceError
+        The surface is not a closed manifold (as ``solve`` would say).
+    """
+    t0 = time.perf_counter()
+    S = validate_surface(V, F)
+    if S.n_components != 1:
+        raise NetworkError(f"no network suggested: the surface has {S.n_components} connected components (a "
+                           "solid with cavities), and the polycube route takes one; draw the network by hand "
+                           "(docs/suggest.md)")
+    notes = []
+    sharp, dropped = sharp_creases(S, sharp_angle)
+    if dropped:
+        notes.append(f"{dropped} sharp edges in short isolated groups (noise, not creases) left smooth")
+    R = align_frame(S)
+    diag = S.bbox_diagonal
+    lab = label_faces(S, R, sharp, 0.1 * diag if smoothing is None else float(smoothing), position)
+    merged = merge_small_charts(S, lab, 2e-3 * S.face_areas.sum())
+    if np.any(merged != lab):
+        notes.append(f"{int(np.sum(merged != lab))} triangles of small or misplaced charts relabelled")
+    G = chart_graph(S, merged, sharp, R)
+    kw = dict(sharp_angle=sharp_angle) if not dropped else dict(sharp_edges=S.edges[sharp])
+    tries = 3 if depth is None and check else 1
+    for attempt in range(tries):
+        curves, info, delta, more = padding_network(S, R, G, depth)
+        net = Network(curves=curves, **kw)
+        rep = SuggestReport(R, merged, G.n_charts, len(G.chains), sum(ch.sharp for ch in G.chains),
+                            len(G.corners), sum(1 for c in info if c.kind == "radial"), delta, info, notes + more)
+        if not check:
+            break
+        from ..network.validation import check_input
+
+        try:
+            ci = check_input(V, F, net, target_tets=target_tets)
+            rep.feature_size = float(ci.feature_size) if np.isfinite(ci.feature_size) else 0.0
+            rep.target_tets = resolving_budget(S, ci.feature_size, target_tets)
+            break
+        except (NetworkError, TopologyError) as e:
+            if attempt + 1 < tries and curves:
+                notes.append(f"padding at depth {delta:.3g} refused by the input check ({str(e)[:160]}...); "
+                             "tried shallower")
+                depth = 0.7 * delta
+                continue
+            raise NetworkError(f"the suggested network is not valid ({e}); this is a limit of the suggestion, not "
+                               "of the input: draw the network by hand (docs/suggest.md)") from None
+    rep.seconds = time.perf_counter() - t0
+    return net, rep
+
+
+def resolving_budget(S, feature_size: float, target_tets: int = 15000, per_feature: float = 3.2,
+                     ceiling: int = 60000) -> int | None:
+    """The tet budget at which the solid's edge length (intake.solid_scale)
+    is feature_size / per_feature, within [target_tets, ceiling]; None when
+    target_tets already gets there.  Edge length goes as budget^(-1/3)."""
+    from ..network.intake import solid_scale
+
+    if not np.isfinite(feature_size) or feature_size <= 0:
+        return None
+    h = solid_scale(S, target_tets)
+    need = target_tets * (per_feature * h / feature_size) ** 3
+    if need <= target_tets:
+        return None
+    return int(min(ceiling, np.ceil(need / 1000.0) * 1000))
+
+
+def sharp_creases(S, sharp_angle: float, min_length: float = 0.05) -> tuple[np.ndarray, int]:
+    """The edges sharper than sharp_angle, less those in connected groups
+    shorter in all than min_length times the bounding box diagonal (noise
+    on a sculpted surface, not creases): (mask, number dropped)."""
+    sharp = sharp_edges_by_angle(S, sharp_angle)
+    if not np.any(sharp):
+        return sharp, 0
+    E = S.edges[sharp]
+    n = len(S.V)
+    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
+    _, comp = connected_components(A, directed=False)
+    length = np.linalg.norm(S.V[E[:, 1]] - S.V[E[:, 0]], axis=1)
+    total = np.bincount(comp[E[:, 0]], length, comp.max() + 1)
+    short = total[comp[E[:, 0]]] < min_length * S.bbox_diagonal
+    idx = np.nonzero(sharp)[0]
+    sharp = sharp.copy()
+    sharp[idx[short]] = False
+    return sharp, int(short.sum())
+
+
+def label_name(label: int) -> str:
+    """'+X', '-X', ... for a label 0..5."""
+    return LABEL_NAMES[int(label)]

@@ -1,0 +1,63 @@
+"""Suggest Network in the add-on: a bare domain gets editable curves, which
+Compute Field and Hex Mesh then use as any drawn network."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+# the add-on is loaded as the package 'symframes' by tests.test_addon, so it comes first
+# isort: off
+from tests import addon_package
+from tests.test_addon import scene, scene_state
+
+from symframes.solver import check  # noqa: E402
+from symframes.solver.examples import icosphere  # noqa: E402
+from symframes.symframes_addon import examples, scene_io  # noqa: E402
+
+# isort: on
+
+registered = addon_package.registered
+empty_scene = addon_package.empty_scene
+
+
+def _bare_ball():
+    V, F = icosphere(3)
+    obj = bpy.data.objects.new("Ball", examples.mesh_from_arrays("Ball", V, F))
+    scene().collection.objects.link(obj)
+    scene().symframes.domain = obj
+    return obj
+
+
+def test_suggest_network_writes_editable_curves_that_solve_and_mesh():
+    _bare_ball()
+    assert bpy.ops.symframes.suggest_network() == {"FINISHED"}
+    s = scene().symframes
+    objs = list(s.network.objects)
+    assert len(objs) == 20 and all(o.type == "CURVE" and o.symframes.index == 1 for o in objs)
+    assert sum(o.name.startswith("radial") for o in objs) == 8
+    inp = scene_io.read_inputs(bpy.context)
+    assert check(inp.V, inp.F, inp.network).nodes == 8
+    assert bpy.ops.symframes.compute() == {"FINISHED"}
+    assert bpy.ops.symframes.hex_mesh() == {"FINISHED"}
+
+
+def test_suggest_network_is_undone_and_a_refusal_changes_nothing():
+    _bare_ball()
+    bpy.ops.ed.undo_push(message="domain added")
+    before = scene_state()
+    assert bpy.ops.symframes.suggest_network("EXEC_DEFAULT", True) == {"FINISHED"}
+    assert scene_state() != before
+    bpy.ops.ed.undo()
+    assert scene_state() == before
+    # a ball with a cavity: refused, nothing written
+    V, F = icosphere(1)
+    me = examples.mesh_from_arrays("Hollow", np.vstack([V, 0.3 * V]), np.vstack([F, F[:, ::-1] + len(V)]))
+    hollow = bpy.data.objects.new("Hollow", me)
+    scene().collection.objects.link(hollow)
+    scene().symframes.domain = hollow
+    state = scene_state()
+    with pytest.raises(RuntimeError, match="connected components"):
+        bpy.ops.symframes.suggest_network()
+    assert scene_state() == state

@@ -1,0 +1,153 @@
+"""suggest_network: a network for a solid that has none (solver/suggest)."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from solver import Network, NetworkError, solve, suggest_network
+from solver.__main__ import main
+from solver.examples import ball_example, box, cylinder_surface, icosphere, torus_surface, voxel_surface
+from solver.io import read_network, write_obj
+from solver.network.validation import check_input
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    V, F = icosphere(3)
+    net, rep = suggest_network(V, F)
+    return V, F, net, rep
+
+
+def _nodes(V, F, net):
+    ci = check_input(V, F, net)
+    return ci, [sorted(ci.network.curves[i].sigma for i, _ in nd.ends) for nd in ci.network.nodes]
+
+
+def test_sphere_gets_the_cube_sphere_network(sphere):
+    """12 curves under the chart boundaries, 8 radial ones, all +1/4, and 8
+    nodes of degree 4 (three padding curves and a radial each): the ball
+    example's structure."""
+    V, F, net, rep = sphere
+    kinds = [c.kind for c in rep.curves]
+    assert kinds.count("padding") == 12 and kinds.count("radial") == 8
+    assert all(c.sigma == 0.25 for c in net.curves)
+    assert rep.charts == 6 and rep.corners == 8 and rep.nodes == 8
+    ci, nodes = _nodes(V, F, net)
+    assert len(nodes) == 8 and all(s == [0.25] * 4 for s in nodes)
+    ref = check_input(*ball_example())
+    assert len(ref.network.curves) == len(ci.network.curves) and len(ref.network.nodes) == len(nodes)
+    # the radial curves end on the sphere, the nodes lie well inside it
+    ends = np.array([c.points[-1] for c, k in zip(net.curves, kinds) if k == "radial"])
+    assert np.allclose(np.linalg.norm(ends, axis=1), 1.0, atol=0.02)
+    pos = np.array([nd.position for nd in ci.network.nodes])
+    assert np.all(np.linalg.norm(pos, axis=1) < 0.8)
+    assert "20 curves" in rep.summary()
+
+
+def test_sphere_suggestion_solves(sphere):
+    V, F, net, _ = sphere
+    r = solve(V, F, net)  # the automatic resolution, graded towards the nodes
+    assert r.report.converged, r.report.status_reason
+
+
+def test_box_and_L_part_need_no_singular_curve():
+    """Every chart boundary of a box or an L-part lies on a sharp crease:
+    they stay sharp edges and no curve is suggested."""
+    occ = np.array([[[1], [0]], [[1], [1]]], bool)
+    for V, F in (box(n=2), voxel_surface(occ, 0.5)):
+        net, rep = suggest_network(V, F)
+        assert net.curves == [] and net.sharp_angle == 30.0
+        assert rep.sharp_boundaries == rep.chart_boundaries > 0
+        check_input(V, F, net)
+
+
+def test_cylinder_gets_the_o_grid():
+    """Four +1/4 curves along the axis under the smooth side's chart
+    boundaries, each running from cap to cap (the cylinder example's
+    O-grid); the rims stay sharp."""
+    V, F = cylinder_surface(1.0, 2.0)
+    net, rep = suggest_network(V, F)
+    assert len(net.curves) == 4 and rep.nodes == 0 and rep.sharp_boundaries == 8
+    for c in net.curves:
+        assert c.sigma == 0.25
+        z = sorted([c.points[0, 2], c.points[-1, 2]])
+        assert np.allclose(z, [-1.0, 1.0], atol=0.02)
+        r = np.linalg.norm(c.points[:, :2], axis=1)
+        assert np.all((r > 0.1) & (r < 0.9))
+    check_input(V, F, net)
+
+
+def test_torus_gets_a_square_ring():
+    """A torus is labelled as a square ring: 10 charts (the top and bottom
+    ones annuli), 16 corners, each a node with a radial curve: +1/4 at the
+    8 outer corners, -1/4 at the 8 inner ones (one chart turns by 270
+    degrees there), so that the ends add up to the torus' Euler
+    characteristic 0; the hole's 4 vertical boundaries are concave."""
+    V, F = torus_surface(1.0, 0.45, 40, 14)
+    net, rep = suggest_network(V, F)
+    assert rep.charts == 10 and rep.corners == 16 and rep.nodes == 16
+    radial = [c for c in rep.curves if c.kind == "radial"]
+    assert sorted(c.sigma for c in radial) == [-0.25] * 8 + [0.25] * 8
+    assert sum(c.sigma for c in radial) == 0
+    minus = [c for c in rep.curves if c.kind == "padding" and c.sigma < 0]
+    assert len(minus) == 4
+    for c in net.curves:
+        if c.name in {m.name for m in minus}:
+            # under the hole's wall, running up and down the axis
+            assert np.ptp(c.points[:, 2]) > 3 * np.ptp(np.linalg.norm(c.points[:, :2], axis=1))
+
+
+def _top_fillets(r=0.4):
+    V, F = box(n=20)
+    c = 1.0 - r
+    q = np.c_[np.clip(V[:, 0], -c, c), np.clip(V[:, 1], -c, c), np.full(len(V), c)]
+    d = V - q
+    n = np.linalg.norm(d, axis=1)
+    m = (V[:, 2] > c) & (n > 1e-12)
+    V[m] = q[m] + r * d[m] / n[m, None]
+    return V, F
+
+
+def test_refusals_name_the_reason_and_the_place():
+    V, F = _top_fillets()  # the vertical creases run out into the top fillets
+    with pytest.raises(NetworkError, match=r"at the surface point \(.*\) two smooth chart boundaries meet a sharp"):
+        suggest_network(V, F)
+    V1, F1 = icosphere(1)
+    V2 = np.vstack([V1, 0.3 * V1])  # a ball with a cavity inside
+    F2 = np.vstack([F1, F1[:, ::-1] + len(V1)])
+    with pytest.raises(NetworkError, match="2 connected components"):
+        suggest_network(V2, F2)
+
+
+def test_cli_writes_the_suggestion_and_refuses_it_with_a_network(tmp_path, capsys):
+    V, F = icosphere(2)
+    obj = os.path.join(tmp_path, "s.obj")
+    out = os.path.join(tmp_path, "net", "s.json")
+    os.makedirs(os.path.dirname(out))
+    write_obj(obj, V, F)
+    assert main([obj, "--suggest-network", out, "-q"]) == 0
+    net, _, surface = read_network(out)
+    assert isinstance(net, Network) and len(net.curves) == 20
+    assert os.path.samefile(surface, obj)
+    assert "suggested network" in capsys.readouterr().out
+    assert main([out, "--suggest-network", os.path.join(tmp_path, "x.json")]) == 1
+    assert "bare SURFACE.obj" in capsys.readouterr().err
+    with open(out) as fh:
+        assert json.load(fh)["surface"] == os.path.join("..", "s.obj")
+
+
+def test_cli_meshes_a_bare_surface(tmp_path, capsys):
+    """`python -m solver SURFACE.obj --hex out.vtu` with no network: the
+    suggestion (the cylinder's O-grid) is solved and meshed."""
+    V, F = cylinder_surface(1.0, 2.0)
+    obj = os.path.join(tmp_path, "c.obj")
+    write_obj(obj, V, F)
+    vtu = os.path.join(tmp_path, "c.vtu")
+    assert main([obj, "--hex", vtu, "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "suggested network (padded polycube): 4 curves" in out and "hex mesh: valid" in out
+    assert os.path.getsize(vtu) > 0 and os.path.exists(os.path.join(tmp_path, "c.npz"))
