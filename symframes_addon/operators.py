@@ -177,14 +177,17 @@ class SYMFRAMES_OT_suggest_network(bpy.types.Operator):
             self.report({"ERROR"}, f"SymFrames: no network suggested; the scene is unchanged: {error_text(e)}")
             return {"CANCELLED"}
         print(rep.summary())
-        if net.sharp_edges is not None:  # noise left smooth: marks would have to be written on the domain
-            self.report({"WARNING"}, "SymFrames: the domain's sharp creases were chosen edge by edge (noise "
-                                     "left smooth); the network is solved with the Sharp Angle instead")
+        if net.sharp_edges is not None:  # no angle keeps just those: marks would have to be written on the domain
+            self.report({"WARNING"}, "SymFrames: the domain's sharp creases were chosen edge by edge (noise or "
+                                     "creases inside a chart left smooth, see the console); the network is solved "
+                                     "with the Sharp Angle instead")
         network = bpy.data.collections.new(f"{s.domain.name} Suggested Network")
         context.scene.collection.children.link(network)
         examples.add_network_curves(network, net, float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))))
         s.network = network
         s.use_sharp_angle = True
+        if net.sharp_angle is not None and not np.isclose(np.degrees(s.sharp_angle), net.sharp_angle):
+            s.sharp_angle = float(np.radians(net.sharp_angle))  # the creases the suggestion keeps, and only those
         if rep.target_tets:
             s.target_tets = max(int(s.target_tets), int(rep.target_tets))
         self.report({"INFO"}, f"SymFrames: suggested {len(net.curves)} curve(s), {rep.nodes} node(s) in "

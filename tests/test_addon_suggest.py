@@ -61,3 +61,20 @@ def test_suggest_network_is_undone_and_a_refusal_changes_nothing():
     with pytest.raises(RuntimeError, match="connected components"):
         bpy.ops.symframes.suggest_network()
     assert scene_state() == state
+
+
+def test_suggest_network_sets_the_angle_that_keeps_its_creases():
+    """The prism's 47-degree wall bend lies inside a chart and is left smooth
+    (docs/suggest.md): the operator sets the Angle to the one that marks
+    exactly the creases kept, 49.5 degrees."""
+    from symframes.solver.examples import prism_example
+
+    V, F, _ = prism_example()
+    obj = bpy.data.objects.new("Prism", examples.mesh_from_arrays("Prism", V, F))
+    scene().collection.objects.link(obj)
+    s = scene().symframes
+    s.domain = obj
+    assert np.isclose(np.degrees(s.sharp_angle), 30.0)
+    assert bpy.ops.symframes.suggest_network() == {"FINISHED"}
+    assert 47.0 < np.degrees(s.sharp_angle) < 52.0 and s.use_sharp_angle
+    assert len(s.network.objects) == 0  # every chart boundary is a crease: no curve

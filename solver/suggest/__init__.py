@@ -163,8 +163,23 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
     merged = merge_small_charts(S, lab, 2e-3 * S.face_areas.sum())
     if np.any(merged != lab):
         notes.append(f"{int(np.sum(merged != lab))} triangles of small or misplaced charts relabelled")
+    inner = in_chart_creases(S, merged, sharp)
+    if np.any(inner):
+        f0, f1 = S.edge_faces[inner].T
+        turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", S.face_normals[f0], S.face_normals[f1]), -1, 1)))
+        notes.append(f"{int(inner.sum())} crease edges inside one chart ({turn.min():.0f}-{turn.max():.0f} degrees) "
+                     "left smooth: the polycube does not turn there, and no cross field is adapted to two normals "
+                     "so far from a multiple of 90 degrees apart; the hex cells will cut the crease")
+        sharp = sharp & ~inner
     G = chart_graph(S, merged, sharp, R)
-    kw = dict(sharp_angle=sharp_angle) if not dropped else dict(sharp_edges=S.edges[sharp])
+    kw = dict(sharp_angle=sharp_angle)
+    if dropped or np.any(inner):
+        kw = dict(sharp_edges=S.edges[sharp])
+        angle = separating_angle(S, sharp)
+        if angle is not None:
+            kw = dict(sharp_angle=angle)
+            notes.append(f"sharp angle {angle:.4g} degrees (not {sharp_angle:.4g}): it keeps exactly the creases "
+                         "kept")
     tries = 3 if depth is None and check else 1
     for attempt in range(tries):
         curves, info, delta, more = padding_network(S, R, G, depth)
@@ -226,6 +241,33 @@ def sharp_creases(S, sharp_angle: float, min_length: float = 0.05) -> tuple[np.n
     sharp = sharp.copy()
     sharp[idx[short]] = False
     return sharp, int(short.sum())
+
+
+def in_chart_creases(S, labels, sharp, tolerance: float = 20.0) -> np.ndarray:
+    """The sharp edges between two faces of one label whose normals turn by
+    more than ``tolerance`` degrees (a crease inside a chart: the 47-degree
+    bend of the prism example's wall).  A cross field adapted to the
+    boundary aligns an axis with the normal on each side of a sharp edge,
+    which two normals that far from parallel (and under 90 degrees apart,
+    as one label implies) do not allow."""
+    f0, f1 = S.edge_faces.T
+    c = np.einsum("ij,ij->i", S.face_normals[f0], S.face_normals[f1])
+    return sharp & (labels[f0] == labels[f1]) & (c < np.cos(np.radians(tolerance)))
+
+
+def separating_angle(S, sharp) -> float | None:
+    """A sharp angle (degrees) that marks exactly the edges of ``sharp``:
+    halfway between the sharpest edge left out and the bluntest one kept,
+    or None when no angle does (an edge left out is sharper than one kept)
+    or none is kept."""
+    turn = np.degrees(S.dihedral_angles)
+    if not np.any(sharp) or np.all(sharp):
+        return None
+    lo, hi = turn[~sharp].max(), turn[sharp].min()
+    if not lo < hi:
+        return None
+    angle = float(0.5 * (lo + hi))
+    return angle if np.array_equal(sharp_edges_by_angle(S, angle), sharp) else None
 
 
 def label_name(label: int) -> str:
