@@ -4,6 +4,7 @@ solve -> hex mesh with default options, each run in a fresh process.
     ./dev.sh python bench/bench_suggest.py                    # every solid: a line per run
     ./dev.sh python bench/bench_suggest.py --solids sphere box_2x1x1
     ./dev.sh python bench/bench_suggest.py --write            # also bench/suggest.json
+    ./dev.sh python bench/bench_suggest.py --solids torus --write   # re-run some: their rows replaced
     ./dev.sh python bench/bench_suggest.py --known --write    # the hand-made networks of the same solids
 
 The solids are generated here (no data): spheres and ellipsoids, smooth
@@ -305,7 +306,13 @@ def main() -> None:
     refused = sum(1 for r in rows if r.get("stage") == "suggest")
     print(f"met every bar: {met} of {len(rows)}; refused with a reason at the suggestion: {refused}")
     if a.write:
-        with open(os.path.join(ROOT, "bench", "suggest_known.json" if a.known else "suggest.json"), "w") as fh:
+        path = os.path.join(ROOT, "bench", "suggest_known.json" if a.known else "suggest.json")
+        if a.solids and os.path.exists(path):  # the solids named replace their rows, the others stay
+            with open(path) as fh:
+                old = json.load(fh)
+            new = {r["solid"]: r for r in rows}
+            rows = [new.pop(r["solid"], r) for r in old] + list(new.values())
+        with open(path, "w") as fh:
             json.dump(rows, fh, indent=1)
 
 

@@ -14,7 +14,8 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
 
 * Solving: ``solve``, ``FieldProblem`` (mesh once, solve repeatedly;
   ``solve_resolved`` solves it, and once more finer where the automatic
-  mesh left the network unresolved),
+  mesh left the network unresolved; ``solve_finer`` solves a field again
+  finer for a hex map that needs it),
   ``Options``, ``Result``, ``Report``; ``check`` runs a solve's validation,
   curve repair and resolution plan without meshing (``CheckResult``).
 * Input: ``Curve``, ``Network``, ``Role``, ``Torsion``.
@@ -66,7 +67,7 @@ from .hexmesh import (
     input_from_arrays,
 )
 from .network.network import Curve, Network, Role, Torsion
-from .pipeline import FieldProblem, Options, Result, solve, solve_resolved
+from .pipeline import FieldProblem, Options, Result, solve, solve_finer, solve_resolved
 from .precheck import CheckResult, check
 from .report import Report
 from .suggest import SuggestReport, suggest_network
@@ -108,6 +109,7 @@ __all__ = [
     "seed_points",
     "singular_faces",
     "solve",
+    "solve_finer",
     "solve_resolved",
     "suggest_network",
     "trace_streamlines",

@@ -201,8 +201,11 @@ _HEX_KIND = {"network": "the network admits none: ", "settings": "not at this ce
 """How a HexMeshError's kind opens its line (errors.HexMeshError)."""
 
 
-def _hex(args, inp, progress) -> int:
-    """Make and write the hex mesh; returns the exit status it implies."""
+def _hex(args, inp, progress, finer=None) -> int:
+    """Make and write the hex mesh; returns the exit status it implies.
+    finer: where the map fails (a limit of SymFrames, such as two nodes
+    closer than the field's mesh resolves), a callable giving the field
+    solved again finer (a HexInput, or None), which is meshed instead."""
     from .errors import HexMeshError
     from .hexmesh import hexmesh
     from .hexmesh.mesher import DEFAULT_HEXES
@@ -219,6 +222,9 @@ def _hex(args, inp, progress) -> int:
         hm = hexmesh(inp, args.cell_size, smooth=not args.no_smooth, progress=progress,
                      target_hexes=args.hex_cells or DEFAULT_HEXES, allow_unconverged=args.mesh_unconverged)
     except HexMeshError as e:
+        again = finer(e) if finer is not None and e.kind == "map" else None
+        if again is not None:
+            return _hex(args, again, progress)
         print(f"error: no hex mesh: {_HEX_KIND.get(e.kind, '')}{e}", file=sys.stderr)
         return EXIT_NO_HEX_MESH
     print(hm.report.summary())
@@ -229,6 +235,27 @@ def _hex(args, inp, progress) -> int:
     if not converged:
         print(f"warning: the hex mesh is of a field that is {inp.status} (--mesh-unconverged)", file=sys.stderr)
     return 0 if hm.report.valid and converged else EXIT_NOT_CONVERGED
+
+
+def _solve_finer(args, result, out: str, error, progress):
+    """For a hex map that failed on this field: the field solved again
+    finer (pipeline.solve_finer), written over ``out`` and the --export
+    files, as a HexInput; None (said why) where it is not solved again or
+    does not converge."""
+    from .hexmesh import HexInput
+    from .pipeline import solve_finer
+
+    print(f"note: no hex mesh on this field ({error}); solving the field again finer", file=sys.stderr)
+    again, what = solve_finer(result, progress=progress)
+    print(f"note: {what}", file=sys.stderr)
+    if again is None or not again.report.converged:
+        return None
+    print(again.report.summary())
+    _save_result(out, again)
+    print(f"wrote {out}")
+    for path in args.export:
+        print("wrote " + ", ".join(io.export_field(again, path)))
+    return HexInput.from_result(again)
 
 
 def _from_result(args) -> int:
@@ -514,7 +541,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.hex:
             from .hexmesh import HexInput
 
-            hex_status = _hex(args, HexInput.from_result(result), progress)
+            def finer(error):
+                return _solve_finer(args, result, out, error, progress)
+
+            hex_status = _hex(args, HexInput.from_result(result), progress, finer=finer)
             status = max(status, hex_status)
             if hex_status and (args.network or "").lower().endswith(".obj") and args.surface is None:
                 print("the network was suggested (docs/suggest.md): write it with --suggest-network FILE.json, edit "

@@ -613,6 +613,62 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
     return best
 
 
+def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | None, str]:
+    """The field of ``result`` solved again on a uniform mesh ``FINER``
+    times its edge length, for a later stage (the hex mesher) that needs a
+    finer field: two nodes closer than its mesh resolves, a curve shorter
+    than two of its tets.  Only where the edge length was automatic and
+    the finer mesh fits the tet limit (Options.max_tets).
+
+    Parameters
+    ----------
+    result : Result
+        The field, as ``solve`` or ``solve_resolved`` returned it.
+    progress : callable, optional
+        ``progress(stage, fraction, message)``.
+    cancel : callable, optional
+        Returning True raises ``Cancelled``.
+
+    Returns
+    -------
+    (Result or None, str)
+        The new field (None when not solved again) and a sentence saying
+        what was done or why not.
+
+    Raises
+    ------
+    OptionsError
+        ``result`` is not a Result.
+    Cancelled
+        When ``cancel()`` returned True.
+    """
+    checks.instance("result", result, Result, OptionsError, "the Result of solve(...)")
+    problem = result.problem
+    opts = problem.options
+    if opts.edge_length is not None:
+        return None, (f"not solved again finer: the edge length {problem.edge_length:.4g} was given; give a "
+                      f"smaller one (e.g. {FINER * problem.edge_length:.3g})")
+    h = FINER * problem.edge_length
+    tets = uniform_tets(solid_volume(problem.checked.surface), h)
+    limit, what = tet_limit(opts.max_tets)
+    if tets > limit:
+        return None, (f"not solved again finer: edge length {h:.4g} would need ~{tets:,.0f} tets, past the "
+                      f"{what} of {limit:,}")
+    if progress is not None:
+        progress("validate", 0.0, f"solving again on a uniform mesh at edge length {h:.4g} (~{tets:,.0f} tets)")
+    try:
+        again = FieldProblem(problem.checked.surface.V, problem.checked.surface.F, problem.given,
+                             Options(**{**asdict(opts), "edge_length": h}), progress=progress,
+                             cancel=cancel)
+    except MeshingError as e:
+        return None, f"not solved again finer at edge length {h:.4g}: {e}"
+    res = again.solve(progress=progress, cancel=cancel)
+    res.report.notes.append(f"solved again on a uniform mesh at edge length {h:.4g} ({again.mesh.n_tets:,} tets), "
+                            f"{FINER} times the {problem.edge_length:.4g} of the first field, for the hex mesh")
+    return res, (f"solved again on a uniform mesh at edge length {h:.4g} ({again.mesh.n_tets:,} tets): "
+                 f"{res.report.status}")
+
+
 def _unresolved(res: Result) -> bool:
     """LM stopped at a structure penalty above the discretisation level."""
     rep = res.report

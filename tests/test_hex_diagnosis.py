@@ -168,3 +168,35 @@ def test_a_radial_curve_inside_its_node_ball_is_put_onto_edges():
             radial += 1
             assert c.vertices[0] in set(cem.node_vertices.tolist()) and on_surface[c.vertices[-1]]
     assert radial == 8
+
+
+def test_a_map_that_needs_a_finer_field_solves_it_again_finer(monkeypatch, tmp_path, capsys):
+    """The command line: where SymFrames' map fails on the field (here its
+    first step, as when two nodes are closer than the field's mesh
+    resolves) and the edge length was automatic, the field is solved again
+    on a uniform mesh 0.7 times as fine, written over the result, and that
+    field is meshed; with an edge length given it says to give a smaller
+    one instead (exit 4)."""
+    from solver.hexmesh.curve_edges import CurveEdgeError
+
+    real, calls = mesher.curves_on_edges, []
+
+    def first_fails(mesh, *a):
+        calls.append(mesh.n_tets)
+        if len(calls) == 1:
+            raise CurveEdgeError("nodes 0 and 1 are too close for the field's mesh (their balls of tets overlap)")
+        return real(mesh, *a)
+
+    monkeypatch.setattr(mesher, "curves_on_edges", first_fails)
+    npz, out = str(tmp_path / "c.npz"), str(tmp_path / "c.vtu")
+    assert main(["--example", "cube", "-o", npz, "--hex", out, "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "solving the field again finer" in err and "solved again on a uniform mesh at edge length" in err
+    assert len(calls) == 2 and calls[1] > 2 * calls[0]  # 0.7 times the edge length: ~2.9 times the tets
+    assert os.path.exists(out) and io.load_hex_input(npz).mesh.n_tets == calls[1]
+    calls.clear()
+    assert main(["--example", "cube", "--edge-length", "0.3", "-o", npz, "--hex", out + ".vtu", "-q"]) == \
+        EXIT_NO_HEX_MESH
+    err = capsys.readouterr().err
+    assert "the edge length 0.3 was given; give a smaller one" in err and "too close" in err
+    assert len(calls) == 1 and not os.path.exists(out + ".vtu")
