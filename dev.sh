@@ -2,7 +2,8 @@
 # SymFrames developer entry point.  Creates .venv with the pinned
 # requirements on first use (Python 3.11), then:
 #   ./dev.sh demo [ARGS]   build the default example, compute it, write out/*.blend and a PNG
-#   ./dev.sh test [ARGS]   lint (ruff), then run the test suite on two processes (pytest ARGS; -n 0: one)
+#   ./dev.sh test [ARGS]   lint (ruff), install CalculiX if missing (apt), then run the test suite on two
+#                          processes (pytest ARGS; -n 0: one)
 #   ./dev.sh lint [ARGS]   ruff check (ARGS e.g. --fix)
 #   ./dev.sh bench [ARGS]  run the benchmarks
 #   ./dev.sh docs [DIR]    build the API reference (docs/api/index.html) from the docstrings
@@ -20,17 +21,27 @@ if [ ! -x "$VENV/bin/python" ] || ! cmp -s "$ROOT/requirements.txt" "$VENV/.requ
     "$VENV/bin/python" -m pip install --quiet -r "$ROOT/requirements.txt"
     cp "$ROOT/requirements.txt" "$VENV/.requirements"
 fi
+ensure_calculix() {  # tests/test_femformats.py runs CalculiX on the .inp files SymFrames writes
+    command -v ccx >/dev/null 2>&1 && return 0
+    local sudo=""
+    [ "$(id -u)" = 0 ] || sudo="sudo"
+    echo "[dev.sh] installing CalculiX (Debian's calculix-ccx) for the simulation-format tests" >&2
+    { $sudo apt-get update -qq && { $sudo apt-get install -y -qq calculix-ccx=2.20-1 \
+        || $sudo apt-get install -y -qq calculix-ccx; }; } >/dev/null \
+        || { echo "[dev.sh] error: could not install calculix-ccx (apt-get install calculix-ccx, as root)" >&2; exit 1; }
+}
 cmd="${1:-help}"
 shift || true
 cd "$ROOT"
 case "$cmd" in
     demo)   exec "$VENV/bin/python" scripts/symframes_run.py "$@" ;;
     test)   "$VENV/bin/ruff" check --quiet "$ROOT"
+            ensure_calculix
             exec "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile "$@" ;;
     lint)   exec "$VENV/bin/ruff" check "$ROOT" "$@" ;;
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
     docs)   exec "$VENV/bin/python" scripts/build_docs.py "$@" ;;
     matrix) exec "$VENV/bin/python" scripts/matrix.py "$@" ;;
     python) exec "$VENV/bin/python" "$@" ;;
-    *) sed -n '2,10p' "$0"; exit 1 ;;
+    *) sed -n '2,11p' "$0"; exit 1 ;;
 esac

@@ -200,7 +200,7 @@ def _hand(name: str):
 
 
 def run_one(name: str, hand: bool = False) -> dict:
-    from solver import HexMeshError, SymFramesError, hexmesh, solve
+    from solver import HexMeshError, SymFramesError, hexmesh, solve, solve_finer
     from solver.suggest import suggest_network
 
     V, F = solids()[name]()
@@ -230,7 +230,18 @@ def run_one(name: str, hand: bool = False) -> dict:
     row.update(status=rep.status, tets=int(rep.sizes.get("tets", 0)), field_s=round(t_f, 1))
     t1 = time.perf_counter()
     try:
-        hm = hexmesh(r)
+        try:
+            hm = hexmesh(r)
+        except HexMeshError as e:
+            if e.kind != "map":
+                raise
+            # as the command line does: the field solved again finer where the map failed on it
+            again, what = solve_finer(r)
+            row.update(finer=what, first_hex_error=str(e)[:300])
+            if again is None or not again.report.converged:
+                raise
+            row.update(tets=int(again.report.sizes.get("tets", 0)))
+            hm = hexmesh(again)
     except HexMeshError as e:
         row.update(hex_error=str(e)[:300], hex_kind=e.kind, hex_s=round(time.perf_counter() - t1, 1),
                    total_s=round(time.perf_counter() - t0, 1))
@@ -278,6 +289,8 @@ def main() -> None:
                     "plate), solved and meshed with it, for comparison (bench/suggest_known.json with --write)")
     ap.add_argument("--table", action="store_true", help="print bench/suggest.json and suggest_known.json as "
                     "markdown tables and exit")
+    ap.add_argument("--timeout", type=float, default=None, help="stop a run after this many seconds and record it "
+                    "as stopped")
     ap.add_argument("--one", help=argparse.SUPPRESS)
     ap.add_argument("--hand", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
@@ -292,8 +305,16 @@ def main() -> None:
     rows = []
     for name in a.solids or (list(KNOWN) if a.known else list(solids())):
         t = time.perf_counter()
-        p = subprocess.run([sys.executable, __file__, "--one", name] + (["--hand"] if a.known else []),
-                           capture_output=True, text=True, cwd=ROOT)
+        try:
+            p = subprocess.run([sys.executable, __file__, "--one", name] + (["--hand"] if a.known else []),
+                               capture_output=True, text=True, cwd=ROOT, timeout=a.timeout)
+        except subprocess.TimeoutExpired:
+            row = dict(solid=name, error=f"stopped after {a.timeout:g} s (--timeout), before the run ended",
+                       error_kind="stopped", total_s=round(time.perf_counter() - t, 1))
+            row["missed"] = bars(row)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+            continue
         if p.returncode:
             lines = p.stderr.strip().splitlines() or ["?"]
             row = dict(solid=name, error=lines[-1], error_kind="crash", total_s=round(time.perf_counter() - t, 1))

@@ -111,6 +111,7 @@ class SYMFRAMES_OT_export_hex_mesh(bpy.types.Operator, ExportHelper):
     """Write the hex mesh for ParaView, a finite-element code or HexEx."""
 
     bl_description = ("Write the last hex mesh: VTU or legacy VTK (with the scaled Jacobian per cell), MEDIT .mesh, "
+                      "Gmsh .msh or Abaqus/CalculiX .inp (with the boundary patches as groups), "
                       "or the integer-grid map it came from (.hexex, for HexEx and libHexHex)")
 
     bl_idname = "symframes.export_hex_mesh"

@@ -535,6 +535,13 @@ def test_export_writes_what_meshio_reads(cyl, tmp_path):
     # the extension follows the format; in this session the integer-grid map is there
     assert bpy.ops.symframes.export_hex_mesh(filepath=str(tmp_path / "cyl.vtu"), file_format="HEXEX") == {"FINISHED"}
     assert (tmp_path / "cyl.hexex").exists()
+    # the simulation formats, with the boundary patches of the hex mesh made in this session
+    # (the cylinder: its side and two caps)
+    assert bpy.ops.symframes.export_hex_mesh(filepath=str(tmp_path / "cyl.inp"), file_format="INP") == {"FINISHED"}
+    inp = (tmp_path / "cyl.inp").read_text()
+    assert inp.count("*ELEMENT, TYPE=C3D8") == 1 and inp.count("*SURFACE, NAME=S_PATCH_") == 3
+    assert bpy.ops.symframes.export_hex_mesh(filepath=str(tmp_path / "cyl.msh"), file_format="MSH") == {"FINISHED"}
+    assert '2 3 "patch_3"' in (tmp_path / "cyl.msh").read_text()
 
 
 def test_reopened_file_exports_vtu_and_refuses_hexex(cyl, tmp_path):

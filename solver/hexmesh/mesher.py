@@ -25,6 +25,7 @@ from ..stages import Stages
 from ..surface.trisurface import TriSurface
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges, split_edges
 from .extract import ExtractionError, extract_hexes, snap
+from .patches import BoundaryPatches, boundary_patches
 from .quality import (
     HEX_EDGES,
     boundary_quads,
@@ -81,6 +82,11 @@ class HexMesh:
     grid_map : tuple or None
         (tet vertices (n, 3), tets (t, 4), parameters (t, 4, 3)): the
         integer-grid map the hexes were extracted from (written as .hexex)
+    patches : patches.BoundaryPatches or None
+        the boundary quads, each with its cell, local face and the input
+        surface's patch (its regions between sharp edges), which the
+        simulation formats write as groups (.msh physical groups, .inp
+        surfaces and sets, MEDIT refs); None where the surface is unknown
     """
 
     vertices: np.ndarray
@@ -90,6 +96,7 @@ class HexMesh:
     irregular_edges: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
     irregular_valence: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     grid_map: tuple | None = None
+    patches: BoundaryPatches | None = None
 
     def boundary_quads(self) -> np.ndarray:
         """The boundary faces.
@@ -666,7 +673,8 @@ def _mesh_at(inp: HexInput, cell: float, smooth: bool, clock: Stages, report: He
     _stage(clock, "quality", _assess, report, inp, V, H, cell)
     e, val = _irregular(H)
     return HexMesh(V, H, scaled_jacobian(V, H), report, e, val,
-                   (cem.mesh.vertices, cem.mesh.tets, snap(gm.corners)))
+                   (cem.mesh.vertices, cem.mesh.tets, snap(gm.corners)),
+                   boundary_patches(inp.surface, inp.sharp, V, H))
 
 
 def _folded(gm) -> int:

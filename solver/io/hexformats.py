@@ -5,7 +5,12 @@
 ``.vtu``    VTK XML UnstructuredGrid of VTK_HEXAHEDRON cells (ParaView,
             meshio) with the scaled Jacobian per cell
 ``.vtk``    the same as legacy ASCII VTK (older tools, Gmsh, HexaLab)
-``.mesh``   MEDIT ``Hexahedra`` (Gmsh, meshio, many FE codes)
+``.mesh``   MEDIT ``Hexahedra`` (Gmsh, meshio, many FE codes), and the
+            boundary ``Quadrilaterals`` with their patch id as ref
+``.msh``    Gmsh MSH 4.1 (ASCII), the boundary patches and the irregular
+            edges as physical groups (femformats.py)
+``.inp``    Abaqus / CalculiX input, C3D8, with a node set, an element set
+            and a surface per boundary patch (femformats.py)
 ``.hexex``  the integer-grid map per tet corner (HexEx / libHexHex / QGP3D
             input): vertex count, ``x y z`` lines, tet count, then per tet
             its four vertex ids (positively oriented) and the 4 x 3
@@ -25,11 +30,13 @@ import numpy as np
 
 from ..errors import OutputError, ReadError
 from .atomic import check_output_path, write_text
+from .femformats import write_hex_inp, write_hex_msh
 from .interchange import _fmt_rows, _vtu_array
 
 _VTK_HEXAHEDRON = 12
 
-HEX_FORMATS = {".vtu": "VTK XML", ".vtk": "legacy VTK", ".mesh": "MEDIT", ".hexex": "HexEx integer-grid map"}
+HEX_FORMATS = {".vtu": "VTK XML", ".vtk": "legacy VTK", ".mesh": "MEDIT", ".msh": "Gmsh MSH 4.1",
+               ".inp": "Abaqus/CalculiX input", ".hexex": "HexEx integer-grid map"}
 
 
 def write_hex_vtu(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None,
@@ -72,15 +79,21 @@ def write_hex_vtk(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data:
     write_text(path, "".join(out))
 
 
-def write_hex_medit(path: str, vertices: np.ndarray, hexes: np.ndarray, refs=None) -> None:
+def write_hex_medit(path: str, vertices: np.ndarray, hexes: np.ndarray, refs=None, quads=None,
+                    quad_refs=None) -> None:
     """MEDIT ASCII mesh with a ``Hexahedra`` section (1-based, VTK's corner
-    order, which MEDIT shares), refs default 0."""
+    order, which MEDIT shares), refs default 0, and where given the boundary
+    ``Quadrilaterals`` (k, 4) with their refs (the patch ids)."""
     V = np.asarray(vertices, float)
     H = np.asarray(hexes, np.int64)
     r = np.zeros(len(H), np.int64) if refs is None else np.asarray(refs, np.int64)
     out = ["MeshVersionFormatted 2\n", "Dimension 3\n", f"Vertices\n{len(V)}\n",
-           _fmt_rows(np.c_[V, np.zeros(len(V))], "%.17g"),
-           f"Hexahedra\n{len(H)}\n", _fmt_rows(np.c_[H + 1, r], "%d"), "End\n"]
+           _fmt_rows(np.c_[V, np.zeros(len(V))], "%.17g")]
+    if quads is not None and len(quads):
+        Q = np.asarray(quads, np.int64)
+        qr = np.zeros(len(Q), np.int64) if quad_refs is None else np.asarray(quad_refs, np.int64)
+        out += [f"Quadrilaterals\n{len(Q)}\n", _fmt_rows(np.c_[Q + 1, qr], "%d")]
+    out += [f"Hexahedra\n{len(H)}\n", _fmt_rows(np.c_[H + 1, r], "%d"), "End\n"]
     write_text(path, "".join(out))
 
 
@@ -151,7 +164,7 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     ----------
     hex_mesh : hexmesh.HexMesh
     path : str
-        ``.vtu``, ``.vtk``, ``.mesh`` or ``.hexex``
+        ``.vtu``, ``.vtk``, ``.mesh``, ``.msh``, ``.inp`` or ``.hexex``
 
     Returns
     -------
@@ -181,7 +194,13 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     elif ext == ".vtk":
         write_hex_vtk(path, V, H, {"scaled_jacobian": sj})
     elif ext == ".mesh":
-        write_hex_medit(path, V, H)
+        P = hex_mesh.patches
+        write_hex_medit(path, V, H, quads=None if P is None else P.quads, quad_refs=None if P is None else P.patch)
+    elif ext == ".msh":
+        write_hex_msh(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges, hex_mesh.irregular_valence)
+    elif ext == ".inp":
+        write_hex_inp(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges,
+                      heading=f"SymFrames hex mesh: {len(H)} C3D8 hexahedra")
     elif ext == ".hexex":
         gm = hex_mesh.grid_map
         if gm is None:

@@ -1,0 +1,121 @@
+"""Hex meshes for simulation codes (issue 51): boundary patches, Gmsh MSH 4.1
+and Abaqus/CalculiX .inp, each read back by its consumer: Gmsh (the gmsh
+package) and CalculiX (Debian's calculix-ccx, which ./dev.sh installs)."""
+
+import os
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from solver import hexmesh
+from solver.io import export_hexmesh
+from solver.io.femformats import write_hex_msh
+
+
+@pytest.fixture(scope="module")
+def plate(solved):
+    """The plate example's hex mesh and its patches' outward normals and
+    areas (per patch id)."""
+    hm = hexmesh(solved("plate"))
+    P, V = hm.patches, hm.vertices
+    Q = V[P.quads]
+    vec = 0.5 * np.cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])  # a bilinear quad's vector area
+    normal = {i: vec[P.patch == i].sum(axis=0) for i in range(1, len(P.names) + 1)}
+    area = {i: np.linalg.norm(vec[P.patch == i], axis=1).sum() for i in normal}
+    return hm, normal, area
+
+
+def test_patches_are_the_surfaces_faces(plate):
+    """Seven patches: the four sides, the hole, the top and the bottom; every
+    boundary quad in one, each patch's quads on one side of the plate."""
+    hm, normal, area = plate
+    P = hm.patches
+    assert len(P.names) == 7 and set(np.unique(P.patch)) == set(range(1, 8))
+    assert len(P.quads) == len(hm.boundary_quads())
+    sides = sorted(i for i in normal if np.linalg.norm(normal[i]) > 0.99 * area[i])  # flat patches
+    assert len(sides) == 6
+    hole = [i for i in normal if i not in sides]
+    assert len(hole) == 1 and np.linalg.norm(normal[hole[0]]) < 0.02 * area[hole[0]]  # a closed wall
+    assert np.isclose(sum(area[i] for i in sides if abs(normal[i][2]) > 0.9), 2 * (4 - np.pi * 0.45**2), rtol=0.02)
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_gmsh_reads_the_msh_with_its_groups(plate, tmp_path, binary):
+    import gmsh
+    hm, _, _ = plate
+    path = str(tmp_path / "plate.msh")
+    if binary:
+        write_hex_msh(path, hm.vertices, hm.hexes, hm.patches, hm.irregular_edges, hm.irregular_valence, binary=True)
+    else:
+        assert export_hexmesh(hm, path) == [path]
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(path)
+        names = {gmsh.model.getPhysicalName(d, t): (d, t) for d, t in gmsh.model.getPhysicalGroups()}
+        assert set(names) == {"volume", "irregular_valence_5"} | {f"patch_{i}" for i in range(1, 8)}
+        counts = {}
+        for name, (d, t) in names.items():
+            n = 0
+            for e in gmsh.model.getEntitiesForPhysicalGroup(d, t):
+                n += sum(len(x) for x in gmsh.model.mesh.getElements(d, e)[1])
+            counts[name] = n
+        assert counts["volume"] == len(hm.hexes)
+        assert counts["irregular_valence_5"] == int(np.sum(hm.irregular_valence == 5)) > 0
+        assert [counts[f"patch_{i}"] for i in range(1, 8)] == np.bincount(hm.patches.patch)[1:].tolist()
+        _, tags, _ = gmsh.model.mesh.getElements(3)
+        q = gmsh.model.mesh.getElementQualities(tags[0], "minSJ")  # Gmsh's own measure: every cell positive
+        assert len(q) == len(hm.hexes) and q.min() > 0.3
+    finally:
+        gmsh.finalize()
+
+
+def test_medit_carries_the_boundary_quads_with_their_patch(plate, tmp_path):
+    hm, _, _ = plate
+    path = str(tmp_path / "plate.mesh")
+    export_hexmesh(hm, path)
+    text = open(path).read()
+    k = len(hm.patches.quads)
+    block = text.split("Quadrilaterals\n", 1)[1].split("\n", k + 1)
+    assert int(block[0]) == k
+    rows = np.array([r.split() for r in block[1:k + 1]], np.int64)
+    assert np.array_equal(rows[:, :4] - 1, hm.patches.quads) and np.array_equal(rows[:, 4], hm.patches.patch)
+
+
+def _ccx():
+    exe = shutil.which("ccx")
+    assert exe, "CalculiX (ccx) is not installed: ./dev.sh test installs Debian's calculix-ccx"
+    return exe
+
+
+def test_calculix_runs_a_static_case_on_the_patches(plate, tmp_path):
+    """The plate held at its -y side (the node set of that patch), a pressure
+    of 1 on its +y side (the element-face surface S_PATCH_k, *DSLOAD) and a
+    force of 1 per node in x on the hole (its node set, *CLOAD): CalculiX
+    solves it and the reaction at the held side balances the loads within
+    1 %."""
+    hm, normal, area = plate
+    held = min(normal, key=lambda i: normal[i][1] / area[i])
+    pushed = max(normal, key=lambda i: normal[i][1] / area[i])
+    hole = min(normal, key=lambda i: np.linalg.norm(normal[i]) / area[i])
+    assert len({held, pushed, hole}) == 3
+    export_hexmesh(hm, str(tmp_path / "plate.inp"))
+    n_hole = len(np.unique(hm.patches.quads[hm.patches.patch == hole]))
+    deck = ("*INCLUDE, INPUT=plate.inp\n*MATERIAL, NAME=STEEL\n*ELASTIC\n210000., 0.3\n"
+            "*SOLID SECTION, ELSET=EALL, MATERIAL=STEEL\n"
+            f"*BOUNDARY\nPATCH_{held}, 1, 3\n*STEP\n*STATIC\n"
+            f"*DSLOAD\nS_PATCH_{pushed}, P, 1.0\n*CLOAD\nPATCH_{hole}, 1, 1.0\n"
+            f"*NODE PRINT, NSET=PATCH_{held}, TOTALS=ONLY\nRF\n*END STEP\n")
+    (tmp_path / "case.inp").write_text(deck)
+    run = subprocess.run([_ccx(), "-i", "case"], cwd=tmp_path, capture_output=True, text=True)
+    assert run.returncode == 0 and "*ERROR" not in run.stdout, run.stdout[-2000:]
+    dat = (tmp_path / "case.dat").read_text()
+    rf = np.array([float(x) for x in re.search(r"total force.*?\n\s*\n\s*(\S+)\s+(\S+)\s+(\S+)", dat).groups()])
+    # a pressure pushes against the outward normal: the held side pulls back along it
+    assert abs(rf[0] + n_hole) <= 0.01 * n_hole, (rf, n_hole)
+    assert abs(rf[1] - normal[pushed][1]) <= 0.01 * abs(normal[pushed][1]), (rf, normal[pushed])
+    assert abs(rf[2]) <= 0.01 * abs(normal[pushed][1])
+    assert os.path.exists(tmp_path / "case.frd")
