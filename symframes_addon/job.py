@@ -10,6 +10,7 @@ calling thread (background mode, tests).
 * ``HexJob``: solver.hexmesh of the last solve's Result, or of the stored
   field with the network embedding its solve kept beside it
   (``StoredField``: solver.input_from_arrays).
+* ``SuggestJob``: solver.suggest_network of the domain's surface.
 
 Kept in memory beside the scene, each with what it depends on:
 
@@ -43,6 +44,7 @@ from ..solver import (
     hexmesh,
     input_from_arrays,
     solve_resolved,
+    suggest_network,
     vertex_normal_adaptation,
 )
 from ..solver.io import FieldData, field_data
@@ -250,3 +252,22 @@ class HexJob(Job):
         hm = hexmesh(inp, self.cell_size, smooth=self.smooth, progress=self._progress, cancel=self._is_cancelled,
                      target_hexes=self.target_hexes)
         return HexOutcome(hm, new_id())
+
+
+@dataclass
+class SuggestJob(Job):
+    """solver.suggest_network of the surface (V, F); outcome (network,
+    report).  The suggestion takes seconds and reports no progress of its
+    own: a cancel during it discards its result."""
+
+    V: np.ndarray = None
+    F: np.ndarray = None
+    sharp_angle: float = 30.0
+
+    def _work(self):
+        self._progress("suggest", 0.05, "labelling the boundary as a polycube and padding it")
+        out = suggest_network(self.V, self.F, sharp_angle=self.sharp_angle)
+        if self._is_cancelled():
+            raise Cancelled()
+        self._progress("suggest", 1.0, "suggested")
+        return out

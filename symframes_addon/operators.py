@@ -158,43 +158,6 @@ class SYMFRAMES_OT_check_network(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class SYMFRAMES_OT_suggest_network(bpy.types.Operator):
-    """Suggest a singularity network for the domain (a padded polycube, docs/suggest.md), written as editable
-    curves into a new network collection"""
-
-    bl_idname = "symframes.suggest_network"
-    bl_label = "Suggest Network"
-    bl_options = {"REGISTER", "UNDO"}
-
-    def execute(self, context):
-        from ..solver import suggest_network
-
-        s = context.scene.symframes
-        try:
-            V, F, _ = scene_io.read_domain(s.domain, context.evaluated_depsgraph_get())
-            net, rep = suggest_network(V, F, sharp_angle=float(np.degrees(s.sharp_angle)))
-        except (SymFramesError, ValueError) as e:
-            self.report({"ERROR"}, f"SymFrames: no network suggested; the scene is unchanged: {error_text(e)}")
-            return {"CANCELLED"}
-        print(rep.summary())
-        if net.sharp_edges is not None:  # no angle keeps just those: marks would have to be written on the domain
-            self.report({"WARNING"}, "SymFrames: the domain's sharp creases were chosen edge by edge (noise or "
-                                     "creases inside a chart left smooth, see the console); the network is solved "
-                                     "with the Sharp Angle instead")
-        network = bpy.data.collections.new(f"{s.domain.name} Suggested Network")
-        context.scene.collection.children.link(network)
-        examples.add_network_curves(network, net, float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))))
-        s.network = network
-        s.use_sharp_angle = True
-        if net.sharp_angle is not None and not np.isclose(np.degrees(s.sharp_angle), net.sharp_angle):
-            s.sharp_angle = float(np.radians(net.sharp_angle))  # the creases the suggestion keeps, and only those
-        if rep.target_tets:
-            s.target_tets = max(int(s.target_tets), int(rep.target_tets))
-        self.report({"INFO"}, f"SymFrames: suggested {len(net.curves)} curve(s), {rep.nodes} node(s) in "
-                              f"'{network.name}'; edit them, then Compute Field")
-        return {"FINISHED"}
-
-
 class _Threaded:
     """An operator whose work is a job.Job: in a worker thread polled by a
     modal timer when invoked from the UI (progress in the status bar and the
@@ -277,6 +240,52 @@ class _Threaded:
             context.workspace.status_text_set(None)
         _RUNNING.clear()
         _tag_redraw(context)
+
+
+class SYMFRAMES_OT_suggest_network(_Threaded, bpy.types.Operator):
+    """Suggest a singularity network for the domain (a padded polycube, docs/suggest.md), written as editable
+    curves into a new network collection (Esc cancels)"""
+
+    bl_idname = "symframes.suggest_network"
+    bl_label = "Suggest Network"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def _prepare(self, context, echo: bool = False):
+        s = context.scene.symframes
+        try:
+            V, F, _ = scene_io.read_domain(s.domain, context.evaluated_depsgraph_get())
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, f"SymFrames: no network suggested; the scene is unchanged: {error_text(e)}")
+            return None
+        return job.SuggestJob(V=V, F=F, sharp_angle=float(np.degrees(s.sharp_angle)), echo=echo)
+
+    def _finish(self, scene, j):
+        if j.cancelled:
+            return "WARNING", "SymFrames: Suggest Network cancelled; the scene is unchanged"
+        if j.error is not None:
+            return "ERROR", f"SymFrames: no network suggested; the scene is unchanged: {error_text(j.error)}"
+        net, rep = j.outcome
+        print(rep.summary())
+        s = scene.symframes
+        level = "INFO"
+        if net.sharp_edges is not None:  # no angle keeps just those: marks would have to be written on the domain
+            level = "WARNING"
+        V = j.V
+        network = bpy.data.collections.new(f"{s.domain.name} Suggested Network")
+        scene.collection.children.link(network)
+        examples.add_network_curves(network, net, float(np.linalg.norm(V.max(axis=0) - V.min(axis=0))))
+        s.network = network
+        s.use_sharp_angle = True
+        if net.sharp_angle is not None and not np.isclose(np.degrees(s.sharp_angle), net.sharp_angle):
+            s.sharp_angle = float(np.radians(net.sharp_angle))  # the creases the suggestion keeps, and only those
+        if rep.target_tets:
+            s.target_tets = max(int(s.target_tets), int(rep.target_tets))
+        msg = (f"SymFrames: suggested {len(net.curves)} curve(s), {rep.nodes} node(s) in '{network.name}'; edit "
+               "them, then Compute Field")
+        if level == "WARNING":
+            msg += (" (the suggestion chose the sharp creases edge by edge: noise or creases inside a chart left "
+                    "smooth, see the console; the network is solved with the Sharp Angle instead)")
+        return level, msg
 
 
 class SYMFRAMES_OT_compute(_Threaded, bpy.types.Operator):

@@ -78,3 +78,19 @@ def test_suggest_network_sets_the_angle_that_keeps_its_creases():
     assert bpy.ops.symframes.suggest_network() == {"FINISHED"}
     assert 47.0 < np.degrees(s.sharp_angle) < 52.0 and s.use_sharp_angle
     assert len(s.network.objects) == 0  # every chart boundary is a crease: no curve
+
+
+def test_a_cancelled_suggestion_gives_nothing_to_write():
+    """The suggestion runs as a job (a worker thread from the UI); Esc during
+    it discards its result, and the operator then writes nothing."""
+    from symframes.symframes_addon import job
+
+    V, F = icosphere(2)
+    j = job.SuggestJob(V=V, F=F)
+    j.cancel()
+    j.run()
+    assert j.cancelled and j.outcome is None and j.error is None
+    done = job.SuggestJob(V=V, F=F)
+    done.run()
+    net, rep = done.outcome
+    assert len(net.curves) == 20 and rep.nodes == 8 and done.fraction == 1.0
