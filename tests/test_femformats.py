@@ -163,3 +163,37 @@ def test_poisson_converges_at_second_order_on_the_ball(solved):
     order = np.polyfit(np.log(h), np.log(err), 1)[0]
     assert order >= 1.8, (h, err, order)
 
+
+
+def test_vtk_reads_the_exodus_side_sets(plate, tmp_path):
+    """VTK's Exodus II reader (ParaView's) sees the hexahedra and one side set
+    per patch, each with exactly the patch's boundary quads."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOExodus import vtkExodusIIReader
+
+    hm, _, _ = plate
+    path = str(tmp_path / "plate.exo")
+    assert export_hexmesh(hm, path) == [path]
+    r = vtkExodusIIReader()
+    r.SetFileName(path)
+    r.UpdateInformation()
+    n = r.GetNumberOfObjects(vtkExodusIIReader.SIDE_SET)
+    assert n == 7 and r.GetNumberOfObjects(vtkExodusIIReader.NODE_SET) == 1
+    for i in range(n):
+        r.SetObjectStatus(vtkExodusIIReader.SIDE_SET, i, 1)
+    r.GenerateGlobalNodeIdArrayOn()
+    r.Update()
+    out = r.GetOutput()
+    it = out.NewTreeIterator()
+    it.InitTraversal()
+    got = {}
+    while not it.IsDoneWithTraversal():
+        ds = it.GetCurrentDataObject()
+        ids = vtk_to_numpy(ds.GetPointData().GetArray("GlobalNodeId")) - 1
+        cells = vtk_to_numpy(ds.GetCells().GetConnectivityArray()).reshape(ds.GetNumberOfCells(), -1)
+        got[it.GetCurrentMetaData().Get(out.NAME())] = ids[cells]
+        it.GoToNextItem()
+    assert np.array_equal(got["hexahedra"], hm.hexes)  # Exodus' HEX8 corner order is VTK's
+    for i, name in enumerate(hm.patches.names, start=1):
+        want = {tuple(sorted(q)) for q in hm.patches.quads[hm.patches.patch == i].tolist()}
+        assert {tuple(sorted(q)) for q in got[name].tolist()} == want, name

@@ -17,13 +17,21 @@
                    characters and lines stay under 132, as CalculiX reads
                    them.
 
-Corner order: Gmsh's 8-node hexahedron and Abaqus' C3D8 both number the
+``write_hex_exodus``  Exodus II (netCDF classic, written with scipy): one
+                   element block of ``HEX8``, a side set per patch
+                   (``patch_1``, ...; Exodus' side numbers) and the
+                   irregular edges' nodes as the node set
+                   ``irregular_edges``
+
+Corner order: Gmsh's 8-node hexahedron, Exodus' HEX8 and Abaqus' C3D8 all number the
 corners as VTK does (one face, then the opposite one, counter-clockwise
 seen from outside the first), so cells are written as SymFrames holds them.
 Both files are written whole or not at all (atomic.py).
 """
 
 from __future__ import annotations
+
+import io
 
 import numpy as np
 
@@ -159,3 +167,82 @@ def write_hex_inp(path: str, vertices: np.ndarray, hexes: np.ndarray, patches=No
     if irregular_edges is not None and len(irregular_edges):
         out += ["*NSET, NSET=IRREGULAR_EDGES\n", _id_lines(np.unique(irregular_edges) + 1)]
     write_text(path, "".join(out))
+
+
+EXODUS_SIDE = np.array([5, 6, 1, 2, 3, 4])
+"""The Exodus II HEX8 side number of each of quality.HEX_FACES: side 1 =
+nodes 1-2-6-5, 2 = 2-3-7-6, 3 = 3-4-8-7, 4 = 1-5-8-4, 5 = 1-4-3-2,
+6 = 5-6-7-8 (1-based)."""
+
+
+def write_hex_exodus(path: str, vertices: np.ndarray, hexes: np.ndarray, patches=None,
+                     irregular_edges=None, title: str = "SymFrames hex mesh") -> None:
+    """Exodus II (module docs); patches: a hexmesh.patches.BoundaryPatches
+    or None (the hexahedra alone)."""
+    from scipy.io import netcdf_file
+
+    V = np.asarray(vertices, float)
+    H = np.asarray(hexes, np.int64)
+    sides = []
+    if patches is not None:
+        for i, name in enumerate(patches.names, start=1):
+            m = patches.patch == i
+            if np.any(m):
+                sides.append((i, name, patches.cells[m] + 1, EXODUS_SIDE[patches.faces[m]]))
+    nodes = [] if irregular_edges is None or not len(irregular_edges) else [np.unique(irregular_edges) + 1]
+
+    def chars(names, width=33):
+        a = np.zeros((len(names), width), "S1")
+        for k, n in enumerate(names):
+            b = n.encode()[: width - 1]
+            a[k, : len(b)] = np.frombuffer(b, "S1")
+        return a
+
+    def write(out):
+        fh = io.BytesIO()  # netcdf_file closes the file it wrote
+        nc = netcdf_file(fh, "w", version=2)  # 64-bit offsets: Exodus' "large model" layout
+        nc.api_version, nc.version = np.float32(8.03), np.float32(8.03)
+        nc.floating_point_word_size, nc.file_size, nc.maximum_name_length = np.int32(8), np.int32(1), np.int32(32)
+        nc.int64_status, nc.title = np.int32(0), title
+        dims = {"time_step": None, "len_string": 33, "len_line": 81, "four": 4, "len_name": 33, "num_dim": 3,
+                "num_nodes": len(V), "num_elem": len(H), "num_el_blk": 1, "num_el_in_blk1": len(H),
+                "num_nod_per_el1": 8}
+        if sides:
+            dims["num_side_sets"] = len(sides)
+            dims.update({f"num_side_ss{k}": len(c) for k, (_, _, c, _) in enumerate(sides, start=1)})
+        if nodes:
+            dims.update({"num_node_sets": 1, "num_nod_ns1": len(nodes[0])})
+        for d, n in dims.items():
+            nc.createDimension(d, n)
+
+        def var(key, dtype, shape, data, **attrs):
+            v = nc.createVariable(key, dtype, shape)
+            v[:] = data
+            for a, x in attrs.items():
+                setattr(v, a, x)
+
+        var("time_whole", "d", ("time_step",), np.zeros(0))
+        var("coor_names", "c", ("num_dim", "len_name"), chars(["x", "y", "z"]))
+        for k, axis in enumerate("xyz"):
+            var(f"coord{axis}", "d", ("num_nodes",), V[:, k])
+        var("eb_names", "c", ("num_el_blk", "len_name"), chars(["hexahedra"]))
+        var("eb_status", "i", ("num_el_blk",), np.ones(1, np.int32))
+        var("eb_prop1", "i", ("num_el_blk",), np.ones(1, np.int32), name="ID")
+        var("connect1", "i", ("num_el_in_blk1", "num_nod_per_el1"), (H + 1).astype(np.int32), elem_type="HEX8")
+        if sides:
+            var("ss_names", "c", ("num_side_sets", "len_name"), chars([n for _, n, _, _ in sides]))
+            var("ss_status", "i", ("num_side_sets",), np.ones(len(sides), np.int32))
+            var("ss_prop1", "i", ("num_side_sets",), np.array([i for i, _, _, _ in sides], np.int32), name="ID")
+            for k, (_, _, c, f) in enumerate(sides, start=1):
+                var(f"elem_ss{k}", "i", (f"num_side_ss{k}",), c.astype(np.int32))
+                var(f"side_ss{k}", "i", (f"num_side_ss{k}",), f.astype(np.int32))
+        if nodes:
+            var("ns_names", "c", ("num_node_sets", "len_name"), chars(["irregular_edges"]))
+            var("ns_status", "i", ("num_node_sets",), np.ones(1, np.int32))
+            var("ns_prop1", "i", ("num_node_sets",), np.ones(1, np.int32), name="ID")
+            var("node_ns1", "i", ("num_nod_ns1",), nodes[0].astype(np.int32))
+        nc.flush()
+        out.write(fh.getvalue())
+        nc.close()
+
+    write_files({path: write})

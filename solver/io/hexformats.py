@@ -11,6 +11,8 @@
             edges as physical groups (femformats.py)
 ``.inp``    Abaqus / CalculiX input, C3D8, with a node set, an element set
             and a surface per boundary patch (femformats.py)
+``.exo``    Exodus II, a HEX8 block and a side set per boundary patch
+            (femformats.py)
 ``.hexex``  the integer-grid map per tet corner (HexEx / libHexHex / QGP3D
             input): vertex count, ``x y z`` lines, tet count, then per tet
             its four vertex ids (positively oriented) and the 4 x 3
@@ -30,13 +32,13 @@ import numpy as np
 
 from ..errors import OutputError, ReadError
 from .atomic import check_output_path, write_text
-from .femformats import write_hex_inp, write_hex_msh
+from .femformats import write_hex_exodus, write_hex_inp, write_hex_msh
 from .interchange import _fmt_rows, _vtu_array
 
 _VTK_HEXAHEDRON = 12
 
 HEX_FORMATS = {".vtu": "VTK XML", ".vtk": "legacy VTK", ".mesh": "MEDIT", ".msh": "Gmsh MSH 4.1",
-               ".inp": "Abaqus/CalculiX input", ".hexex": "HexEx integer-grid map"}
+               ".inp": "Abaqus/CalculiX input", ".exo": "Exodus II", ".hexex": "HexEx integer-grid map"}
 
 
 def write_hex_vtu(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None,
@@ -164,7 +166,7 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     ----------
     hex_mesh : hexmesh.HexMesh
     path : str
-        ``.vtu``, ``.vtk``, ``.mesh``, ``.msh``, ``.inp`` or ``.hexex``
+        ``.vtu``, ``.vtk``, ``.mesh``, ``.msh``, ``.inp``, ``.exo`` or ``.hexex``
 
     Returns
     -------
@@ -198,6 +200,8 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
         write_hex_medit(path, V, H, quads=None if P is None else P.quads, quad_refs=None if P is None else P.patch)
     elif ext == ".msh":
         write_hex_msh(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges, hex_mesh.irregular_valence)
+    elif ext == ".exo":
+        write_hex_exodus(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges)
     elif ext == ".inp":
         write_hex_inp(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges,
                       heading=f"SymFrames hex mesh: {len(H)} C3D8 hexahedra")
