@@ -279,6 +279,7 @@ def draw_hex_report(col, r: HexReport) -> None:
     col.label(text=f"Cell size {_number(r.cell_size):.3g}")
     col.label(text=f"Scaled Jacobian min {_number(r.sj_min):.3f}   mean {_number(r.sj_mean):.3f}")
     col.label(text=f"   before smoothing min {_number(r.sj_min_raw):.3f}")
+    col.label(text="   Verdict's, least of the 8 corners (Gmsh's minSJ differs)")
     by_valence = ", ".join(f"{n} of valence {v}" for v, n in sorted(r.irregular.items()))
     col.label(text=f"Irregular edges: {by_valence or 'none'}")
     exact = bool(r.structure_exact)

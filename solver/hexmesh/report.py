@@ -140,7 +140,8 @@ class HexReport:
         lines = [f"hex mesh: {self.status}" + (f" ({self.reason})" if self.reason else ""),
                  f"  {self.hexes:,} hexahedra ({self.non_hex_cells} other cells), {self.vertices:,} vertices, "
                  f"cell size {self.cell_size:.4g}" + (f" ({self.cell_reason})" if self.cell_reason else ""),
-                 f"  scaled Jacobian: min {self.sj_min:.3f}, mean {self.sj_mean:.3f} (before smoothing "
+                 f"  scaled Jacobian (Verdict's, least of the 8 corners): min {self.sj_min:.3f}, mean "
+                 f"{self.sj_mean:.3f} (before smoothing "
                  f"{self.sj_min_raw:.3f} / {self.sj_mean_raw:.3f}); cells at irregular edges: mean "
                  f"{self.sj_mean_irregular:.3f}; inverted {self.inverted}",
                  "  irregular interior edges: " + (", ".join(f"{n} of valence {v}" for v, n in
