@@ -152,11 +152,20 @@ class SYMFRAMES_OT_export_hex_mesh(bpy.types.Operator, ExportHelper):
                 # the map is not kept in the .blend: only a hex mesh made in this session has it
                 raise ValueError("this hex mesh was read back from the .blend, which does not keep the integer-grid "
                                  "map; make the hex mesh again to write its integer-grid map")
+            M = np.array(hex_mesh.hex_object(context.scene).matrix_world, float)
+            moved = not np.allclose(M, np.eye(4), rtol=0.0, atol=1e-9)
+            if moved:  # the object was moved, turned, scaled or mirrored since it was made: write it where it is
+                if self.file_format == "HEXEX" and np.linalg.det(M[:3, :3]) < 0:
+                    raise ValueError("the hex object is mirrored (a negative scale), and an integer-grid map "
+                                     "cannot be mirrored; undo the mirror, or export another format")
+                hm = hm.transformed(M)
             written = export_hexmesh(hm, path)
         except (SymFramesError, ValueError, OSError) as e:
             self.report({"ERROR"}, f"SymFrames: export failed: {e}")
             return {"CANCELLED"}
-        self.report({"INFO"}, "SymFrames: wrote " + ", ".join(os.path.basename(p) for p in written))
+        self.report({"INFO"}, "SymFrames: wrote " + ", ".join(os.path.basename(p) for p in written)
+                    + (" with the hex object's transform applied (it was moved, turned or scaled since it was "
+                       "made)" if moved else ""))
         return {"FINISHED"}
 
 

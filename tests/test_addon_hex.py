@@ -544,6 +544,30 @@ def test_export_writes_what_meshio_reads(cyl, tmp_path):
     assert '2 3 "patch_3"' in (tmp_path / "cyl.msh").read_text()
 
 
+def test_a_moved_hex_object_is_exported_where_it_is(cyl, tmp_path):
+    """The hex object moved, scaled and mirrored after it was made: the
+    export writes it where it stands (the object's transform applied, said in
+    the message), with no cell inside out; the .hexex map is refused for a
+    mirror."""
+    reopen(cyl)
+    hm = cyl.hm
+    obj = output(hex_mesh.ROLE)
+    obj.location = (1.0, 2.0, 3.0)
+    obj.scale = (2.0, -1.0, 1.0)
+    bpy.context.view_layer.update()
+    path = tmp_path / "moved.vtu"
+    assert bpy.ops.symframes.export_hex_mesh(filepath=str(path), file_format="VTU") == {"FINISHED"}
+    m = meshio.read(str(path))
+    want = hm.vertices * [2.0, -1.0, 1.0] + [1.0, 2.0, 3.0]
+    np.testing.assert_allclose(m.points, want, atol=1e-5)
+    sj = m.cell_data["scaled_jacobian"][0]
+    assert sj.min() > 0 and len(sj) == len(hm.hexes)  # the corners reordered: not inside out
+    _refused(bpy.ops.symframes.export_hex_mesh, "mirrored", filepath=str(tmp_path / "moved.hexex"),
+             file_format="HEXEX")
+    obj.location, obj.scale = (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
+    bpy.context.view_layer.update()
+
+
 def test_reopened_file_exports_vtu_and_refuses_hexex(cyl, tmp_path):
     reopen(cyl, new_session=True)
     hm = cyl.hm

@@ -10,7 +10,7 @@ solving again).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -28,6 +28,7 @@ from .extract import ExtractionError, extract_hexes, snap
 from .patches import BoundaryPatches, boundary_patches
 from .quality import (
     HEX_EDGES,
+    HEX_FACES,
     boundary_quads,
     det3,
     edge_valences,
@@ -108,6 +109,53 @@ class HexMesh:
         """
         return boundary_quads(self.hexes)[0]
 
+    def transformed(self, matrix) -> HexMesh:
+        """The mesh moved by a 4 x 4 affine matrix (a Blender object's
+        ``matrix_world``): its vertices (and its map's tet vertices) mapped,
+        the scaled Jacobian measured again (a non-uniform scale changes it).
+        A mirror (negative determinant) reorders each cell's corners so that
+        none is inside out; its integer-grid map is then dropped (a map
+        cannot be mirrored with its parameters kept).
+
+        Parameters
+        ----------
+        matrix : (4, 4) array-like
+
+        Returns
+        -------
+        HexMesh
+
+        Raises
+        ------
+        OptionsError
+            a matrix that is not 4 x 4 and finite, or whose 3 x 3 part is
+            singular
+        """
+        M = checks.array("matrix", matrix, OptionsError, shape=(4, 4))
+        A, t = M[:3, :3], M[:3, 3]
+        det = float(np.linalg.det(A))
+        if not abs(det) > 1e-12 * max(float(np.abs(A).max()) ** 3, 1e-300):
+            raise OptionsError(f"matrix: its 3 x 3 part is singular (determinant {det:.3g}): it would flatten the "
+                               "hex mesh")
+        V = self.vertices @ A.T + t
+        H, P, gm = self.hexes, self.patches, self.grid_map
+        if det < 0:
+            H = H[:, MIRROR_CORNERS]
+            gm = None
+            if P is not None:
+                P = replace(P, quads=P.quads[:, ::-1], faces=MIRROR_FACES[P.faces])
+        elif gm is not None:
+            gm = (gm[0] @ A.T + t, gm[1], gm[2])
+        return replace(self, vertices=V, hexes=H, scaled_jacobian=scaled_jacobian(V, H), grid_map=gm, patches=P)
+
+
+MIRROR_CORNERS = np.array([0, 3, 2, 1, 4, 7, 6, 5])
+"""A VTK hexahedron's corners with its first two parameter axes swapped:
+the cell the right way out again after a mirror."""
+MIRROR_FACES = np.array([[j for j in range(6) if set(HEX_FACES[j]) == set(MIRROR_CORNERS[HEX_FACES[k]])][0]
+                         for k in range(6)])
+"""The local face (of quality.HEX_FACES) of a mirrored cell that each face
+of the original lands on."""
 
 STAGE_WEIGHTS = {"curves onto edges": 0.03, "transitions": 0.15, "seamless map": 0.15, "integer-grid map": 0.1,
                  "extraction": 0.07, "smoothing": 0.4, "quality": 0.1}
