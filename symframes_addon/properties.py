@@ -25,6 +25,9 @@ FAMILIES = (
     ("ALL", "All", "Streamlines along all three axes from every seed"),
 )
 AXES = (("X", "X", "Plane normal to X"), ("Y", "Y", "Plane normal to Y"), ("Z", "Z", "Plane normal to Z"))
+HEX_AXES = AXES + (("NEG_X", "-X", "Plane normal to X, the cells on its negative side go first"),
+                   ("NEG_Y", "-Y", "Plane normal to Y, the cells on its negative side go first"),
+                   ("NEG_Z", "-Z", "Plane normal to Z, the cells on its negative side go first"))
 GLYPH_REGIONS = (
     ("VOLUME", "Volume", "Glyphs throughout the solid"),
     ("CUTAWAY", "Cutaway", "Glyphs on one side of the slice plane only, to see inside"),
@@ -295,8 +298,9 @@ class SymFramesSettings(bpy.types.PropertyGroup):
         description="Hide the hex cells beyond a plane sweeping along the axis: 0 hides none, 1 all (live)",
     )
     hex_axis: EnumProperty(
-        name="Axis", items=AXES, default="Z", update=_update_hex_view,
-        description="The axis along which Fall Away sweeps (cells on its positive side go first)",
+        name="Axis", items=HEX_AXES, default="Z", update=_update_hex_view,
+        description="The axis along which Fall Away sweeps (cells on its positive side go first; -X, -Y, -Z: "
+                    "on its negative side)",
     )
     # ---------------------------------------------------------------- result
     field: PointerProperty(

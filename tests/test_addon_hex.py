@@ -283,12 +283,13 @@ def test_view_modifier_explodes_and_falls_away(cyl):
     s.hex_explode = 0.0
     # Fall Away: the cells whose centre lies beyond the plane sweeping along the axis are hidden
     centres = C.mean(axis=1)
-    for fall, axis in ((0.5, "Z"), (0.25, "X")):
+    for fall, axis in ((0.5, "Z"), (0.25, "X"), (0.5, "NEG_Z")):  # NEG_: the negative side goes first
         s.hex_axis, s.hex_fall_away = axis, fall
-        d = centres[:, "XYZ".index(axis)]
+        sign = -1.0 if axis.startswith("NEG_") else 1.0
+        d = sign * centres[:, "XYZ".index(axis[-1])]
         plane = d.min() + (1 - fall) * (d.max() - d.min())
         n, f, P = evaluated_counts(obj)
-        shown = P.reshape(-1, 8, 3).mean(axis=1)[:, "XYZ".index(axis)]
+        shown = sign * P.reshape(-1, 8, 3).mean(axis=1)[:, "XYZ".index(axis[-1])]
         eps = 1e-5  # Geometry Nodes compares in single precision: a cell on the plane may go either way
         assert np.sum(d < plane - eps) <= len(shown) <= np.sum(d < plane + eps) and 0 < len(shown) < m
         assert (n, f) == (8 * len(shown), 6 * len(shown)) and shown.max() < plane + eps
