@@ -244,11 +244,11 @@ def write_hex_mesh(scene, hm: HexMesh, hex_id: str):
         mod = obj.modifiers.new(MODIFIER, "NODES")
     if mod.node_group != ng:
         mod.node_group = ng
-    sync_modifier(scene)
     if cu is not None:
         storage.replace_output(scene, EDGES_ROLE, EDGES_NAME, cu)
     else:
         storage.remove_output(scene, EDGES_ROLE)
+    sync_modifier(scene)
     return obj
 
 
@@ -403,6 +403,32 @@ def sync_modifier(scene) -> None:
         if getattr(item, "in_out", None) == "INPUT" and item.name in values:
             storage.set_modifier_input(mod, item.identifier, values[item.name])
     obj.update_tag()
+    edges = storage.output_object(scene, EDGES_ROLE)
+    if edges is not None and edges.type == "CURVE":
+        fall_away_edges(obj, edges.data, float(s.hex_fall_away), AXIS_VECTORS[s.hex_axis])
+        edges.update_tag()
+
+
+def fall_away_edges(obj, cu, fall: float, axis) -> int:
+    """Hide the irregular edges (radius 0) whose midpoint lies beyond the
+    Fall Away plane of the cells (the view modifier's rule, from the hex
+    object's cell centres), show the others; returns how many are hidden."""
+    attr = obj.data.attributes.get(CENTER_ATTRIBUTE)
+    if attr is None or not len(cu.splines):
+        return 0
+    C = np.empty(3 * len(attr.data), np.float32)
+    attr.data.foreach_get("vector", C)
+    a = np.asarray(axis, float)
+    d = C.reshape(-1, 3) @ a
+    lo, span = (float(d.min()), float(d.max() - d.min())) if len(d) else (0.0, 0.0)
+    hidden = 0
+    p = np.empty(8, np.float32)
+    for sp in cu.splines:
+        sp.points.foreach_get("co", p)
+        beyond = fall > 0.0 and float(0.5 * (p[:3] + p[4:7]) @ a) - lo >= (1.0 - fall) * span
+        hidden += beyond
+        sp.points.foreach_set("radius", [0.0, 0.0] if beyond else [1.0, 1.0])
+    return int(hidden)
 
 
 def remove_unused_helpers() -> None:

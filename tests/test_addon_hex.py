@@ -297,6 +297,24 @@ def test_view_modifier_explodes_and_falls_away(cyl):
     assert evaluated_counts(obj)[:2] == (0, 0)
     s.hex_fall_away = 0.0
     assert evaluated_counts(obj)[:2] == (8 * m, 6 * m)
+    # the irregular edges follow: an edge whose midpoint lies beyond the plane gets radius 0
+    cu = output(hex_mesh.EDGES_ROLE).data
+
+    def radii():
+        r = np.empty(2 * len(cu.splines), np.float32)
+        for k, sp in enumerate(cu.splines):
+            sp.points.foreach_get("radius", r[2 * k: 2 * k + 2])
+        return r.reshape(-1, 2)[:, 0]
+
+    assert np.all(radii() == 1.0)
+    s.hex_axis, s.hex_fall_away = "Z", 0.5
+    mids = np.array([0.5 * (np.array(sp.points[0].co[:3]) + np.array(sp.points[1].co[:3])) for sp in cu.splines])
+    plane = centres[:, 2].min() + 0.5 * (centres[:, 2].max() - centres[:, 2].min())
+    hidden = radii() == 0.0
+    assert 0 < hidden.sum() < len(hidden)
+    assert np.all(mids[hidden, 2] >= plane - 1e-5) and np.all(mids[~hidden, 2] < plane + 1e-5)
+    s.hex_fall_away = 0.0
+    assert np.all(radii() == 1.0)
 
 
 def test_panel_shows_the_verdict_and_figures(cyl):
