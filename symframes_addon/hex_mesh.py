@@ -79,22 +79,42 @@ VALENCE_INDEX = {3: 0, 5: 1}  # material index of a valence; any other: 2
 EDGE_RADIUS = 0.06  # bevel radius of the irregular edges, in cells
 
 NODE_GROUP = "SymFrames Hex View"
-NODE_GROUP_VERSION = 1
+NODE_GROUP_VERSION = 2  # 2: Show Below
 MODIFIER = "SymFrames Hex View"
 # modifier inputs: name -> (socket type, default, min, max)
 INPUTS = {
     "Explode": ("NodeSocketFloat", 0.0, 0.0, 0.9),
     "Fall Away": ("NodeSocketFloat", 0.0, 0.0, 1.0),
     "Axis": ("NodeSocketVector", (0.0, 0.0, 1.0), None, None),
+    "Show Below": ("NodeSocketFloat", 1.0, 0.0, 1.0),
 }
+LOW_KEY = "symframes_sj_low"  # the red end of this mesh's colour ramp
+HISTOGRAM_KEY = "symframes_sj_histogram"  # cells per bin of HISTOGRAM_EDGES
+HISTOGRAM_EDGES = np.r_[-np.inf, np.linspace(0.0, 1.0, 11)]
+"""Bins of the panel's histogram: below 0 (inverted), then tenths of 0-1."""
 AXIS_VECTORS = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0),
                 "NEG_X": (-1.0, 0.0, 0.0), "NEG_Y": (0.0, -1.0, 0.0), "NEG_Z": (0.0, 0.0, -1.0)}
 
 
 # ------------------------------------------------------------------ colors
-def quality_factor(sj: np.ndarray) -> np.ndarray:
-    """(m,) where each scaled Jacobian lies on the ramp: 0 at SJ_RED and below, 1 at 1."""
-    return np.clip((np.asarray(sj, float) - SJ_RED) / (1.0 - SJ_RED), 0.0, 1.0)
+def ramp_low(sj: np.ndarray) -> float:
+    """The red end of a mesh's colour ramp: its least scaled Jacobian (so
+    that a good mesh shows its spread instead of a uniform green), at most
+    0.95; SJ_RED for no cells."""
+    sj = np.asarray(sj, float)
+    return float(min(sj.min(), 0.95)) if len(sj) else SJ_RED
+
+
+def histogram(sj: np.ndarray) -> list:
+    """Cells per bin of HISTOGRAM_EDGES (the last bin holds 1.0)."""
+    sj = np.asarray(sj, float)
+    k = np.clip(np.searchsorted(HISTOGRAM_EDGES, sj, side="right") - 1, 0, len(HISTOGRAM_EDGES) - 2)
+    return np.bincount(k, minlength=len(HISTOGRAM_EDGES) - 1).tolist()
+
+
+def quality_factor(sj: np.ndarray, low: float = SJ_RED) -> np.ndarray:
+    """(m,) where each scaled Jacobian lies on the ramp: 0 at low and below, 1 at 1."""
+    return np.clip((np.asarray(sj, float) - low) / (1.0 - low), 0.0, 1.0)
 
 
 def _ramp(t: np.ndarray) -> np.ndarray:
@@ -102,15 +122,15 @@ def _ramp(t: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(t, x, SJ_RAMP[:, c]) for c in range(3)], axis=1)
 
 
-def sj_colors(sj: np.ndarray) -> np.ndarray:
-    """(m, 4) RGBA of each scaled Jacobian: red (<= SJ_RED), yellow, green (1)."""
-    rgb = _ramp(quality_factor(sj))
+def sj_colors(sj: np.ndarray, low: float = SJ_RED) -> np.ndarray:
+    """(m, 4) RGBA of each scaled Jacobian: red (<= low), yellow, green (1)."""
+    rgb = _ramp(quality_factor(sj, low))
     return np.c_[rgb, np.ones(len(rgb))]
 
 
-def sj_steps(sj: np.ndarray) -> np.ndarray:
+def sj_steps(sj: np.ndarray, low: float = SJ_RED) -> np.ndarray:
     """(m,) material index: the step of the ramp each scaled Jacobian falls in."""
-    return np.minimum((quality_factor(sj) * SJ_STEPS).astype(np.int32), SJ_STEPS - 1)
+    return np.minimum((quality_factor(sj, low) * SJ_STEPS).astype(np.int32), SJ_STEPS - 1)
 
 
 def quality_materials():
@@ -177,12 +197,15 @@ def new_hex_mesh_data(hm: HexMesh, hex_id: str, name: str = OBJECT_NAME):
         _set(me, CENTER_ATTRIBUTE, "FLOAT_VECTOR", "FACE", V[H].mean(axis=1)[cell])
         for mat in quality_materials():
             me.materials.append(mat)
-        me.polygons.foreach_set("material_index", sj_steps(sj)[cell])
+        low = ramp_low(sj)
+        me.polygons.foreach_set("material_index", sj_steps(sj, low)[cell])
         me.color_attributes.new(COLOR_ATTRIBUTE, "FLOAT_COLOR", "CORNER")
         me.color_attributes.active_color = me.color_attributes[COLOR_ATTRIBUTE]
         me.color_attributes.render_color_index = me.color_attributes.active_color_index
         me.color_attributes[COLOR_ATTRIBUTE].data.foreach_set(
-            "color", np.repeat(sj_colors(sj), 24, axis=0).astype(np.float32).ravel())
+            "color", np.repeat(sj_colors(sj, low), 24, axis=0).astype(np.float32).ravel())
+        me[LOW_KEY] = low
+        me[HISTOGRAM_KEY] = histogram(sj)
         me[REPORT_KEY] = json.dumps(hm.report.to_dict())
         me[HEX_ID_KEY] = hex_id
     except Exception:
@@ -374,9 +397,18 @@ def node_group():
     hide = node("FunctionNodeBooleanMath", 100, -350, operation="AND")
     links.new(beyond.outputs["Result"], hide.inputs[0])
     links.new(on.outputs["Result"], hide.inputs[1])
+    # Show Below: only the cells whose scaled Jacobian is at most this (1: all)
+    sj = node("GeometryNodeInputNamedAttribute", -400, -700, data_type="FLOAT")
+    sj.inputs["Name"].default_value = SJ_ATTRIBUTE
+    above = node("FunctionNodeCompare", -100, -750, data_type="FLOAT", operation="GREATER_THAN")
+    links.new(sj.outputs["Attribute"], above.inputs["A"])
+    links.new(gin.outputs["Show Below"], above.inputs["B"])
+    either = node("FunctionNodeBooleanMath", 200, -500, operation="OR")
+    links.new(hide.outputs["Boolean"], either.inputs[0])
+    links.new(above.outputs["Result"], either.inputs[1])
     delete = node("GeometryNodeDeleteGeometry", 300, 0, domain="FACE", mode="ALL")
     links.new(gin.outputs["Geometry"], delete.inputs["Geometry"])
-    links.new(hide.outputs["Boolean"], delete.inputs["Selection"])
+    links.new(either.outputs["Boolean"], delete.inputs["Selection"])
     # each cell (an island of 6 faces) shrunk about its centre
     scale = node("GeometryNodeScaleElements", 600, 0, domain="FACE")
     if hasattr(scale, "scale_mode"):  # a property up to Blender 4.x, a menu input (default Uniform) from 5.0
@@ -398,7 +430,7 @@ def sync_modifier(scene) -> None:
         return
     s = scene.symframes
     values = {"Explode": float(s.hex_explode), "Fall Away": float(s.hex_fall_away),
-              "Axis": AXIS_VECTORS[s.hex_axis]}
+              "Axis": AXIS_VECTORS[s.hex_axis], "Show Below": float(s.hex_show_below)}
     for item in mod.node_group.interface.items_tree:
         if getattr(item, "in_out", None) == "INPUT" and item.name in values:
             storage.set_modifier_input(mod, item.identifier, values[item.name])

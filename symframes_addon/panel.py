@@ -256,10 +256,14 @@ class SYMFRAMES_PT_hex(SymFramesPanel, bpy.types.Panel):
                 layout.label(text="Compute a field first")
             return
         draw_hex_report(layout.column(align=True), r)
+        obj = hex_mesh.hex_object(scene)
+        if obj is not None:
+            draw_hex_histogram(layout.column(align=True), obj.data)
         col = layout.column(heading="View")
         col.prop(s, "hex_explode")
         col.prop(s, "hex_fall_away")
         col.prop(s, "hex_axis")
+        col.prop(s, "hex_show_below")
         layout.label(text="Quality colors: Solid view, Color: Material or Attribute", icon="INFO")
         layout.operator("symframes.export_hex_mesh", text="Export Hex Mesh…", icon="EXPORT")
 
@@ -267,6 +271,25 @@ class SYMFRAMES_PT_hex(SymFramesPanel, bpy.types.Panel):
 def _number(x) -> float:
     """A figure of a report read back from JSON (where NaN is null)."""
     return float("nan") if x is None else float(x)
+
+
+def draw_hex_histogram(col, me) -> None:
+    """The scaled Jacobian's histogram (cells per tenth, a bar each) and the
+    colour ramp's legend, from what the hex mesh datablock keeps."""
+    counts = list(me.get(hex_mesh.HISTOGRAM_KEY, []))
+    if counts:
+        top = max(max(counts), 1)
+        edges = hex_mesh.HISTOGRAM_EDGES
+        col.label(text="Scaled Jacobian per cell")
+        for k, n in enumerate(counts):
+            if not n and k == 0:
+                continue  # no inverted cell: no row for them
+            what = "below 0" if k == 0 else f"{edges[k]:.1f}-{edges[k + 1]:.1f}"
+            bar = "|" * int(round(24 * n / top))
+            col.label(text=f"   {what:>9}  {bar} {n:,}")
+    low = me.get(hex_mesh.LOW_KEY)
+    if low is not None:
+        col.label(text=f"Colors: red {low:.2f} (this mesh's least), yellow {0.5 * (low + 1):.2f}, green 1.00")
 
 
 def draw_hex_report(col, r: HexReport) -> None:

@@ -297,6 +297,10 @@ class SymFramesSettings(bpy.types.PropertyGroup):
         name="Fall Away", default=0.0, min=0.0, max=1.0, subtype="FACTOR", update=_update_hex_view,
         description="Hide the hex cells beyond a plane sweeping along the axis: 0 hides none, 1 all (live)",
     )
+    hex_show_below: FloatProperty(
+        name="Show Below", default=1.0, min=0.0, max=1.0, subtype="FACTOR", update=_update_hex_view,
+        description="Show only the hex cells whose scaled Jacobian is at most this: 1 shows all (live)",
+    )
     hex_axis: EnumProperty(
         name="Axis", items=HEX_AXES, default="Z", update=_update_hex_view,
         description="The axis along which Fall Away sweeps (cells on its positive side go first; -X, -Y, -Z: "

@@ -230,14 +230,21 @@ def test_quality_colors(cyl):
     me.color_attributes[hex_mesh.COLOR_ATTRIBUTE].data.foreach_get("color", col)
     col = col.reshape(m, 24, 4)
     assert np.all(col == col[:, :1])  # one color per cell
-    np.testing.assert_allclose(col[:, 0], hex_mesh.sj_colors(cyl.hm.scaled_jacobian), atol=1e-6)
-    # red at and below 0.3, green at 1, yellow between
+    # the ramp fitted to this mesh: red at its least scaled Jacobian, green at 1
+    low = hex_mesh.ramp_low(cyl.hm.scaled_jacobian)
+    assert np.isclose(low, cyl.hm.scaled_jacobian.min()) and np.isclose(me[hex_mesh.LOW_KEY], low)
+    np.testing.assert_allclose(col[:, 0], hex_mesh.sj_colors(cyl.hm.scaled_jacobian, low), atol=1e-6)
+    # by default red at and below 0.3, green at 1, yellow between
     red, yellow, green = hex_mesh.sj_colors(np.array([0.1, hex_mesh.SJ_RED + 0.35, 1.0]))[:, :3]
     assert red[0] > 0.8 > red[1] and green[1] > 0.6 > green[0] and yellow[0] > 0.9 and yellow[1] > 0.8
     # the Solid view's default (Color: Material): each face the material of its step
     idx = np.empty(6 * m, np.int32)
     me.polygons.foreach_get("material_index", idx)
-    np.testing.assert_array_equal(idx, np.repeat(hex_mesh.sj_steps(cyl.hm.scaled_jacobian), 6))
+    np.testing.assert_array_equal(idx, np.repeat(hex_mesh.sj_steps(cyl.hm.scaled_jacobian, low), 6))
+    assert len(set(idx.tolist())) > 2  # a good mesh is not one green: its spread shows
+    # the panel's histogram: cells per tenth of the scaled Jacobian
+    counts = list(me[hex_mesh.HISTOGRAM_KEY])
+    assert sum(counts) == m and counts == hex_mesh.histogram(cyl.hm.scaled_jacobian)
     viewport = [tuple(round(c, 4) for c in mat.diffuse_color) for mat in me.materials]
     assert len(viewport) == hex_mesh.SJ_STEPS and len(set(viewport)) == hex_mesh.SJ_STEPS
 
@@ -269,7 +276,7 @@ def test_view_modifier_explodes_and_falls_away(cyl):
     mod = obj.modifiers[hex_mesh.MODIFIER]
     assert mod.node_group.name == hex_mesh.NODE_GROUP
     inputs = [i.name for i in mod.node_group.interface.items_tree if getattr(i, "in_out", None) == "INPUT"]
-    assert inputs == ["Geometry", "Explode", "Fall Away", "Axis"]
+    assert inputs == ["Geometry", "Explode", "Fall Away", "Axis", "Show Below"]
     m = cyl.report.hexes
     n, f, P = evaluated_counts(obj)
     assert (n, f) == (8 * m, 6 * m)  # 0, 0: the cells as written, a closed surface outside
@@ -315,6 +322,15 @@ def test_view_modifier_explodes_and_falls_away(cyl):
     assert np.all(mids[hidden, 2] >= plane - 1e-5) and np.all(mids[~hidden, 2] < plane + 1e-5)
     s.hex_fall_away = 0.0
     assert np.all(radii() == 1.0)
+    # Show Below: only the cells whose scaled Jacobian is at most the value
+    sj = cyl.hm.scaled_jacobian
+    below = float(np.quantile(sj, 0.3))
+    s.hex_show_below = below
+    n, f, P = evaluated_counts(obj)
+    eps = 1e-6  # single precision in Geometry Nodes
+    assert np.sum(sj <= below - eps) <= n // 8 <= np.sum(sj <= below + eps) and 0 < n // 8 < m
+    s.hex_show_below = 1.0
+    assert evaluated_counts(obj)[:2] == (8 * m, 6 * m)
 
 
 def test_panel_shows_the_verdict_and_figures(cyl):
@@ -323,7 +339,9 @@ def test_panel_shows_the_verdict_and_figures(cyl):
     r = cyl.report
     assert "symframes.hex_mesh" in drawn.operators and "symframes.export_hex_mesh" in drawn.operators
     assert "symframes.apply_hex_preset" in drawn.operators
-    assert {"hex_cell_size", "hex_cells", "hex_smooth", "hex_explode", "hex_fall_away", "hex_axis"} <= set(drawn.props)
+    assert {"hex_cell_size", "hex_cells", "hex_smooth", "hex_explode", "hex_fall_away", "hex_axis",
+            "hex_show_below"} <= set(drawn.props)
+    assert "Scaled Jacobian per cell" in drawn.texts and any(t.startswith("Colors: red ") for t in drawn.texts)
     assert "Valid hex mesh" in drawn.texts
     assert f"Hexahedra {r.hexes:,}   vertices {r.vertices:,}" in drawn.texts
     assert f"Scaled Jacobian min {r.sj_min:.3f}   mean {r.sj_mean:.3f}" in drawn.texts
