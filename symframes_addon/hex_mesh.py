@@ -441,6 +441,43 @@ def sync_modifier(scene) -> None:
         edges.update_tag()
 
 
+HIDDEN_KEY = "symframes_hidden_for_hex"  # on the scene: the objects Hex Only hid, to show them again
+
+
+def field_objects(scene) -> list:
+    """The objects Hex Only hides: the domain, the network's curves and every
+    SymFrames output but the hex mesh and its irregular edges."""
+    s = scene.symframes
+    objs = [s.domain] if s.domain is not None else []
+    if s.network is not None:
+        objs += list(s.network.all_objects)
+    for role in storage.OUTPUT_ROLES:
+        if role not in (ROLE, EDGES_ROLE):
+            obj = storage.output_object(scene, role)
+            if obj is not None:
+                objs.append(obj)
+    return [o for o in objs if o.name in scene.objects]
+
+
+def show_hex_only(scene, on: bool) -> int:
+    """Hide the field's objects (field_objects) that are visible, and
+    remember them; or show again those it hid.  Returns how many changed."""
+    if on:
+        hidden = [o.name for o in field_objects(scene) if o.visible_get()]
+        for name in hidden:
+            scene.objects[name].hide_set(True)
+        scene[HIDDEN_KEY] = sorted(set(hidden) | set(scene.get(HIDDEN_KEY, [])))
+        return len(hidden)
+    names = list(scene.get(HIDDEN_KEY, []))
+    for name in names:
+        obj = scene.objects.get(name)
+        if obj is not None:
+            obj.hide_set(False)
+    if HIDDEN_KEY in scene:
+        del scene[HIDDEN_KEY]
+    return len(names)
+
+
 def fall_away_edges(obj, cu, fall: float, axis) -> int:
     """Hide the irregular edges (radius 0) whose midpoint lies beyond the
     Fall Away plane of the cells (the view modifier's rule, from the hex

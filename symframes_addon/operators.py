@@ -364,6 +364,10 @@ def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
         traceback.print_exc()
         return "ERROR", error_text(e)
     job.remember_hex(out.hex_id, out.hex_mesh)
+    if scene.symframes.hex_only:
+        hex_mesh.show_hex_only(scene, True)  # objects made since it was turned on
+    else:
+        scene.symframes.hex_only = True  # hides the field's objects while the hex mesh is shown
     r = out.hex_mesh.report
     irregular = ", ".join(f"{n} of valence {v}" for v, n in sorted(r.irregular.items())) or "none"
     msg = (f"SymFrames: {r.hexes:,} hexahedra, scaled Jacobian min {r.sj_min:.3f} mean {r.sj_mean:.3f}; "
@@ -562,6 +566,8 @@ class SYMFRAMES_OT_clear(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
+        if context.scene.symframes.hex_only:
+            context.scene.symframes.hex_only = False  # shows again what it hid
         removed = storage.clear_results(context.scene)
         job.forget_results()
         # shared helpers (the glyph node groups, the materials), once nothing uses them

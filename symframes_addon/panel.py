@@ -260,6 +260,7 @@ class SYMFRAMES_PT_hex(SymFramesPanel, bpy.types.Panel):
         if obj is not None:
             draw_hex_histogram(layout.column(align=True), obj.data)
         col = layout.column(heading="View")
+        col.prop(s, "hex_only")
         col.prop(s, "hex_explode")
         col.prop(s, "hex_fall_away")
         col.prop(s, "hex_axis")

@@ -127,6 +127,12 @@ def _update_omega_scale(self, context):
     omega_arrows.sync_modifier(context.scene)
 
 
+def _update_hex_only(self, context):
+    from . import hex_mesh
+
+    hex_mesh.show_hex_only(context.scene, bool(self.hex_only))
+
+
 def _update_hex_view(self, context):
     # Explode, Fall Away and Axis are live inputs of the hex mesh's Geometry Nodes modifier
     from . import hex_mesh
@@ -296,6 +302,11 @@ class SymFramesSettings(bpy.types.PropertyGroup):
     hex_fall_away: FloatProperty(
         name="Fall Away", default=0.0, min=0.0, max=1.0, subtype="FACTOR", update=_update_hex_view,
         description="Hide the hex cells beyond a plane sweeping along the axis: 0 hides none, 1 all (live)",
+    )
+    hex_only: BoolProperty(
+        name="Hex Only", default=False, update=_update_hex_only,
+        description="Hide the domain, the network curves and the field's objects (glyphs, streamlines, "
+                    "diagnostics) while the hex mesh is shown; off shows again what it hid. Hex Mesh turns it on",
     )
     hex_show_below: FloatProperty(
         name="Show Below", default=1.0, min=0.0, max=1.0, subtype="FACTOR", update=_update_hex_view,

@@ -636,6 +636,26 @@ def test_export_formats_are_the_solvers():
     assert sorted(exchange.HEX_EXTENSION.values()) == sorted(HEX_FORMATS)
 
 
+def test_hex_only_hides_the_field_objects_and_shows_them_again(cyl):
+    """Hex Mesh turns Hex Only on: the domain, the network curves and the
+    field's outputs are hidden while the hex mesh is shown; off shows again
+    exactly what it hid (an object the user had hidden stays hidden)."""
+    reopen(cyl)
+    s = scene().symframes
+    field = hex_mesh.field_objects(scene())
+    assert s.domain in field and len(field) > 1
+    s.hex_only = False
+    assert all(o.visible_get() for o in field)
+    s.network.all_objects[0].hide_set(True)  # the user's own choice
+    s.hex_only = True
+    assert not any(o.visible_get() for o in field)
+    assert output(hex_mesh.ROLE).visible_get() and output(hex_mesh.EDGES_ROLE).visible_get()
+    s.hex_only = False
+    assert not s.network.all_objects[0].visible_get()
+    assert all(o.visible_get() for o in field if o != s.network.all_objects[0])
+    s.network.all_objects[0].hide_set(False)
+
+
 # ------------------------------------------------------------------- clear
 def test_clear_removes_the_hex_mesh_and_its_helpers(cyl):
     reopen(cyl)
