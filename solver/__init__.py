@@ -24,7 +24,8 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
 * Showing a field (§5.5): ``FrameField`` (frames interpolated inside tets),
   ``sample_glyphs``, ``seed_points``, ``trace_streamlines``.
 * Hex meshing (docs/hexmesh.md): ``hexmesh`` makes a pure hex mesh of a
-  solved field (``HexMesh``, its ``HexReport``); ``HexInput`` is what it
+  solved field (``HexMesh``, its ``HexReport`` and its ``BoundaryPatches``);
+  ``HexInput`` is what it
   needs of the field (``HexInput.from_result``; ``hex_source_arrays`` /
   ``input_from_arrays`` keep it beside a stored field); ``default_cell_size``.
 * No network yet (docs/suggest.md): ``suggest_network`` suggests one for a
@@ -58,6 +59,7 @@ from .errors import (
     TopologyError,
 )
 from .hexmesh import (
+    BoundaryPatches,
     HexInput,
     HexMesh,
     HexReport,
@@ -79,6 +81,7 @@ __all__ = [
     "FieldProblem",
     "FrameField",
     "HexInput",
+    "BoundaryPatches",
     "HexMesh",
     "HexMeshError",
     "HexReport",

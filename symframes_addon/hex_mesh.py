@@ -44,11 +44,12 @@ attributes, so the valences are also kept per spline as
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import bpy
 import numpy as np
 
-from ..solver import HexMesh, HexReport
+from ..solver import BoundaryPatches, HexMesh, HexReport
 from . import glyphs, job, storage
 
 ROLE = "hex_mesh"
@@ -60,6 +61,8 @@ CELL_ATTRIBUTE = "cell"
 SJ_ATTRIBUTE = "scaled_jacobian"
 CENTER_ATTRIBUTE = "cell_center"
 COLOR_ATTRIBUTE = "sj_color"
+PATCH_ATTRIBUTE = "patch"  # FACE INT: the boundary patch of a cell's face, 0 inside
+PATCH_NAMES_KEY = "symframes_patch_names"  # the patches' names, in id order; the exports write them
 REPORT_KEY = "symframes_hex_report"
 HEX_ID_KEY = "symframes_hex_id"
 VALENCE_KEY = "symframes_valence"
@@ -195,6 +198,11 @@ def new_hex_mesh_data(hm: HexMesh, hex_id: str, name: str = OBJECT_NAME):
         _set(me, CELL_ATTRIBUTE, "INT", "FACE", cell)
         _set(me, SJ_ATTRIBUTE, "FLOAT", "FACE", sj[cell])
         _set(me, CENTER_ATTRIBUTE, "FLOAT_VECTOR", "FACE", V[H].mean(axis=1)[cell])
+        if hm.patches is not None:  # the boundary faces' patch ids (0: inside), and the patches' names
+            patch = np.zeros(6 * m, np.int64)
+            patch[6 * hm.patches.cells + hm.patches.faces] = hm.patches.patch
+            _set(me, PATCH_ATTRIBUTE, "INT", "FACE", patch)
+            me[PATCH_NAMES_KEY] = list(hm.patches.names)
         for mat in quality_materials():
             me.materials.append(mat)
         low = ramp_low(sj)
@@ -318,7 +326,34 @@ def read_hex_mesh(obj) -> HexMesh:
     V[ids] = P.reshape(-1, 3)
     sj = np.empty(k, np.float32)
     sj_attr.data.foreach_get("value", sj)
-    return HexMesh(V, ids.reshape(-1, 8).astype(np.int64), sj[::6].astype(float), _read_report(me) or HexReport())
+    H = ids.reshape(-1, 8).astype(np.int64)
+    return HexMesh(V, H, sj[::6].astype(float), _read_report(me) or HexReport(), patches=read_patches(me, H))
+
+
+def read_patches(me, H: np.ndarray) -> BoundaryPatches | None:
+    """The boundary patches a hex mesh datablock keeps (its ``patch`` face
+    attribute and the names in PATCH_NAMES_KEY, which the user may edit), or
+    None where it keeps none."""
+    attr = me.attributes.get(PATCH_ATTRIBUTE)
+    if attr is None or attr.domain != "FACE" or len(attr.data) != 6 * len(H):
+        return None
+    patch = np.empty(len(attr.data), np.int32)
+    attr.data.foreach_get("value", patch)
+    names = [str(n) for n in me.get(PATCH_NAMES_KEY, [])]
+    if not len(patch) or patch.min() < 0 or patch.max() > len(names):
+        return None
+    f = np.nonzero(patch > 0)[0]
+    cells, faces = f // 6, f % 6
+    return BoundaryPatches(H[cells[:, None], HEX_FACES[faces]], cells, faces, patch[f].astype(np.int64), names)
+
+
+def _named_patches(hm: HexMesh, me) -> HexMesh:
+    """hm with its patches' names as the datablock has them now (the user
+    may have renamed them in its custom properties)."""
+    names = me.get(PATCH_NAMES_KEY)
+    if hm.patches is None or names is None or len(names) != len(hm.patches.names):
+        return hm
+    return replace(hm, patches=replace(hm.patches, names=[str(n) for n in names]))
 
 
 def hex_mesh_to_export(scene) -> tuple[HexMesh, bool]:
@@ -331,7 +366,7 @@ def hex_mesh_to_export(scene) -> tuple[HexMesh, bool]:
         raise ValueError("no hex mesh yet: press Hex Mesh first")
     hm = job.cached_hex(obj.data.get(HEX_ID_KEY))
     if hm is not None:
-        return hm, True
+        return _named_patches(hm, obj.data), True
     return read_hex_mesh(obj), False
 
 

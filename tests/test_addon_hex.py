@@ -608,6 +608,15 @@ def test_a_moved_hex_object_is_exported_where_it_is(cyl, tmp_path):
 def test_reopened_file_exports_vtu_and_refuses_hexex(cyl, tmp_path):
     reopen(cyl, new_session=True)
     hm = cyl.hm
+    # the boundary patches are kept in the .blend (a face attribute and their names, which the user may
+    # edit): the simulation formats carry them after reopening too, with the names as edited
+    me = output(hex_mesh.ROLE).data
+    assert list(me[hex_mesh.PATCH_NAMES_KEY]) == hm.patches.names
+    me[hex_mesh.PATCH_NAMES_KEY] = ["side", "bottom", "top"][: len(hm.patches.names)]
+    assert bpy.ops.symframes.export_hex_mesh(filepath=str(tmp_path / "again.inp"), file_format="INP") == {"FINISHED"}
+    inp = (tmp_path / "again.inp").read_text()
+    assert inp.count("*SURFACE, NAME=S_") == len(hm.patches.names) and "*NSET, NSET=BOTTOM" in inp
+    me[hex_mesh.PATCH_NAMES_KEY] = hm.patches.names
     for fmt, ext, cell in (("VTU", ".vtu", "hexahedron"), ("MESH", ".mesh", "hexahedron")):
         path = tmp_path / f"again{ext}"
         assert bpy.ops.symframes.export_hex_mesh(filepath=str(path), file_format=fmt) == {"FINISHED"}

@@ -32,6 +32,7 @@ Both files are written whole or not at all (atomic.py).
 from __future__ import annotations
 
 import io
+import re
 
 import numpy as np
 
@@ -82,7 +83,8 @@ def write_hex_msh(path: str, vertices: np.ndarray, hexes: np.ndarray, patches=No
     if binary:
         head += np.array([1], np.int32).tobytes() + b"\n"
     head += b"$EndMeshFormat\n$PhysicalNames\n" + f"{len(physical)}\n".encode()
-    head += "".join(f'{d} {t} "{n}"\n' for d, t, n in physical).encode() + b"$EndPhysicalNames\n"
+    head += "".join(f'{d} {t} "{str(n).replace(chr(34), chr(39))}"\n' for d, t, n in physical).encode()
+    head += b"$EndPhysicalNames\n"
     if binary:
         body = _msh_binary(V, H, lo, hi, curves, surfaces, blocks, n_el)
     else:
@@ -158,7 +160,7 @@ def write_hex_inp(path: str, vertices: np.ndarray, hexes: np.ndarray, patches=No
             m = patches.patch == i
             if not np.any(m):
                 continue
-            up = name.upper()
+            up = re.sub(r"[^A-Za-z0-9_]", "_", str(name)).upper()[:70]  # CalculiX names: letters, digits, _
             cells = patches.cells[m] + 1
             out += [f"*NSET, NSET={up}\n", _id_lines(np.unique(patches.quads[m]) + 1),
                     f"*ELSET, ELSET={up}\n", _id_lines(np.unique(cells)),
