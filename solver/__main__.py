@@ -232,6 +232,8 @@ def _hex(args, inp, progress, finer=None) -> int:
         print("wrote " + ", ".join(export_hexmesh(hm, path)))
     if not hm.report.valid:
         print(f"warning: the hex mesh is defective: {hm.report.reason}", file=sys.stderr)
+    elif hm.report.warnings:
+        print(f"warning: the hex mesh is valid with warnings: {'; '.join(hm.report.warnings)}", file=sys.stderr)
     if not converged:
         print(f"warning: the hex mesh is of a field that is {inp.status} (--mesh-unconverged)", file=sys.stderr)
     return 0 if hm.report.valid and converged else EXIT_NOT_CONVERGED

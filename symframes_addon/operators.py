@@ -376,6 +376,8 @@ def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
     if r.status != "valid":
         # written all the same, so that the defect can be seen, but said plainly
         return "WARNING", f"{msg}; the hex mesh is defective: {r.reason}"
+    if r.warnings:
+        return "WARNING", f"{msg}; valid with warnings: {'; '.join(r.warnings)}"
     return "INFO", msg
 
 

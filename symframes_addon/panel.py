@@ -299,6 +299,8 @@ def draw_hex_report(col, r: HexReport) -> None:
     if not r.valid and r.reason:
         for part in str(r.reason).split("; "):
             col.label(text=f"   {part}")
+    for w in (getattr(r, "warnings", None) or []) if r.valid else []:
+        col.label(text=f"   warning: {w}", icon="INFO")
     col.label(text=f"Hexahedra {r.hexes:,}   vertices {r.vertices:,}")
     col.label(text=f"Cell size {_number(r.cell_size):.3g}")
     col.label(text=f"Scaled Jacobian min {_number(r.sj_min):.3f}   mean {_number(r.sj_mean):.3f}")

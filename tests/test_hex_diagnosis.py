@@ -200,3 +200,38 @@ def test_a_map_that_needs_a_finer_field_solves_it_again_finer(monkeypatch, tmp_p
     err = capsys.readouterr().err
     assert "the edge length 0.3 was given; give a smaller one" in err and "too close" in err
     assert len(calls) == 1 and not os.path.exists(out + ".vtu")
+
+
+def test_the_verdict_has_a_level_for_a_boundary_slightly_off(solved, monkeypatch):
+    """valid; valid with warnings (the boundary 1-2% of the diagonal off the
+    surface, said with the figure); defective past 2%.  At the automatic cell
+    size a mesh with warnings gives way to a smaller size's clean one, and is
+    kept where no size is clean."""
+    from solver.hexmesh.report import HexReport
+
+    r = HexReport(euler=[2], euler_expected=[2], structure_exact=True, hausdorff_relative=0.015)
+    mesher._verdict(r)
+    assert r.valid and len(r.warnings) == 1 and "1.50% of the diagonal" in r.warnings[0]
+    assert "valid, with warnings: the boundary is 1.50%" in r.summary()
+    r.hausdorff_relative = 0.025
+    mesher._verdict(r)
+    assert not r.valid and "2.50% of the diagonal" in r.reason and not r.warnings
+    r.hausdorff_relative = 0.005
+    mesher._verdict(r)
+    assert r.valid and not r.warnings
+    res = solved("cylinder")
+    real, sizes = mesher._assess, []
+
+    def off(report, inp, V, H, cell):  # the first size's boundary 1.5% off, the others on it
+        real(report, inp, V, H, cell)
+        sizes.append(cell)
+        report.hausdorff_relative = 0.015 if len(sizes) == 1 else 0.001
+        mesher._verdict(report)
+
+    monkeypatch.setattr(mesher, "_assess", off)
+    hm = hexmesh(res, smooth=False)
+    assert len(sizes) == 2 and hm.report.valid and not hm.report.warnings
+    assert "valid with warnings" in hm.report.notes[0]
+    sizes.clear()
+    hm = hexmesh(res, 0.3, smooth=False)  # a size given: tried alone, kept with its warning
+    assert sizes == [0.3] and hm.report.valid and hm.report.warnings

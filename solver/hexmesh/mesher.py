@@ -581,12 +581,12 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     _check_cell(inp, cell, why)
     _check_indices(inp)
     steps = AUTO_STEPS if auto else (1.0,)
-    first_defective, failure = None, ""
+    first_defective, warned, failure = None, None, ""
     report.cell_reason = why
     for k, f in enumerate(steps):
         c = cell * f
         stop = _too_many(inp, c) if k else None
-        if stop and first_defective is not None:
+        if stop and (first_defective is not None or warned is not None):
             break
         if stop:  # the last size's map failed, and the next one may not be tried
             raise HexMeshError(f"{failure}; the next cell size, {c:.4g}, is not tried: {stop}; try a finer field (a "
@@ -603,21 +603,27 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
                                     f"{cell * steps[k + 1]:.4g}")
                 clock.say("integer-grid map", f"hex: {report.notes[-1]}")
                 continue
-            if first_defective is not None:
-                return first_defective
+            if warned is not None or first_defective is not None:
+                return warned or first_defective
             tried = ", ".join(f"{cell * x:.4g}" for x in steps[:k + 1])
             raise HexMeshError((f"{failure} (cell sizes tried: {tried}, {_whose(report)})" if len(steps) > 1
                                 else f"{failure} ({_whose(report)})")
                                + f"; {_smaller(report)}, or a finer field (a smaller edge length)", report,
                                kind="map") from None
-        if hm.report.valid or k + 1 == len(steps):
-            return hm if hm.report.valid or first_defective is None else first_defective
-        first_defective = first_defective or hm
-        report = _fresh_report(report, f"at cell size {c:.4g} the mesh was defective ({hm.report.reason}); "
-                                       f"trying {cell * steps[k + 1]:.4g}")
+        if hm.report.valid and not hm.report.warnings:
+            return hm
+        if hm.report.valid:
+            warned = warned or hm
+        else:
+            first_defective = first_defective or hm
+        if k + 1 == len(steps):
+            return warned or first_defective
+        what = (f"valid with warnings ({'; '.join(hm.report.warnings)})" if hm.report.valid
+                else f"defective ({hm.report.reason})")
+        report = _fresh_report(report, f"at cell size {c:.4g} the mesh was {what}; trying {cell * steps[k + 1]:.4g}")
         clock.seconds = report.stage_seconds
         clock.say("quality", f"hex: {report.notes[-1]}")
-    return first_defective
+    return warned or first_defective
 
 
 def _too_many(inp: HexInput, cell: float) -> str | None:
@@ -1013,10 +1019,23 @@ def _verdict(report: HexReport) -> None:
         why.append(f"the boundary's Euler characteristic is {report.euler}, the surface's {report.euler_expected}")
     if not report.structure_exact:
         why.append("the irregular edges are not exactly the prescribed curves")
-    if report.hausdorff_relative > 0.01:
-        why.append(f"the boundary is {100 * report.hausdorff_relative:.1f}% of the diagonal off the surface")
+    warn = []
+    off = f"the boundary is {100 * report.hausdorff_relative:.2f}% of the diagonal off the surface"
+    if report.hausdorff_relative > HAUSDORFF_WARNED:
+        why.append(off)
+    elif report.hausdorff_relative > HAUSDORFF_BAR:
+        warn.append(f"{off} (the bar is {100 * HAUSDORFF_BAR:g}%; up to {100 * HAUSDORFF_WARNED:g}% is a warning)")
     report.status = DEFECTIVE if why else VALID
     report.reason = "; ".join(why)
+    report.warnings = warn
+
+
+HAUSDORFF_BAR = 0.01
+"""A valid mesh's boundary lies within this share of the bounding-box
+diagonal of the input surface."""
+HAUSDORFF_WARNED = 0.02
+"""Past HAUSDORFF_BAR and up to this, the mesh is valid with a warning
+(a secondary measure slightly over its bar); past it, defective."""
 
 
 @dataclass

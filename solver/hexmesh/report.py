@@ -80,6 +80,10 @@ class HexReport:
     notes : list of str
         what the run changed on its way (a smaller automatic cell size where
         the map failed at the first one, and why)
+    warnings : list of str
+        a valid mesh's secondary measures slightly over their bars, with the
+        figures (the boundary 1-2% of the diagonal off the surface): the
+        verdict's middle level, *valid with warnings*
     """
 
     status: str = DEFECTIVE
@@ -112,6 +116,7 @@ class HexReport:
     stage_seconds: dict = field(default_factory=dict)
     sizes: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
     cell_reason: str = ""
     given_extra: int = 0
     given_distance: float = 0.0
@@ -137,7 +142,8 @@ class HexReport:
         return cls(**{k: v for k, v in d.items() if k in known})
 
     def summary(self) -> str:
-        lines = [f"hex mesh: {self.status}" + (f" ({self.reason})" if self.reason else ""),
+        lines = [f"hex mesh: {self.status}" + (f" ({self.reason})" if self.reason else "")
+                 + (f", with warnings: {'; '.join(self.warnings)}" if self.valid and self.warnings else ""),
                  f"  {self.hexes:,} hexahedra ({self.non_hex_cells} other cells), {self.vertices:,} vertices, "
                  f"cell size {self.cell_size:.4g}" + (f" ({self.cell_reason})" if self.cell_reason else ""),
                  f"  scaled Jacobian (Verdict's, least of the 8 corners): min {self.sj_min:.3f}, mean "
