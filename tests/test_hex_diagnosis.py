@@ -229,9 +229,10 @@ def test_the_verdict_has_a_level_for_a_boundary_slightly_off(solved, monkeypatch
         mesher._verdict(report)
 
     monkeypatch.setattr(mesher, "_assess", off)
-    hm = hexmesh(res, smooth=False)
-    assert len(sizes) == 2 and hm.report.valid and not hm.report.warnings
-    assert "valid with warnings" in hm.report.notes[0]
+    hm = hexmesh(res)
+    assert len(sizes) >= 2 and "valid with warnings" in hm.report.notes[0]
+    # the first clean size's mesh; the warned one only where no smaller size gave a valid mesh
+    assert hm.report.valid and (not hm.report.warnings or hm.report.cell_size == sizes[0])
     sizes.clear()
-    hm = hexmesh(res, 0.3, smooth=False)  # a size given: tried alone, kept with its warning
+    hm = hexmesh(res, 0.3)  # a size given: tried alone, kept with its warning
     assert sizes == [0.3] and hm.report.valid and hm.report.warnings

@@ -985,7 +985,9 @@ def curve_matches(curves: list, V, E, val, cell: float) -> tuple[int, list]:
         S = np.vstack([P[k] + np.linspace(0, 1, n[k], endpoint=False)[:, None] * (P[k + 1] - P[k])
                        for k in range(len(seg))] + [P[-1:]])
         if mine.any():
-            Em = E[mine]
+            # covered by the edges of its valence within a cell of it, also those nearer
+            # another curve (at a node, where curves meet, an edge is near all of them)
+            Em = E[D[:, j] <= cell]
             d = _segments_distance(S, V[Em[:, 0]], V[Em[:, 1]])
             covered, far = float(np.mean(d <= cell)), float(dist[mine].max())
         else:
