@@ -278,6 +278,8 @@ def main() -> None:
                     "plate), solved and meshed with it, for comparison (bench/suggest_known.json with --write)")
     ap.add_argument("--table", action="store_true", help="print bench/suggest.json and suggest_known.json as "
                     "markdown tables and exit")
+    ap.add_argument("--timeout", type=float, default=None, help="stop a run after this many seconds and record it "
+                    "as stopped")
     ap.add_argument("--one", help=argparse.SUPPRESS)
     ap.add_argument("--hand", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
@@ -292,8 +294,16 @@ def main() -> None:
     rows = []
     for name in a.solids or (list(KNOWN) if a.known else list(solids())):
         t = time.perf_counter()
-        p = subprocess.run([sys.executable, __file__, "--one", name] + (["--hand"] if a.known else []),
-                           capture_output=True, text=True, cwd=ROOT)
+        try:
+            p = subprocess.run([sys.executable, __file__, "--one", name] + (["--hand"] if a.known else []),
+                               capture_output=True, text=True, cwd=ROOT, timeout=a.timeout)
+        except subprocess.TimeoutExpired:
+            row = dict(solid=name, error=f"stopped after {a.timeout:g} s (--timeout), before the run ended",
+                       error_kind="stopped", total_s=round(time.perf_counter() - t, 1))
+            row["missed"] = bars(row)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+            continue
         if p.returncode:
             lines = p.stderr.strip().splitlines() or ["?"]
             row = dict(solid=name, error=lines[-1], error_kind="crash", total_s=round(time.perf_counter() - t, 1))
