@@ -124,6 +124,43 @@ def test_torus_gets_a_square_ring():
             assert np.ptp(c.points[:, 2]) > 3 * np.ptp(np.linalg.norm(c.points[:, :2], axis=1))
 
 
+def _nodes_and_depths(net, rep):
+    """Each node's position, labels and depth per frame axis, from its
+    radial curve (node to surface corner: the sum of its charts' depths
+    along their labels), as suggested (before the intake)."""
+    out = []
+    for c, info in zip(net.curves, rep.curves):
+        if info.kind == "radial":
+            labs = info.charts.split("|")
+            d = rep.frame @ (c.points[-1] - c.points[0])
+            out.append((c.points[0], {lab[1]: lab for lab in labs}, np.abs(d)))
+    return out
+
+
+def test_proportioned_keeps_a_core_as_thick_as_the_padding():
+    """The experimental ``proportioned`` suggestion (docs/suggest.md,
+    *Proportions*): on a flat ellipsoid (1.5 x 1.5 x 0.5) the corners sit
+    where a box projection puts them (|z| about 0.27, not at 0.15 where the
+    normals turn), and on a torus the inner and outer nodes at one azimuth,
+    which share no chain, stay at least as far apart as the padding that
+    parts them (0.107 apart under 0.2 of padding by default)."""
+    V0, F0 = icosphere(3)
+    V0 = V0 * [1.5, 1.5, 0.5]
+    net, rep = suggest_network(V0, F0, proportioned=True)
+    corners = np.array([c.points[-1] for c, i in zip(net.curves, rep.curves) if i.kind == "radial"])
+    assert len(corners) == 8 and np.all(np.abs(corners[:, 2]) > 0.22)
+    assert rep.feature_size > 0.2  # 0.10 with the normals' corners
+    for V, F in ((V0, F0), torus_surface()):
+        net, rep = suggest_network(V, F, proportioned=True)
+        nodes = _nodes_and_depths(net, rep)
+        assert len(nodes) in (8, 16)
+        for i, (p, li, di) in enumerate(nodes):
+            for q, lj, dj in nodes[i + 1:]:
+                apart = [a for a, axis in enumerate("XYZ") if li[axis] != lj[axis]]
+                pad = max([di[a] for a in apart] + [dj[a] for a in apart] + [0.0])
+                assert np.linalg.norm(p - q) >= 0.99 * pad
+
+
 def _top_fillets(r=0.4):
     V, F = box(n=20)
     c = 1.0 - r

@@ -107,7 +107,7 @@ class SuggestReport:
 
 def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None, smoothing: float | None = None,
                     check: bool = True, target_tets: int = 15000,
-                    position: float = 0.4) -> tuple[Network, SuggestReport]:
+                    position: float | None = None, proportioned: bool = False) -> tuple[Network, SuggestReport]:
     """Suggest a singularity network for the closed surface (V, F).
 
     Parameters
@@ -126,7 +126,16 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
         bounding box diagonal).
     position : float
         Weight of the box projection against the normals in the labels
-        (``label_faces``): 0 labels by the normals alone.
+        (``label_faces``): 0 labels by the normals alone (None: 0.4, added
+        to the normals' scores; 1.0, blended, with ``proportioned``).
+    proportioned : bool
+        Experimental (docs/suggest.md, *Proportions*): blend the box
+        projection into the labels of smooth patches (corners where a box's
+        would be), keep any two nodes at least as far apart as the padding
+        that parts them, and straighten a curve that leaves a node towards
+        its surface corner.  It makes the flat ellipsoid's and the torus's
+        networks better proportioned, but in the bench it meshed worse, so
+        it is off by default.
     check : bool
         Run ``check_input`` on the suggestion, so that a network it would
         refuse is refused here, as the suggestion's failure (after up to
@@ -159,7 +168,10 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
         notes.append(f"{dropped} sharp edges in short isolated groups (noise, not creases) left smooth")
     R = align_frame(S)
     diag = S.bbox_diagonal
-    lab = label_faces(S, R, sharp, 0.1 * diag if smoothing is None else float(smoothing), position)
+    if position is None:
+        position = 1.0 if proportioned else 0.4
+    lab = label_faces(S, R, sharp, 0.1 * diag if smoothing is None else float(smoothing), position,
+                      blend=proportioned)
     merged = merge_small_charts(S, lab, 2e-3 * S.face_areas.sum())
     if np.any(merged != lab):
         notes.append(f"{int(np.sum(merged != lab))} triangles of small or misplaced charts relabelled")
@@ -182,7 +194,7 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
                          "kept")
     tries = 3 if depth is None and check else 1
     for attempt in range(tries):
-        curves, info, delta, more = padding_network(S, R, G, depth)
+        curves, info, delta, more = padding_network(S, R, G, depth, proportioned)
         net = Network(curves=curves, **kw)
         rep = SuggestReport(R, merged, G.n_charts, len(G.chains), sum(ch.sharp for ch in G.chains),
                             len(G.corners), sum(1 for c in info if c.kind == "radial"), delta, info, notes + more)

@@ -84,6 +84,43 @@ def _blend_ends(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return P + (1 - s)[:, None] * (a - P[0]) + s[:, None] * (b - P[-1])
 
 
+def _leave_angle(P: np.ndarray, out_a: np.ndarray, out_b: np.ndarray) -> float:
+    """The smallest angle (degrees) between the directions in which P leaves
+    its ends (to the points within its first and last fifth) and the
+    directions out_a, out_b from those ends to their surface corners."""
+    m = max(2, len(P) // 5)
+    worst = 180.0
+    for Q, out in ((P[1:m + 1] - P[0], out_a), (P[-m - 1:-1] - P[-1], out_b)):
+        n = np.maximum(np.linalg.norm(Q, axis=1) * np.linalg.norm(out), 1e-300)
+        worst = min(worst, float(np.degrees(np.arccos(np.clip(Q @ out / n, -1, 1))).min()))
+    return worst
+
+
+def _unbow(P: np.ndarray, out_a: np.ndarray, out_b: np.ndarray, min_angle: float = 60.0) -> np.ndarray:
+    """A curve between two nodes that leaves a node towards that node's
+    surface corner (less than min_angle off its radial curve: the chain
+    along a flat solid's rounded rim bows out with the rim, and left its
+    node along the radial), with its bow off the chord scaled down until
+    it does not (a polycube edge leaves its corner at 125 degrees from the
+    diagonal).  A curve that follows a convex arc leaves at about 90
+    degrees less the tilt of its ends (70 to 95 on a sphere or a torus)
+    and is left as it is; the flat ellipsoid's rim curves left at 29."""
+    if len(P) < 3 or _leave_angle(P, out_a, out_b) >= min_angle:
+        return P
+    seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    s = np.r_[0.0, np.cumsum(seg)]
+    s = s / s[-1] if s[-1] > 0 else np.linspace(0, 1, len(P))
+    line = P[0] + s[:, None] * (P[-1] - P[0])
+    lo, hi = 0.0, 1.0
+    for _ in range(20):
+        mid = 0.5 * (lo + hi)
+        if _leave_angle(line + mid * (P - line), out_a, out_b) >= min_angle:
+            lo = mid
+        else:
+            hi = mid
+    return line + lo * (P - line)
+
+
 @dataclass
 class _Plan:
     smooth_at: dict  # corner vertex -> number of smooth chains there
@@ -125,10 +162,15 @@ def _inward(R, G: ChartGraph, charts, dc: np.ndarray) -> np.ndarray:
     return -sum(dc[c] * label_direction(R, int(G.chart_label[c])) for c in charts)
 
 
-def chart_depths(S: TriSurface, G: ChartGraph, plan, delta: float) -> np.ndarray:
+def chart_depths(S: TriSurface, R: np.ndarray, G: ChartGraph, plan, delta: float,
+                 core: float = 0.0) -> np.ndarray:
     """A padding depth per chart: delta, lowered so that every smooth chart
     boundary between two nodes keeps at least half its length once the
-    charts at its ends are moved in (a thin polycube gets thin padding)."""
+    charts at its ends are moved in (a thin polycube gets thin padding),
+    and (core > 0) so that any two nodes stay at least ``core`` times the padding that
+    parts them apart (the deepest chart of one node and not the other: the
+    core between them is then no thinner than that padding; the inner and
+    outer nodes of a ring's thin tube share no chain)."""
     dc = np.full(G.n_charts, float(delta))
     cons = []
     for _k, ch in enumerate(G.chains):
@@ -140,12 +182,28 @@ def chart_depths(S: TriSurface, G: ChartGraph, plan, delta: float) -> np.ndarray
             cn = next(c for c in G.corners if c.vertex == v)
             ends += [c for c in cn.charts if c not in ch.charts]
         cons.append((ends, 0.5 * float(np.linalg.norm(S.V[a] - S.V[b]))))
-    for _ in range(20):
+    nodes = [cn for cn in G.corners if plan.smooth_at.get(cn.vertex) == 3]
+    dirs = np.array([label_direction(R, int(lab)) for lab in G.chart_label]).reshape(-1, 3)
+    pairs = []
+    for i in range(len(nodes) if core > 0 else 0):
+        for j in range(i + 1, len(nodes)):
+            apart = sorted(set(nodes[i].charts) ^ set(nodes[j].charts))
+            if apart:
+                pairs.append((S.V[nodes[i].vertex] - S.V[nodes[j].vertex], list(nodes[i].charts),
+                              list(nodes[j].charts), apart))
+    for _ in range(60 if pairs else 20):
         changed = False
         for ends, room in cons:
             tot = dc[ends].sum()
             if tot > room * (1 + 1e-9):
                 dc[ends] *= room / tot
+                changed = True
+        for gap, ci, cj, apart in pairs:
+            # the nodes p - sum dc d over their charts, and their distance
+            d = gap - dc[ci] @ dirs[ci] + dc[cj] @ dirs[cj]
+            pad = dc[apart].max()
+            if np.linalg.norm(d) < core * pad * (1 - 1e-6):
+                dc[apart] *= 0.95
                 changed = True
         if not changed:
             break
@@ -187,7 +245,7 @@ def _offsets_ok(S: TriSurface, G: ChartGraph, polys: list, nodes: dict, dc: np.n
     return not np.any(other)
 
 
-def _geometry(S, R, G, plan, dc):
+def _geometry(S, R, G, plan, dc, proportioned=False):
     """The padding curves' points at the chart depths dc: (chain id, points),
     nodes."""
     nodes = {}
@@ -201,13 +259,24 @@ def _geometry(S, R, G, plan, dc):
         P = S.V[ch.vertices] + _inward(R, G, ch.charts, dc)
         delta = float(dc[list(ch.charts)].min())
         L = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
-        n = int(np.clip(np.ceil(3 * L / delta), 8, 48))
         P = _smooth(_resample(_resample(P, 96), 96), 200)
+        # enough points between two nodes that no vertex turns much: a chain
+        # along a rounded rim (a flat solid's) bows, and 8 points made a kink
+        t = np.diff(P, axis=0)
+        t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
+        turn = float(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", t[:-1], t[1:]), -1, 1))).sum())
+        n = int(np.clip(np.ceil(3 * L / delta), 8, 48))
+        if proportioned and int(ch.vertices[0]) in nodes and int(ch.vertices[-1]) in nodes:
+            n = int(max(n, min(96, np.ceil(turn / 6.0) + 2)))
         P = _resample(P, n)
         ends = []
         for v, Q in ((ch.vertices[0], P[0]), (ch.vertices[-1], P[-1])):
             ends.append(nodes[int(v)] if int(v) in nodes else Q)
-        polys.append((k, _blend_ends(P, ends[0], ends[1])))
+        P = _blend_ends(P, ends[0], ends[1])
+        a, b = int(ch.vertices[0]), int(ch.vertices[-1])
+        if proportioned and a in nodes and b in nodes:
+            P = _unbow(P, S.V[a] - nodes[a], S.V[b] - nodes[b])
+        polys.append((k, P))
     return nodes, polys
 
 
@@ -242,11 +311,15 @@ def _charts(G: ChartGraph, ch) -> str:
     return "|".join(LABEL_NAMES[int(G.chart_label[c])] for c in ch.charts)
 
 
-def padding_network(S: TriSurface, R: np.ndarray, G: ChartGraph, depth: float | None = None):
+def padding_network(S: TriSurface, R: np.ndarray, G: ChartGraph, depth: float | None = None,
+                    proportioned: bool = False):
     """The padding curves of the chart graph: (curves, descriptions, depth,
     notes).  depth: the padding depth (None: a third of the median distance
     between the ends of the smooth chart boundaries, lowered until every
-    curve point is at least 0.7 depth from the surface)."""
+    curve point is at least 0.7 depth from the surface).  proportioned:
+    also keep any two nodes at least the padding that parts them apart,
+    and straighten a curve that leaves a node towards its surface corner
+    (docs/suggest.md)."""
     plan = _plan(S, G)
     smooth = [ch for ch in G.chains if ch.padded]
     notes = []
@@ -255,8 +328,8 @@ def padding_network(S: TriSurface, R: np.ndarray, G: ChartGraph, depth: float | 
     chords = [np.linalg.norm(S.V[ch.vertices[0]] - S.V[ch.vertices[-1]]) for ch in smooth]
     delta = float(depth) if depth is not None else 0.35 * float(np.median(chords))
     for _ in range(12):
-        dc = chart_depths(S, G, plan, delta)
-        nodes, polys = _geometry(S, R, G, plan, dc)
+        dc = chart_depths(S, R, G, plan, delta, core=1.0 if proportioned else 0.0)
+        nodes, polys = _geometry(S, R, G, plan, dc, proportioned)
         if depth is not None or _offsets_ok(S, G, polys, nodes, dc):
             break
         delta *= 0.8

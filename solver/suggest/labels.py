@@ -64,12 +64,17 @@ def face_adjacency(S: TriSurface, keep: np.ndarray | None = None) -> sp.csr_matr
 
 
 def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: float,
-                position: float = 0.0) -> np.ndarray:
+                position: float = 0.0, blend: bool = False, gate: float = 0.25,
+                creased_position: float = 0.4) -> np.ndarray:
     """Labels 0..5 per face: fidelity to the normal in the frame R, made
     compact by diffusing the six scores over the surface (not across sharp
     edges) for a length of about ``smoothing`` before taking the best;
     ``position`` weighs in the direction of the face from the centre, scaled
-    to the bounding box (0: the normals alone)."""
+    to the bounding box (a box projection; 0: the normals alone): added to
+    the normals' scores, or with ``blend`` blended with them (1: the box
+    projection's label where the face looks straight out from the centre),
+    for the directions within acos(gate) of the normal and only on smooth
+    patches no sharp crease bounds."""
     D = S.face_normals @ R.T
     score = np.maximum(np.c_[D[:, 0], -D[:, 0], D[:, 1], -D[:, 1], D[:, 2], -D[:, 2]], 0.0)
     if position > 0:
@@ -80,10 +85,28 @@ def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: floa
         lo, hi = X.min(axis=0), X.max(axis=0)
         Y = (X - 0.5 * (lo + hi)) / np.maximum(0.5 * (hi - lo), 1e-300)
         Y /= np.maximum(np.linalg.norm(Y, axis=1, keepdims=True), 1e-300)
-        # only where the face looks away from the centre (not in a hole or
-        # a dent, where the direction from the centre is no guide)
-        w = position * np.maximum(np.einsum("ij,ij->i", Y, D), 0.0)[:, None]
-        score = score + w * np.maximum(np.c_[Y[:, 0], -Y[:, 0], Y[:, 1], -Y[:, 1], Y[:, 2], -Y[:, 2]], 0.0)
+        B = np.maximum(np.c_[Y[:, 0], -Y[:, 0], Y[:, 1], -Y[:, 1], Y[:, 2], -Y[:, 2]], 0.0)
+        # weighed by how much the face looks away from the centre (not in a
+        # hole or a dent, where the direction from the centre is no guide)
+        out = np.maximum(np.einsum("ij,ij->i", Y, D), 0.0)
+        added = score + position * out[:, None] * B
+        if blend:
+            # blended, not added: at a corner of the box projection its three
+            # directions score alike, so an added term cannot move a corner
+            # there (a flat ellipsoid's corners stay near where its normals
+            # turn); only for a direction within acos(gate) of the normal,
+            # and only on smooth patches no sharp crease bounds (a cylinder's
+            # wall, a bar's sides keep the added rule at creased_position)
+            w = np.minimum(position * out, 0.95)[:, None]
+            blended = (1.0 - w) * score + w * B * np.clip(score / gate, 0.0, 1.0)
+            if np.any(sharp):
+                _, comp = connected_components(face_adjacency(S, ~sharp), directed=False)
+                creased = np.zeros(comp.max() + 1, bool)
+                creased[comp[S.edge_faces[sharp].ravel()]] = True
+                kept = score + creased_position * out[:, None] * B
+                blended = np.where(creased[comp][:, None], kept, blended)
+            added = blended
+        score = added
     W = face_adjacency(S, ~sharp)
     deg = np.asarray(W.sum(axis=1)).ravel()
     P = sp.diags(1.0 / np.maximum(deg, 1e-300)) @ W
