@@ -1,5 +1,6 @@
 """Hex meshing: a pure hexahedral mesh from a solved field, its irregular
-edges the prescribed curves (docs/hexmesh.md; the stages in mesher.py)."""
+edges the prescribed curves (docs/hexmesh.md; the stages in mesher.py), and
+its boundary patches for simulation (patches.py)."""
 
 from ..errors import HexMeshError
 from .arrays import input_from_arrays

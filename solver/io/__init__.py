@@ -2,7 +2,11 @@
 (formats.py); a solved field for hex meshers -- VTU, MEDIT + .fra + .perm,
 OpenVolumeMesh, AlgoHex .qtn (interchange.py), with FieldData, what they
 need of a solved field kept elsewhere (a .blend); a network read from a tet
-mesh with tagged edges (tetnetwork.py)."""
+mesh with tagged edges (tetnetwork.py); hex meshes as VTU, VTK, MEDIT and
+the integer-grid map (hexformats.py), and for simulation codes as Gmsh MSH,
+Abaqus/CalculiX and Exodus II with their boundary patches (femformats.py);
+files written whole or not at all (atomic.py), text read with line numbers
+(text.py), stored fields read back for hex meshing (stored.py)."""
 
 from .formats import (
     load_result,
