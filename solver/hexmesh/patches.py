@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..surface.trisurface import TriSurface
-from .quality import HEX_FACES
+from .quality import HEX_FACES, boundary_faces
 
 ABAQUS_FACE = np.array([1, 2, 3, 4, 5, 6])
 """The Abaqus/CalculiX C3D8 face number (S1..S6) of each of quality.HEX_FACES:
@@ -72,10 +72,9 @@ def boundary_patches(S: TriSurface, sharp: np.ndarray, V: np.ndarray, H: np.ndar
     """The boundary quads of the hex mesh (V, H) with their cells, local
     faces and surface patches (module docs)."""
     H = np.asarray(H, np.int64)
-    Fq = H[:, HEX_FACES].reshape(-1, 4)
-    _, inv, cnt = np.unique(np.sort(Fq, axis=1), axis=0, return_inverse=True, return_counts=True)
-    one = np.nonzero(cnt[inv.reshape(-1)] == 1)[0]
-    quads, cells, faces = Fq[one], one // 6, one % 6
+    one, _ = boundary_faces(H)
+    cells, faces = one // 6, one % 6
+    quads = H[cells[:, None], HEX_FACES[faces]]
     tri_patch = surface_patches(S, sharp)
     n = int(tri_patch.max()) if len(tri_patch) else 0
     if len(quads):

@@ -39,14 +39,19 @@ def scaled_jacobian(V: np.ndarray, H: np.ndarray) -> np.ndarray:
     return corner_jacobians(V, H).min(axis=1)
 
 
-def boundary_quads(H: np.ndarray) -> np.ndarray:
-    """(k, 4) faces held by one hex only, oriented outward; raises where a
-    face is held by more than two."""
+def boundary_faces(H: np.ndarray) -> tuple[np.ndarray, int]:
+    """(the faces held by one hex only, as indices 6 cell + local face into
+    the cells' HEX_FACES; how many faces more than two hexes hold)."""
     Fq = H[:, HEX_FACES].reshape(-1, 4)
-    key = np.sort(Fq, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.reshape(-1)
-    return Fq[cnt[inv] == 1], int(np.sum(cnt > 2))
+    _, inv, cnt = np.unique(np.sort(Fq, axis=1), axis=0, return_inverse=True, return_counts=True)
+    return np.nonzero(cnt[inv.reshape(-1)] == 1)[0], int(np.sum(cnt > 2))
+
+
+def boundary_quads(H: np.ndarray) -> np.ndarray:
+    """(k, 4) faces held by one hex only, oriented outward, and how many
+    faces more than two hexes hold."""
+    one, over = boundary_faces(H)
+    return H[one // 6][np.arange(len(one))[:, None], HEX_FACES[one % 6]], over
 
 
 def edge_valences(H: np.ndarray, quads: np.ndarray):
