@@ -3,7 +3,7 @@
 # requirements on first use (Python 3.11), then:
 #   ./dev.sh demo [ARGS]   build the default example, compute it, write out/*.blend and a PNG
 #   ./dev.sh test [ARGS]   lint (ruff), install CalculiX if missing (apt), then run the test suite on two
-#                          processes (pytest ARGS; -n 0: one)
+#                          processes (pytest ARGS; -n 0: one; -m "not slow": the ~1-minute fast loop)
 #   ./dev.sh lint [ARGS]   ruff check (ARGS e.g. --fix)
 #   ./dev.sh bench [ARGS]  run the benchmarks
 #   ./dev.sh docs [DIR]    build the API reference (docs/api/index.html) from the docstrings

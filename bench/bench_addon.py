@@ -55,9 +55,8 @@ def main():
 
     addon = load_addon()
     addon.register()
-    from symframes.solver import FrameField, sample_glyphs, seed_points, trace_streamlines
-    from symframes.solver.io import quaternion_frames
-    from symframes.symframes_addon import glyphs, job, scene_io, storage, streamline_curves
+    from symframes.solver import sample_glyphs, seed_points, trace_streamlines
+    from symframes.symframes_addon import glyphs, storage, streamline_curves
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.symframes.add_example(example=args.example)
@@ -67,10 +66,7 @@ def main():
     t = time.perf_counter()
     bpy.ops.symframes.compute(glyphs=False)
     t_solve = time.perf_counter() - t
-    inputs = scene_io.read_inputs(bpy.context)
-    mesh = job.cached_mesh(inputs.mesh_key())
-    V, T, q = storage.read_field(s.field)
-    field = FrameField(mesh.vertices, mesh.tets, quaternion_frames(q), mesh=mesh)
+    field = storage.frame_field(scene)
 
     t_gs, _, (P, Q) = best_of(1, lambda: sample_glyphs(field, count=args.glyphs, seed=0))
     seeds = seed_points(field, args.streamlines, seed=0)

@@ -34,7 +34,7 @@ def _rss_mb() -> float:
 
 
 def run_one() -> dict:
-    from solver import HexInput, default_cell_size, hexmesh, solve
+    from solver import default_cell_size, hexmesh, solve
     from solver.examples import load_example
 
     V, F, net = load_example("ball")
@@ -42,7 +42,7 @@ def run_one() -> dict:
     res = solve(V, F, net, edge_length=EDGE_LENGTH)
     field_s = time.perf_counter() - t0
     field_mb = _rss_mb()
-    inp = HexInput.from_result(res)
+    inp = res.field
     rows = []
     for cells in CELLS:
         cell = default_cell_size(inp, cells)
@@ -58,8 +58,14 @@ def run_one() -> dict:
             "rows": rows}
 
 
-STAGES = ("curves onto edges", "transitions", "seamless map", "integer-grid map", "extraction", "smoothing",
-          "quality")
+def _stages() -> tuple:
+    """The hex stages' names in the order they run (hexmesh.STAGE_WEIGHTS)."""
+    from solver.hexmesh.mesher import STAGE_WEIGHTS
+
+    return tuple(STAGE_WEIGHTS)
+
+
+STAGES = _stages()
 
 
 def table(runs: list[dict]) -> str:

@@ -111,12 +111,11 @@ def run_cells(spec: str) -> dict:
     resident set the solve left (what the per-cell estimate is fitted to)."""
     from solver import default_cell_size, hexmesh, solve
     from solver.examples import load_example
-    from solver.hexmesh import HexInput
 
     name, cells, *h = spec.split(":")
     V, F, net = load_example(name)
     res = solve(V, F, net, edge_length=float(h[0]) if h else None)
-    inp = HexInput.from_result(res)
+    inp = res.field
     cell = default_cell_size(inp, int(cells))
     with Sampler() as s:
         s.set("before")

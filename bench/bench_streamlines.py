@@ -53,12 +53,12 @@ def main():
     rows = []
 
     def build():
-        f = FrameField.from_result(result)
+        f = FrameField.from_field(result.field)
         f.frames_at(mesh.vertices[:1])  # builds the per-tet matching table
         return f
 
     wall, cpu, field = best_of(args.repeat, build)
-    rows.append(("FrameField.from_result + matching table", "", wall, cpu))
+    rows.append(("FrameField.from_field + matching table", "", wall, cpu))
 
     wall, cpu, (P, _) = best_of(args.repeat, lambda: sample_glyphs(field, count=args.glyphs))
     rows.append((f"sample_glyphs(count={args.glyphs:,})", f"{len(P):,} glyphs", wall, cpu))

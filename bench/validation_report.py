@@ -1,4 +1,4 @@
-"""The validation report (paper §5.2, §5.4; design notes §4).
+"""The validation report (paper §5.2, §5.4; docs/how-it-works.md, *Analysis*).
 
 Runs every example domain, measures each solution with solver/analysis/measures.py,
 and runs a refinement study; prints everything and writes it as markdown
@@ -65,7 +65,7 @@ TARGETS = [
                                "paper, the LM tolerance here)"),
     ("normal_mean", "<=", 1.72, "adaptation mean error 0.014-1.72 degrees (§5.2)"),
     ("tangent_mean", "<=", 1.72, "adaptation mean error 0.014-1.72 degrees (§5.2)"),
-    ("omega_missing", "<=", 0, "singular faces are exactly the network (design notes §4)"),
+    ("omega_missing", "<=", 0, "singular faces are exactly the network (docs/how-it-works.md, *Analysis*)"),
     ("omega_spurious", "<=", 0, "no spurious singular faces"),
     ("smooth_max", "<=", 1.0, "local smoothing moves no cross by more than about 1 degree (Fig. 18)"),
 ]
@@ -267,7 +267,7 @@ def measure(result, others: dict | None = None, smoothing_iterations: int = SMOO
 
 def _near_network(result, v: int) -> bool:
     """Vertex v within two edge lengths of a network curve."""
-    curves = [c.points for c in result.problem.network.curves]
+    curves = [c.points for c in result.field.network.curves]
     if not curves:
         return False
     return bool(an.vertices_near_polylines(result.mesh.vertices[[v]], curves, 2 * result.mesh.mean_edge_length)[0])

@@ -8,12 +8,12 @@ scripts/build_extension.py for linux-x64; then scripts/extension_smoke.py
 (install from disk into a temporary BLENDER_USER_RESOURCES, enable,
 compute the cylinder, whose field needs LM iterations, glyphs,
 streamlines, diagnostics, Export Field, save and reload, hex mesh, clear,
-Import Network; a crash on exit fails the row).  Prints a table; --write puts it into README.md between the matrix
-markers.
+Import Network; a crash on exit fails the row).  Prints a table; --write puts it into docs/platforms.md between the
+matrix markers.
 
     ./dev.sh matrix                       # every row of ROWS
     ./dev.sh matrix --bpy 4.2.23 --bpy 5.1.2 --mesher wildmeshing
-    ./dev.sh matrix --write               # and update README.md
+    ./dev.sh matrix --write               # and update docs/platforms.md
 
 Downloads (each bpy wheel 335-500 MB) land once in .matrix/wheels; rows run
 one after the other.  Runs on linux-x64 only: the other platforms' zips are
@@ -219,11 +219,11 @@ def row_table(results: list[dict]) -> str:
 
 
 def write_readme(table: str, note: str) -> None:
-    path = os.path.join(ROOT, "README.md")
+    path = os.path.join(ROOT, "docs", "platforms.md")
     with open(path, encoding="utf-8") as fh:
         text = fh.read()
     if MARK_BEGIN not in text or MARK_END not in text:
-        sys.exit(f"README.md has no {MARK_BEGIN} ... {MARK_END} markers")
+        sys.exit(f"docs/platforms.md has no {MARK_BEGIN} ... {MARK_END} markers")
     a, b = text.index(MARK_BEGIN) + len(MARK_BEGIN), text.index(MARK_END)
     text = text[:a] + "\n" + note + "\n\n" + table + "\n" + text[b:]
     with open(path, "w", encoding="utf-8") as fh:
@@ -251,7 +251,7 @@ def main(argv=None) -> int:
     p.add_argument("--mesher", choices=build_extension.MESHERS, help="with --bpy: force this mesher into the zip")
     p.add_argument("--example", default="cylinder", choices=["cube", "cylinder"],
                    help="the example solved (default: the cylinder, whose field needs LM iterations)")
-    p.add_argument("--write", action="store_true", help="write the table into README.md")
+    p.add_argument("--write", action="store_true", help="write the table into docs/platforms.md")
     p.add_argument("--json", help="also write the results to this JSON file")
     args = p.parse_args(argv)
     rows = [(v, args.mesher) for v in args.bpy] if args.bpy else ROWS
@@ -274,7 +274,7 @@ def main(argv=None) -> int:
                 f"steps: {', '.join(STEPS)} (the process ended with code 0); 'LM iterations' those the field "
                 "took; wildmeshing rows bundle the macOS mesher.")
         write_readme(table, note)
-        print("[matrix] README.md updated")
+        print("[matrix] docs/platforms.md updated")
     failed = [r for r in results if not row_passed(r)]
     return 1 if failed else 0
 

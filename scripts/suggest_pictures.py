@@ -32,7 +32,7 @@ def _view(yaw: float = 35.0, pitch: float = 25.0) -> np.ndarray:
 def render(V, F, net, labels, path: str, size: int = 360) -> None:
     """Write an SVG of the surface, its sharp edges and the network's curves."""
     from solver.surface.features import sharp_edges_by_angle
-    from solver.surface.trisurface import validate_surface
+    from solver.surface.validation import validate_surface
 
     S = validate_surface(V, F)
     R = _view()

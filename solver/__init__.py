@@ -16,7 +16,10 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
   ``solve_resolved`` solves it, and once more finer where the automatic
   mesh left the network unresolved; ``solve_finer`` solves a field again
   finer for a hex map that needs it),
-  ``Options``, ``Result``, ``Report``; ``check`` runs a solve's validation,
+  ``Options``, ``Result``, ``Report``; ``SolvedField`` is a solved field
+  as one value (``Result.field``; ``SolvedField.to_arrays`` /
+  ``SolvedField.from_arrays`` store it, ``io.load_field`` reads a result
+  file's), what hex meshing, the exports and the measures take; ``check`` runs a solve's validation,
   curve repair and resolution plan without meshing (``CheckResult``).
 * Input: ``Curve``, ``Network``, ``Role``, ``Torsion``.
 * Measuring a field (§5.2): ``monodromy_angles``, ``regular_face_mask``,
@@ -24,10 +27,11 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
 * Showing a field (§5.5): ``FrameField`` (frames interpolated inside tets),
   ``sample_glyphs``, ``seed_points``, ``trace_streamlines``.
 * Hex meshing (docs/hexmesh.md): ``hexmesh`` makes a pure hex mesh of a
-  solved field (``HexMesh``, its ``HexReport`` and its ``BoundaryPatches``);
-  ``HexInput`` is what it
-  needs of the field (``HexInput.from_result``; ``hex_source_arrays`` /
-  ``input_from_arrays`` keep it beside a stored field); ``default_cell_size``.
+  solved field (``HexMesh``, its ``HexReport`` and its ``BoundaryPatches``)
+  with ``HexOptions`` (cell size, ``DEFAULT_HEXES`` cells by default, up to
+  ``MAX_HEXES``; smoothing); ``default_cell_size``.  ``HexInput``, ``hex_source_arrays`` and
+  ``input_from_arrays`` are the earlier names of ``SolvedField`` and its
+  arrays, kept for one release.
 * No network yet (docs/suggest.md): ``suggest_network`` suggests one for a
   closed surface (a padded polycube), with its ``SuggestReport``.
 * Errors: ``SymFramesError`` and its subclasses (``HexMeshError`` when no
@@ -35,7 +39,7 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
   cannot be written, ``ReadError`` when a stored result or interchange file
   is damaged); ``Cancelled``.
 
-See README.md for the sign convention of the index sigma and the file formats.
+See README.md for the sign convention of the index sigma and docs/usage.md for the file formats.
 """
 
 from .analysis.measures import (
@@ -58,10 +62,14 @@ from .errors import (
     SymFramesError,
     TopologyError,
 )
+from .field.solved import SolvedField
 from .hexmesh import (
+    DEFAULT_HEXES,
+    MAX_HEXES,
     BoundaryPatches,
     HexInput,
     HexMesh,
+    HexOptions,
     HexReport,
     default_cell_size,
     hex_source_arrays,
@@ -75,6 +83,8 @@ from .report import Report
 from .suggest import SuggestReport, suggest_network
 
 __all__ = [
+    "DEFAULT_HEXES",
+    "MAX_HEXES",
     "Cancelled",
     "CheckResult",
     "Curve",
@@ -84,6 +94,7 @@ __all__ = [
     "BoundaryPatches",
     "HexMesh",
     "HexMeshError",
+    "HexOptions",
     "HexReport",
     "MeshingError",
     "Network",
@@ -94,6 +105,7 @@ __all__ = [
     "ReadError",
     "Report",
     "Result",
+    "SolvedField",
     "SuggestReport",
     "Role",
     "SingularFaces",

@@ -137,7 +137,7 @@ def _check_exports(paths: list[str]) -> None:
 def _check_hex_outputs(args) -> None:
     """Refuse hex-mesh settings and outputs the run could not use, before
     any work."""
-    from .hexmesh.mesher import DEFAULT_HEXES, MAX_HEXES
+    from .hexmesh import DEFAULT_HEXES, MAX_HEXES
     from .io.hexformats import HEX_FORMATS
 
     for path in args.hex:
@@ -176,13 +176,14 @@ def _check_overwrites(args, out: str | None, inputs) -> None:
 
 def _hex_refusal(args, size: tuple[float, float] | None, curves, sources=None) -> int:
     """The hex settings against the solid and the network, before any work
-    (hexmesh.mesher.check_cell_size / check_indices); returns 0 when they
+    (hexmesh.cellsize.check_cell_size / hexmesh.intake.check_indices); returns 0 when they
     fit.  A cell size the user gave that does not fit raises an
     OptionsError naming --cell-size (exit 1); a network no hex mesh can have
     is said as the hex stage says it, and returns EXIT_NO_HEX_MESH.  size:
     (the solid's smallest extent, its volume), None where unknown."""
     from .errors import HexMeshError
-    from .hexmesh.mesher import check_cell_size, check_indices
+    from .hexmesh.cellsize import check_cell_size
+    from .hexmesh.intake import check_indices
 
     if args.cell_size is not None and size is not None:
         check_cell_size(args.cell_size, *size, subject=f"--cell-size {args.cell_size:g}", error=OptionsError)
@@ -205,10 +206,9 @@ def _hex(args, inp, progress, finer=None) -> int:
     """Make and write the hex mesh; returns the exit status it implies.
     finer: where the map fails (a limit of SymFrames, such as two nodes
     closer than the field's mesh resolves), a callable giving the field
-    solved again finer (a HexInput, or None), which is meshed instead."""
+    solved again finer (a SolvedField, or None), which is meshed instead."""
     from .errors import HexMeshError
-    from .hexmesh import hexmesh
-    from .hexmesh.mesher import DEFAULT_HEXES
+    from .hexmesh import DEFAULT_HEXES, HexOptions, hexmesh
     from .io.hexformats import export_hexmesh
 
     converged = getattr(inp, "status", "converged") == "converged"
@@ -219,8 +219,9 @@ def _hex(args, inp, progress, finer=None) -> int:
               "anyway)", file=sys.stderr)
         return EXIT_NOT_CONVERGED
     try:
-        hm = hexmesh(inp, args.cell_size, smooth=not args.no_smooth, progress=progress,
-                     target_hexes=args.hex_cells or DEFAULT_HEXES, allow_unconverged=args.mesh_unconverged)
+        options = HexOptions(cell_size=args.cell_size, target_hexes=args.hex_cells or DEFAULT_HEXES,
+                             smooth=not args.no_smooth)
+        hm = hexmesh(inp, options=options, progress=progress, allow_unconverged=args.mesh_unconverged)
     except HexMeshError as e:
         again = finer(e) if finer is not None and e.kind == "map" else None
         if again is not None:
@@ -242,9 +243,8 @@ def _hex(args, inp, progress, finer=None) -> int:
 def _solve_finer(args, result, out: str, error, progress):
     """For a hex map that failed on this field: the field solved again
     finer (pipeline.solve_finer), written over ``out`` and the --export
-    files, as a HexInput; None (said why) where it is not solved again or
+    files, as a SolvedField; None (said why) where it is not solved again or
     does not converge."""
-    from .hexmesh import HexInput
     from .pipeline import solve_finer
 
     print(f"note: no hex mesh on this field ({error}); solving the field again finer", file=sys.stderr)
@@ -257,14 +257,14 @@ def _solve_finer(args, result, out: str, error, progress):
     print(f"wrote {out}")
     for path in args.export:
         print("wrote " + ", ".join(io.export_field(again, path)))
-    return HexInput.from_result(again)
+    return again.field
 
 
 def _from_result(args) -> int:
-    """--from-result: check the stored field (io.load_hex_input) and the hex
+    """--from-result: check the stored field (io.load_field) and the hex
     settings against it, then mesh it (--hex) and write the field (--export),
     or stop after the checks (--check).  -o is refused: no solve, no result."""
-    from .hexmesh.mesher import solid_size
+    from .hexmesh.cellsize import solid_size
 
     if args.example or args.network or args.tet_network:
         raise OptionsError("--from-result meshes a stored field: give no network, --example or --tet-network with "
@@ -278,7 +278,7 @@ def _from_result(args) -> int:
                            "not solve; drop it")
     _check_overwrites(args, None, [("--from-result", args.from_result)])
     _check_exports(args.export)
-    inp = io.load_hex_input(args.from_result)
+    inp = io.load_field(args.from_result)
     refused = _hex_refusal(args, solid_size(inp), inp.network.curves, inp.network.source) if args.hex else 0
     if refused:
         return refused
@@ -541,12 +541,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"warning: not converged: {result.report.status_reason}", file=sys.stderr)
             status = EXIT_NOT_CONVERGED
         if args.hex:
-            from .hexmesh import HexInput
-
             def finer(error):
                 return _solve_finer(args, result, out, error, progress)
 
-            hex_status = _hex(args, HexInput.from_result(result), progress, finer=finer)
+            hex_status = _hex(args, result.field, progress, finer=finer)
             status = max(status, hex_status)
             if hex_status and (args.network or "").lower().endswith(".obj") and args.surface is None:
                 print("the network was suggested (docs/suggest.md): write it with --suggest-network FILE.json, edit "

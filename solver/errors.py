@@ -43,7 +43,7 @@ class OutputError(SymFramesError):
 
 class ReadError(SymFramesError):
     """A file SymFrames reads back is not what its format says: a stored
-    result (``--from-result``, ``io.load_hex_input``) that is empty,
+    result (``--from-result``, ``io.load_field``) that is empty,
     truncated, not a NumPy archive, or lacks an array or holds one of the
     wrong type, shape or range (frames that are not rotations, a non-finite
     omega, an index past its mesh); an interchange file (``.hexex``,

@@ -1,4 +1,4 @@
-"""The whole method, stage by stage (design notes §2).
+"""The whole method, stage by stage (docs/how-it-works.md, *How it works*).
 
     validate          network/validation.py   check_input
     tetmesh           mesh/meshing.py         mesh_domain
@@ -17,7 +17,8 @@ boundary field so that changing only solver settings does not remesh.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
+from dataclasses import field as dc_field
 
 import numpy as np
 
@@ -28,6 +29,7 @@ from .field.constraints import TUBE, AffineOmega, build_constraints, tube_curvat
 from .field.develop import develop
 from .field.meshed_boundary import meshed_boundary_field
 from .field.root import default_root, node_region_edges
+from .field.solved import SolvedField
 from .field.volume3d import VolumeProblem
 from .mesh.embed import Embedding, embed_network
 from .mesh.meshing import MeshOutcome, MeshSettings, mesh_domain, node_edge_length, node_radius
@@ -456,6 +458,7 @@ class Result:
     frames: np.ndarray
     root: int
     report: Report
+    _field: SolvedField | None = dc_field(default=None, init=False, repr=False, compare=False)
 
     @property
     def mesh(self) -> TetMesh:
@@ -466,9 +469,38 @@ class Result:
         return self.problem.embedding
 
     @property
+    def options(self) -> Options:
+        """The options the field was solved with."""
+        return self.problem.options
+
+    @property
     def structure_omega(self) -> np.ndarray:
         """(#F, 3) Omega_f of the structure equation this field solved (Eq. 17)."""
         return self.problem.structure_omega
+
+    @property
+    def field(self) -> SolvedField:
+        """The solved field as one value (field/solved.py): what hex meshing,
+        the exports and the measures take, and what a result file keeps."""
+        f = self._field
+        if f is None:
+            p = self.problem
+            mesh = p.mesh
+            feature = np.zeros(mesh.n_vertices, bool)
+            feature[mesh.boundary_vertices[np.asarray(p.boundary.is_feature_vertex, bool)]] = True
+            cons = p.constraints
+            tube = np.nonzero(cons.kind == TUBE)[0]
+            tube = tube[cons.tube_curve[tube] >= 0]
+            given = [(np.asarray(c.points, float), float(c.sigma), i, c.name) for i, c in enumerate(p.given.curves)
+                     if c.sigma != 0]
+            f = SolvedField(mesh, np.asarray(self.frames), np.asarray(self.omega), p.embedding, p.network,
+                            p.checked.surface, np.asarray(p.checked.features.sharp, bool), feature,
+                            tube.astype(np.int64), np.asarray(cons.tube_curve[tube], np.int64), int(self.root),
+                            self.report.status, given)
+        elif f.status != self.report.status:
+            f = replace(f, status=self.report.status)
+        self._field = f
+        return f
 
     def develop(self, root: int) -> np.ndarray:
         """The frames developed from omega starting at another vertex, with
@@ -491,10 +523,7 @@ class Result:
 
     def quaternions(self) -> np.ndarray:
         """(#V, 4) unit quaternions (w, x, y, z) of the frames."""
-        from scipy.spatial.transform import Rotation
-
-        q = Rotation.from_matrix(self.frames).as_quat()  # x y z w
-        return np.c_[q[:, 3], q[:, :3]]
+        return self.field.quaternions()
 
     def _curve(self, i) -> int:
         n = len(self.embedding.traces)
@@ -513,10 +542,7 @@ class Result:
 
     def curve_vertices(self, i: int) -> np.ndarray:
         """Vertices whose edges carry curve i's adaptation constraints."""
-        i = self._curve(i)
-        cons = self.problem.constraints
-        e = np.nonzero((cons.kind == TUBE) & (cons.tube_curve == i))[0]
-        return np.unique(self.mesh.edges[e])
+        return self.field.curve_vertices(self._curve(i))
 
     def quick_metrics(self) -> dict:
         from .analysis.measures import quick_metrics

@@ -85,7 +85,7 @@ def write_singular_faces(scene) -> dict:
         raise ValueError("no field computed yet: press Compute Field first")
     mesh = field.mesh
     sf = singular_faces(mesh, storage.field_omega(scene), field.frames,
-                        storage.network_face_ids(scene.symframes.field, mesh))
+                        storage.network_face_ids(scene))
     f = np.nonzero(sf.singular)[0]
     spurious = sf.spurious[f]
     counts = {"singular": int(len(f)), "spurious": int(spurious.sum()), "closest_differs": sf.disagreements}

@@ -149,7 +149,7 @@ def write_slice(scene, quantity: str) -> dict:
     omega = storage.field_omega(scene) if quantity == "MONODROMY" else None
     ds = display.DisplaySettings.from_scene(scene)
     f, tris, val, grey = slice_values(field, omega, storage.read_adaptation(me_field),
-                                      storage.network_face_ids(me_field, field.mesh), ds, quantity)
+                                      storage.network_face_ids(scene), ds, quantity)
     if len(f) == 0:
         where = "on the slice plane" if quantity == "MONODROMY" else "on the kept side of the slice plane"
         raise ValueError(f"no tet face {where}: move the slice plane into the solid (Slice Position)")

@@ -91,7 +91,7 @@ class SYMFRAMES_OT_export_field(bpy.types.Operator, ExportHelper):
             self.report({"ERROR"}, f"SymFrames: the folder {folder} does not exist")
             return {"CANCELLED"}
         try:
-            written = export_field(storage.read_field_data(context.scene), path, self.file_format.lower())
+            written = export_field(storage.solved_field(context.scene), path, self.file_format.lower())
         except (SymFramesError, ValueError, OSError) as e:
             self.report({"ERROR"}, f"SymFrames: export failed: {e}")
             return {"CANCELLED"}
@@ -188,7 +188,7 @@ class SYMFRAMES_OT_tet_mesh_object(bpy.types.Operator):
         if me_field is None:
             return {"CANCELLED"}
         try:
-            fd = storage.read_field_data(context.scene)
+            fd = storage.solved_field(context.scene)
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, f"SymFrames: {e}")
             return {"CANCELLED"}
@@ -196,7 +196,7 @@ class SYMFRAMES_OT_tet_mesh_object(bpy.types.Operator):
         me = bpy.data.meshes.new("SymFrames Tet Mesh")
         try:
             me.from_pydata(mesh.vertices.tolist(), [], mesh.faces.tolist())
-            q = storage.read_field(me_field)[2]
+            q = fd.quaternions()
             me.attributes.new(storage.FRAME_ATTRIBUTE, "QUATERNION", "POINT")
             me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_set("value", q.astype(np.float32).ravel())
             # a face of the tet mesh is on a curve's tube when a crossed tet holds it

@@ -7,9 +7,8 @@ the main thread, and only on success.  ``run()`` is the same work in the
 calling thread (background mode, tests).
 
 * ``SolveJob``: FieldProblem + solve + glyph/streamline sampling.
-* ``HexJob``: solver.hexmesh of the last solve's Result, or of the stored
-  field with the network embedding its solve kept beside it
-  (``StoredField``: solver.input_from_arrays).
+* ``HexJob``: solver.hexmesh of a solved field (solver.SolvedField: the
+  scene's stored field, read back whole from the .blend).
 * ``SuggestJob``: solver.suggest_network of the domain's surface.
 
 Kept in memory beside the scene, each with what it depends on:
@@ -17,10 +16,6 @@ Kept in memory beside the scene, each with what it depends on:
 * the tet mesh of the last solve, with the fingerprint of its inputs, so
   re-solving after changing only solver settings (penalty, iterations,
   start, indices) does not remesh;
-* the last solve's Result, under the id written on its field datablock, so
-  Hex Mesh meshes the solve itself (its frames and omega in double
-  precision, the .blend keeps them in single) while that field is the
-  scene's;
 * the last HexMesh, under the id written on its object, so that the export
   writes it in full precision with its integer-grid map.
 """
@@ -37,21 +32,18 @@ from ..solver import (
     Cancelled,
     FieldProblem,
     FrameField,
-    HexInput,
     HexMesh,
+    HexOptions,
     Report,
-    hex_source_arrays,
+    SolvedField,
     hexmesh,
-    input_from_arrays,
     solve_resolved,
     suggest_network,
     vertex_normal_adaptation,
 )
-from ..solver.io import FieldData, field_data
 from . import display
 
 _MESH_CACHE: dict = {}
-_RESULT_CACHE: dict = {}
 _HEX_CACHE: dict = {}
 
 
@@ -64,21 +56,9 @@ def new_id() -> str:
     return uuid.uuid4().hex
 
 
-def remember_result(solve_id: str, result) -> None:
-    """Keep the last solve's Result (one at a time: it holds the whole problem)."""
-    _RESULT_CACHE.clear()
-    _RESULT_CACHE.update(id=solve_id, result=result)
-
-
-def cached_result(solve_id: str | None):
-    """The Result written under solve_id, if it is the one kept, else None."""
-    return _RESULT_CACHE.get("result") if solve_id and _RESULT_CACHE.get("id") == solve_id else None
-
-
 def forget_results() -> None:
-    """Drop the kept Result and HexMesh (Clear Results: they are large); the
-    tet mesh stays, as re-solving the same inputs reuses it."""
-    _RESULT_CACHE.clear()
+    """Drop the kept HexMesh (Clear Results: it is large); the tet mesh
+    stays, as re-solving the same inputs reuses it."""
     _HEX_CACHE.clear()
 
 
@@ -149,17 +129,12 @@ class Job:
 class Outcome:
     """What the main thread writes after a successful solve."""
 
-    field: FieldData  # tet mesh, frames, omega, per-tet markers, prescribed Omega
-    quaternions: np.ndarray  # (#V, 4) w x y z
+    field: SolvedField  # the solved field, kept whole in the .blend
     adaptation: np.ndarray  # (#V,) solver.vertex_normal_adaptation: radians, -1 where not measured
-    network_faces: np.ndarray  # (k,) ids of the faces the network passes through
     report: Report
     remeshed: bool = True
     glyphs: tuple | None = None  # (points, quaternions, errors or None, error attribute name)
     streamlines: tuple | None = None  # (lines, families)
-    hex_source: dict | None = None  # solver.hex_source_arrays: kept in the .blend for Hex Mesh
-    result: object = None  # the solver Result, kept for Hex Mesh once written (remember_result)
-    solve_id: str = ""  # written on the field datablock: the kept Result is that field's
     inputs_key: str = ""  # scene_io.Inputs.field_key() of the inputs solved
     inputs_parts: str = ""  # scene_io.Inputs.field_parts() of the same (what Hex Mesh names when they change)
 
@@ -180,19 +155,18 @@ class SolveJob(Job):
                                cancel=self._is_cancelled, mesh=mesh)
         result = solve_resolved(problem, progress=self._progress, cancel=self._is_cancelled)
         _MESH_CACHE.update(key=key, mesh=problem.meshed)  # with its edge length and how it was made
-        adaptation = vertex_normal_adaptation(result)
-        network_faces = result.embedding.network_faces(result.mesh)
-        out = Outcome(field_data(result), result.quaternions(), adaptation, network_faces, result.report,
-                      remeshed=mesh is None, hex_source=hex_source_arrays(HexInput.from_result(result)),
-                      result=result, solve_id=new_id(), inputs_key=inp.field_key(),
+        solved = result.field
+        adaptation = vertex_normal_adaptation(solved)
+        out = Outcome(solved, adaptation, result.report, remeshed=mesh is None, inputs_key=inp.field_key(),
                       inputs_parts=inp.field_parts())
         if self.want_glyphs or self.want_streamlines:
             self._progress("display", 0.97, "sampling glyphs and streamlines")
-            f = FrameField.from_result(result)
+            f = FrameField.from_field(solved)
             if self.want_glyphs:
                 mono = None
                 if self.display.colour == "MONODROMY":
-                    mono = display.vertex_monodromy(result.mesh, result.omega, network_faces)
+                    mono = display.vertex_monodromy(solved.mesh, solved.omega,
+                                                    solved.embedding.network_faces(solved.mesh))
                 attr = display.ERROR_ATTRIBUTES.get(self.display.colour, display.ERROR_ATTRIBUTES["ADAPTATION"])
                 out.glyphs = (*display.glyph_samples(f, self.display, adaptation, mono), attr)
             if self._is_cancelled():
@@ -205,28 +179,6 @@ class SolveJob(Job):
 
 
 @dataclass
-class StoredField:
-    """A field read back from the .blend, without the solve's Result: its
-    tet mesh, frames and omega, and the arrays of solver.hex_source_arrays
-    that its solve kept beside it (the network as the solve traced it, the
-    input surface), from which solver.input_from_arrays rebuilds the solve's
-    HexInput -- nothing is traced again.
-
-    mesh   : the stored tet mesh (TetMesh, the solve's vertex positions)
-    frames : (#V, 3, 3) the vertex frames;  omega : (#E, 3) on mesh.edges
-    arrays : storage.read_hex_source's dict of hex_source_arrays
-    """
-
-    mesh: object
-    frames: np.ndarray
-    omega: np.ndarray
-    arrays: dict
-
-    def hex_input(self) -> HexInput:
-        return input_from_arrays(self.mesh, self.frames, self.omega, self.arrays)
-
-
-@dataclass
 class HexOutcome:
     """What the main thread writes after a hex-meshing run."""
 
@@ -236,21 +188,11 @@ class HexOutcome:
 
 @dataclass
 class HexJob(Job):
-    source: object  # a solver Result, or a StoredField
-    cell_size: float | None = None  # None: automatic, about target_hexes cells
-    target_hexes: int = 3000
-    smooth: bool = True
+    source: SolvedField  # the scene's stored field (storage.solved_field)
+    options: HexOptions = field(default_factory=HexOptions)  # cell size (None: about target_hexes cells), smoothing
 
     def _work(self) -> HexOutcome:
-        if isinstance(self.source, StoredField):
-            self._progress("network", 0.0, "reading the solve's network from the stored field")
-            inp = self.source.hex_input()
-        else:
-            inp = HexInput.from_result(self.source)
-        if self._is_cancelled():
-            raise Cancelled()
-        hm = hexmesh(inp, self.cell_size, smooth=self.smooth, progress=self._progress, cancel=self._is_cancelled,
-                     target_hexes=self.target_hexes)
+        hm = hexmesh(self.source, options=self.options, progress=self._progress, cancel=self._is_cancelled)
         return HexOutcome(hm, new_id())
 
 

@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty
 
-from ..solver import SymFramesError, TopologyError, check
+from ..solver import HexOptions, SymFramesError, TopologyError, check
 from ..solver.examples import EXAMPLES
 from . import (
     diagnostics,
@@ -51,10 +51,8 @@ def write_outcome(scene, out: job.Outcome) -> None:
     objects that were not recomputed are removed: they showed the old field."""
     created = []
     try:
-        field_me = storage.new_field_mesh(out.field, out.quaternions, out.adaptation, out.network_faces, out.report,
-                                          out.remeshed, out.hex_source)
+        field_me = storage.new_field_mesh(out.field, out.adaptation, out.report, out.remeshed)
         created.append((bpy.data.meshes, field_me))
-        field_me[storage.SOLVE_ID_KEY] = out.solve_id
         field_me[storage.INPUTS_KEY] = out.inputs_key
         field_me[storage.INPUTS_PARTS_KEY] = out.inputs_parts
         glyph_me = curve = None
@@ -69,8 +67,6 @@ def write_outcome(scene, out: job.Outcome) -> None:
             coll.remove(data)
         raise
     storage.set_field(scene, field_me)
-    if out.result is not None:
-        job.remember_result(out.solve_id, out.result)
     if glyph_me is not None:
         glyphs.install_glyph_mesh(scene, glyph_me)
     else:
@@ -317,33 +313,25 @@ class SYMFRAMES_OT_compute(_Threaded, bpy.types.Operator):
 
 
 def hex_source(context):
-    """What Hex Mesh meshes: the Result of the last Compute Field while the
-    stored field is that result; else the stored field with the network
-    embedding its solve kept beside it (job.StoredField); either only as
-    long as the scene's inputs are the ones it was solved with (the same
-    inputs key in the session and in a reopened file).  ValueError (or a
-    SymFramesError) says why there is none, and what changed."""
+    """What Hex Mesh meshes: the scene's stored field (storage.solved_field),
+    only as long as the scene's inputs are the ones it was solved with (the
+    same inputs key in the session and in a reopened file).  ValueError (or
+    a SymFramesError) says why there is none, and what changed."""
     scene = context.scene
     me = storage.stored_field(scene)
     if me is None:
         raise ValueError("no field computed yet: press Compute Field first")
     solved = me.get(storage.INPUTS_KEY)
-    if solved is not None:
-        now = scene_io.read_inputs(context)
-        if solved != now.field_key():
-            what = scene_io.changes(me.get(storage.INPUTS_PARTS_KEY), now)
-            what = f" ({'; '.join(what)})" if what else ""
-            raise ValueError(f"the domain, the network or their settings changed since the field was computed"
-                             f"{what}, so the field is not theirs: press Compute Field again (or undo the change)")
-    result = job.cached_result(me.get(storage.SOLVE_ID_KEY))
-    if result is not None:
-        return result
-    arrays = storage.read_hex_source(me)
-    if arrays is None or solved is None:
-        raise ValueError("this field was stored without the network as its solve traced it, which Hex Mesh needs: "
+    if solved is None:
+        raise ValueError("this field was stored without the inputs it was solved for, which Hex Mesh checks: "
                          "compute the field again")
-    f = storage.frame_field(scene)
-    return job.StoredField(f.mesh, f.frames, storage.field_omega(scene), arrays)
+    now = scene_io.read_inputs(context)
+    if solved != now.field_key():
+        what = scene_io.changes(me.get(storage.INPUTS_PARTS_KEY), now)
+        what = f" ({'; '.join(what)})" if what else ""
+        raise ValueError(f"the domain, the network or their settings changed since the field was computed"
+                         f"{what}, so the field is not theirs: press Compute Field again (or undo the change)")
+    return storage.solved_field(scene)
 
 
 def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
@@ -398,14 +386,15 @@ class SYMFRAMES_OT_hex_mesh(_Threaded, bpy.types.Operator):
         return True
 
     def _prepare(self, context, echo: bool = False):
+        s = context.scene.symframes
         try:
+            options = HexOptions(cell_size=float(s.hex_cell_size) if s.hex_cell_size > 0 else None,
+                                 target_hexes=int(s.hex_cells), smooth=bool(s.hex_smooth))
             source = hex_source(context)
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e))
             return None
-        s = context.scene.symframes
-        return job.HexJob(source=source, cell_size=float(s.hex_cell_size) if s.hex_cell_size > 0 else None,
-                          target_hexes=int(s.hex_cells), smooth=bool(s.hex_smooth), echo=echo)
+        return job.HexJob(source=source, options=options, echo=echo)
 
     def _finish(self, scene, j):
         return finish_hex_job(scene, j)
@@ -446,7 +435,7 @@ class SYMFRAMES_OT_show_glyphs(_FieldOperator, bpy.types.Operator):
             mono = None
             if ds.colour == "MONODROMY":
                 mono = display.vertex_monodromy(f.mesh, storage.field_omega(scene),
-                                                storage.network_face_ids(scene.symframes.field, f.mesh))
+                                                storage.network_face_ids(scene))
             P, Q, err = display.glyph_samples(f, ds, storage.read_adaptation(scene.symframes.field), mono)
             if len(P) == 0:
                 self.report({"ERROR"}, "no glyph to show: raise Glyphs, or move the slice plane into the solid")

@@ -9,6 +9,8 @@ torsion; it is edited in the panel and read by scene_io.read_network.
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
+from ..solver import DEFAULT_HEXES
+
 ROLES = (
     ("singular", "Singular", "Interior curve around which the field turns by the index"),
     ("feature", "Feature", "Interior curve the field is tangent to (index 0)"),
@@ -73,10 +75,10 @@ PRESET_ITEMS = (
 )
 # Hex Cells presets (the Apply Hex Preset operator): about how many hexahedra
 # the automatic cell size aims at.  Medium is the default, as the solver's.
-HEX_PRESETS = {"COARSE": 800, "MEDIUM": 3000, "FINE": 12000}
+HEX_PRESETS = {"COARSE": 800, "MEDIUM": DEFAULT_HEXES, "FINE": 12000}
 HEX_PRESET_ITEMS = (
     ("COARSE", "Coarse", "Automatic cell size for about 800 hexahedra: the quickest"),
-    ("MEDIUM", "Medium", "Automatic cell size for about 3,000 hexahedra (the default)"),
+    ("MEDIUM", "Medium", f"Automatic cell size for about {DEFAULT_HEXES:,} hexahedra (the default)"),
     ("FINE", "Fine", "Automatic cell size for about 12,000 hexahedra"),
 )
 INITS = (

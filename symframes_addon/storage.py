@@ -3,49 +3,32 @@
 The field is a mesh datablock that no object uses, held by the scene
 setting ``symframes.field`` (a pointer counts as a user, so it is saved):
 
-* vertices       = tet-mesh vertices
-* faces          = one 4-corner face per tetrahedron (corner vertices = the tet)
-* edges          = the tet-mesh edges (all six of every tet)
-* ``frame``      = QUATERNION point attribute, the frame of each vertex (w, x, y, z)
+* ``["symframes_field"]`` = the solved field itself, in full precision and
+  complete: a group of ID properties holding solver.SolvedField.to_arrays()
+  (the tet mesh, frames, omega, the network as the solve traced it, the
+  input surface with its sharp edges ...), from which
+  solver.SolvedField.from_arrays reads it back, checked.  Every reader
+  (frame_field, field_omega, solved_field: glyphs, diagnostics, exports,
+  Hex Mesh on a reopened file) takes it from there.  Each array is kept
+  flat, float64 (``d``) or int32 (``i``; booleans as 0/1), a string as a
+  string property; ``["layout"]`` (JSON) gives each key's kind and shape.
+* for looking at the field in Blender (spreadsheet, modifiers), nothing
+  reads them back: vertices = tet-mesh vertices, faces = one 4-corner face
+  per tetrahedron, edges = the tet-mesh edges; ``frame`` = QUATERNION point
+  attribute (w, x, y, z); ``omega`` = FLOAT_VECTOR edge attribute (the
+  rotation vector from the frame at the edge's first vertex to the one at
+  its second, Eq. 8, E_j = exp(omega_ij) E_i)
 * ``adaptation`` = FLOAT point attribute, solver.vertex_normal_adaptation:
-                   radians at boundary vertices, -1 inside and at sharp
-                   feature vertices (whose frames are fixed)
-* ``omega``      = FLOAT_VECTOR edge attribute, the solver's Darboux
-                   derivative: the rotation vector from the frame at the
-                   edge's first vertex to the one at its second (Eq. 8,
-                   E_j = exp(omega_ij) E_i, world coordinates)
-* ``["symframes_network_faces"]`` = int array, the vertex triples of the
-                   tet-mesh faces the network passes through (flattened)
-* ``["symframes_network_omega"]`` = float array, the prescribed Omega of
-                   those faces (Eq. 19, flattened (k, 3))
-* ``curve``      = INT face attribute, the network curve crossing each tet,
-                   -1 elsewhere; ``node_region`` = BOOLEAN face attribute,
-                   the tets of node regions (both for exports)
+  radians at boundary vertices, -1 inside and at sharp feature vertices
+  (whose frames are fixed); the glyphs' colour reads it
 * ``["symframes_report"]`` = JSON, solver.Report.to_dict() of the solve;
   ``["symframes_remeshed"]`` = whether the solve made its tet mesh (else it
   reused the previous one)
-* ``["symframes_solve_id"]`` = the id under which job.py keeps the solve's
-  Result in memory (Hex Mesh uses it while it is kept);
-  ``["symframes_inputs_key"]`` = scene_io.Inputs.field_key() of the inputs
+* ``["symframes_inputs_key"]`` = scene_io.Inputs.field_key() of the inputs
   solved (Hex Mesh, in the session that solved it or on a reopened file,
   refuses if the scene's inputs changed since: the field is not theirs);
   ``["symframes_inputs_parts"]`` = scene_io.Inputs.field_parts() (JSON), for
   the refusal to say what changed
-* ``["symframes_hex_source"]`` = a group of ID properties: the arrays of
-  solver.hex_source_arrays (the network as the solve traced it through the
-  tet mesh -- traces, node regions, the prepared curves and nodes --, and the
-  input surface with its sharp edges), from which solver.input_from_arrays
-  rebuilds the solve's HexInput on the stored mesh (Hex Mesh on a reopened
-  file).  Each array is kept flat, float64 (``d``) or int32 (``i``; booleans
-  as 0/1), a string as a string property; ``["layout"]`` (JSON) gives each
-  key's kind and shape.
-
-Quaternions and omega are float32 in Blender; the frames are rebuilt from
-the normalised quaternions (solver.io.quaternion_frames), so they are exact
-rotations.  The vertex positions are kept in full precision as well, in
-``["symframes_positions"]`` (float64, flattened (n, 3)), and read from there:
-the stored traces cross faces at points computed on the solve's own
-positions, and exports and diagnostics see the mesh as it was solved.
 
 Output objects (glyphs, streamlines, the diagnostics, the hex mesh and its
 irregular edges: see OUTPUT_ROLES) are found by the custom property
@@ -60,25 +43,18 @@ import json
 import bpy
 import numpy as np
 
-from ..solver import FrameField, Report
-from ..solver.io import FieldData, quaternion_frames
+from ..solver import FrameField, Report, SolvedField
 
 FIELD_NAME = "SymFrames Field"
 FRAME_ATTRIBUTE = "frame"
 ADAPTATION_ATTRIBUTE = "adaptation"
 OMEGA_ATTRIBUTE = "omega"
-NETWORK_FACES_KEY = "symframes_network_faces"
-NETWORK_OMEGA_KEY = "symframes_network_omega"
-CURVE_ATTRIBUTE = "curve"
-NODE_ATTRIBUTE = "node_region"
 REPORT_KEY = "symframes_report"
 REMESHED_KEY = "symframes_remeshed"
-POSITIONS_KEY = "symframes_positions"
-SOLVE_ID_KEY = "symframes_solve_id"
 INPUTS_KEY = "symframes_inputs_key"
 INPUTS_PARTS_KEY = "symframes_inputs_parts"
-HEX_SOURCE_KEY = "symframes_hex_source"
-HEX_SOURCE_LAYOUT = "layout"
+FIELD_KEY = "symframes_field"
+ARRAYS_LAYOUT = "layout"
 ROLE_KEY = "symframes_role"
 RESULTS_COLLECTION = "SymFrames Results"
 OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "error_slice", "hex_mesh",
@@ -86,18 +62,12 @@ OUTPUT_ROLES = ("glyphs", "streamlines", "singular_faces", "omega_arrows", "erro
 
 
 # ------------------------------------------------------------------- field
-def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.ndarray, network_faces: np.ndarray,
-                   report: Report, remeshed: bool, hex_source: dict | None = None):
-    """A new (unlinked) mesh datablock holding a solved field.
+def new_field_mesh(field: SolvedField, adaptation: np.ndarray, report: Report, remeshed: bool):
+    """A new (unlinked) mesh datablock holding a solved field (module docs).
 
-    field : the solve's FieldData (tet mesh, omega on its edges, per-tet
-        curve and node-region markers, the prescribed Omega per face)
-    quaternions : (#V, 4) the frames as w, x, y, z
+    field : the solve's SolvedField (Result.field)
     adaptation : (#V,) solver.vertex_normal_adaptation of the solve
-    network_faces : (k,) ids of the faces the network passes through
     report : the solve's Report;  remeshed : whether the solve made its tet mesh
-    hex_source : solver.hex_source_arrays of the solve (what Hex Mesh needs
-        of it beyond the field), or None
     """
     mesh = field.mesh
     n, m = mesh.n_vertices, mesh.n_tets
@@ -105,7 +75,6 @@ def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.nda
     try:
         me.vertices.add(n)
         me.attributes["position"].data.foreach_set("vector", np.asarray(mesh.vertices, np.float32).ravel())
-        me[POSITIONS_KEY] = np.asarray(mesh.vertices, np.float64).ravel()
         me.loops.add(4 * m)
         me.polygons.add(m)
         me.polygons.foreach_set("loop_start", np.arange(0, 4 * m, 4, dtype=np.int32))
@@ -115,20 +84,13 @@ def new_field_mesh(field: FieldData, quaternions: np.ndarray, adaptation: np.nda
         me.attributes[OMEGA_ATTRIBUTE].data.foreach_set("vector", np.asarray(field.omega, np.float32).ravel())
         me.attributes.new(FRAME_ATTRIBUTE, "QUATERNION", "POINT")
         # fetch by name: a reference taken before another attributes.new() goes stale
-        me.attributes[FRAME_ATTRIBUTE].data.foreach_set("value", np.asarray(quaternions, np.float32).ravel())
+        me.attributes[FRAME_ATTRIBUTE].data.foreach_set("value",
+                                                        np.asarray(field.quaternions(), np.float32).ravel())
         me.attributes.new(ADAPTATION_ATTRIBUTE, "FLOAT", "POINT")
         me.attributes[ADAPTATION_ATTRIBUTE].data.foreach_set("value", np.asarray(adaptation, np.float32))
-        me[NETWORK_FACES_KEY] = np.asarray(mesh.faces[network_faces], np.int32).ravel().tolist()
-        face_omega = np.zeros((mesh.n_faces, 3)) if field.face_omega is None else field.face_omega
-        me[NETWORK_OMEGA_KEY] = np.asarray(face_omega[network_faces], float).ravel().tolist()
-        me.attributes.new(CURVE_ATTRIBUTE, "INT", "FACE")
-        me.attributes[CURVE_ATTRIBUTE].data.foreach_set("value", np.asarray(field.curve, np.int32))
-        me.attributes.new(NODE_ATTRIBUTE, "BOOLEAN", "FACE")
-        me.attributes[NODE_ATTRIBUTE].data.foreach_set("value", np.asarray(field.node_region, bool))
         me[REPORT_KEY] = json.dumps(report.to_dict())
         me[REMESHED_KEY] = bool(remeshed)
-        if hex_source is not None:
-            me[HEX_SOURCE_KEY] = encode_arrays(hex_source)
+        me[FIELD_KEY] = encode_arrays(field.to_arrays())
     except Exception:
         bpy.data.meshes.remove(me)
         raise
@@ -159,25 +121,6 @@ def _set_edges(me, n: int, tets: np.ndarray, edges: np.ndarray) -> None:
     me.update()
 
 
-def read_field(me) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(vertices (n, 3), tets (m, 4), quaternions (n, 4) w x y z, unit) of a stored field."""
-    n, m = len(me.vertices), len(me.polygons)
-    co = np.empty(3 * n, np.float32)
-    me.attributes["position"].data.foreach_get("vector", co)
-    T = np.empty(4 * m, np.int32)
-    me.loops.foreach_get("vertex_index", T)
-    q = np.empty(4 * n, np.float32)
-    me.attributes[FRAME_ATTRIBUTE].data.foreach_get("value", q)
-    q = q.reshape(-1, 4).astype(float)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    V = co.astype(float)
-    exact = np.asarray(me.get(POSITIONS_KEY, ()), np.float64)
-    # the solve's own positions, unless the mesh was edited since (float32 is good to ~1e-7)
-    if n and exact.shape == V.shape and np.abs(exact - V).max() <= 1e-6 * max(np.abs(V).max(), 1.0):
-        V = exact
-    return V.reshape(-1, 3), T.reshape(-1, 4).astype(np.int64), q
-
-
 _INT32 = np.iinfo(np.int32)
 
 
@@ -200,14 +143,14 @@ def encode_arrays(arrays: dict) -> dict:
             group[key], layout[key] = a.astype(np.float64).ravel(), ["float", list(a.shape)]
         else:
             raise ValueError(f"'{key}': cannot keep an array of {a.dtype}")
-    group[HEX_SOURCE_LAYOUT] = json.dumps(layout)
+    group[ARRAYS_LAYOUT] = json.dumps(layout)
     return group
 
 
 def decode_arrays(group) -> dict:
     """encode_arrays' arrays back from an ID property group (int64 for
     integers); ValueError if the group is not as encode_arrays wrote it."""
-    key = HEX_SOURCE_LAYOUT
+    key = ARRAYS_LAYOUT
     try:
         layout = json.loads(group[key])
         out = {}
@@ -222,15 +165,8 @@ def decode_arrays(group) -> dict:
             out[key] = np.asarray(value).astype(dtype).reshape(shape)
         return out
     except (KeyError, TypeError, ValueError) as e:
-        raise ValueError(f"this field's stored network is not as Compute Field wrote it ('{key}': "
+        raise ValueError(f"this field's stored arrays are not as Compute Field wrote them ('{key}': "
                          f"{type(e).__name__}); compute the field again") from None
-
-
-def read_hex_source(me) -> dict | None:
-    """solver.hex_source_arrays of the stored field's solve, or None if the
-    field does not keep them; ValueError if they are damaged."""
-    group = me.get(HEX_SOURCE_KEY)
-    return None if group is None else decode_arrays(group)
 
 
 def read_adaptation(me) -> np.ndarray | None:
@@ -241,70 +177,6 @@ def read_adaptation(me) -> np.ndarray | None:
     a = np.empty(len(me.vertices), np.float32)
     attr.data.foreach_get("value", a)
     return a.astype(float)
-
-
-def read_omega(me, edges: np.ndarray) -> np.ndarray:
-    """(e, 3) stored omega on the given edges (e, 2), oriented edges[:, 0] ->
-    edges[:, 1]; ValueError if the field does not hold omega on all of them."""
-    attr = me.attributes.get(OMEGA_ATTRIBUTE)
-    k, n = len(me.edges), len(me.vertices)
-    if attr is None or attr.domain != "EDGE" or attr.data_type != "FLOAT_VECTOR" or k == 0:
-        raise ValueError("this result stores no omega; compute the field again")
-    ev = np.empty(2 * k, np.int32)
-    me.edges.foreach_get("vertices", ev)
-    ev = ev.reshape(-1, 2).astype(np.int64)
-    w = np.empty(3 * k, np.float32)
-    attr.data.foreach_get("vector", w)
-    w = w.reshape(-1, 3).astype(float)
-    keys = _edge_keys(ev, n)
-    order = np.argsort(keys)
-    want = _edge_keys(edges, n)
-    pos = order[np.clip(np.searchsorted(keys, want, sorter=order), 0, k - 1)]
-    if not np.array_equal(keys[pos], want):
-        raise ValueError("this result's edges are not its tet mesh's; compute the field again")
-    # a stored edge j -> i holds -omega_ij
-    same = ev[pos, 0] == np.asarray(edges)[:, 0]
-    return np.where(same[:, None], w[pos], -w[pos])
-
-
-def read_network_faces(me) -> np.ndarray:
-    """(k, 3) vertex triples of the stored network faces."""
-    if NETWORK_FACES_KEY not in me:
-        raise ValueError("this result does not store its network faces; compute the field again")
-    return np.asarray(me[NETWORK_FACES_KEY], dtype=np.int64).reshape(-1, 3)
-
-
-def network_face_ids(me, mesh) -> np.ndarray:
-    """(k,) ids in mesh (the stored field's tet mesh) of the stored network faces."""
-    tris = read_network_faces(me)
-    ids = mesh.face_index(tris) if len(tris) else np.zeros(0, np.int64)
-    if np.any(ids < 0):
-        raise ValueError("this result's network faces are not faces of its tet mesh; compute the field again")
-    return ids
-
-
-def _face_attribute(me, name: str, dtype) -> np.ndarray:
-    attr = me.attributes.get(name)
-    if attr is None or attr.domain != "FACE":
-        raise ValueError(f"this result stores no '{name}' per tet; compute the field again")
-    a = np.empty(len(me.polygons), dtype)
-    attr.data.foreach_get("value", a)
-    return a
-
-
-def read_field_data(scene) -> FieldData:
-    """The scene's stored field as the solver's FieldData (for exports)."""
-    f = frame_field(scene)
-    if f is None:
-        raise ValueError("no field computed yet: press Compute Field first")
-    me, mesh = scene.symframes.field, f.mesh
-    face_ids = network_face_ids(me, mesh)
-    if NETWORK_OMEGA_KEY not in me:
-        raise ValueError("this result does not store its network's Omega; compute the field again")
-    face_omega = np.zeros((mesh.n_faces, 3))
-    face_omega[face_ids] = np.asarray(me[NETWORK_OMEGA_KEY], float).reshape(-1, 3)
-    curve = _face_attribute(me, CURVE_ATTRIBUTE, np.int32).astype(np.int64)
-    return FieldData(mesh, f.frames, field_omega(scene), curve, _face_attribute(me, NODE_ATTRIBUTE, bool), face_omega)
 
 
 def stored_field(scene):
@@ -336,31 +208,49 @@ def stored_remeshed(scene) -> bool | None:
 _FIELD_CACHE: dict = {}
 
 
-def frame_field(scene) -> FrameField | None:
-    """solver.FrameField of the stored field (cached per field datablock and
-    content), or None if there is no result."""
+def solved_field(scene) -> SolvedField | None:
+    """The scene's stored field as a solver.SolvedField (read once per field
+    datablock and content, then kept), or None if there is no result;
+    ValueError if it is stored without its arrays, ReadError if they are
+    damaged."""
     me = stored_field(scene)
     if me is None:
         return None
     key = (me.session_uid, me.get(REPORT_KEY, ""), len(me.vertices), len(me.polygons))
-    f = _FIELD_CACHE.get("field")
-    if f is None or _FIELD_CACHE.get("key") != key:
-        V, T, q = read_field(me)
-        f = FrameField(V, T, quaternion_frames(q))
+    if _FIELD_CACHE.get("key") != key:
+        group = me.get(FIELD_KEY)
+        if group is None:
+            raise ValueError("this field was stored by an earlier SymFrames, without the arrays the field is read "
+                             "back from: compute the field again")
+        f = SolvedField.from_arrays(decode_arrays(group), "the stored field", "compute the field again")
         _FIELD_CACHE.clear()
-        _FIELD_CACHE.update(field=f, key=key)
-    return f
+        _FIELD_CACHE.update(solved=f, key=key)
+    return _FIELD_CACHE["solved"]
+
+
+def frame_field(scene) -> FrameField | None:
+    """solver.FrameField of the stored field (kept with it), or None if
+    there is no result."""
+    f = solved_field(scene)
+    if f is None:
+        return None
+    if "frames" not in _FIELD_CACHE:
+        _FIELD_CACHE["frames"] = FrameField.from_field(f)
+    return _FIELD_CACHE["frames"]
 
 
 def field_omega(scene) -> np.ndarray | None:
     """(#E, 3) the solver's omega on frame_field(scene).mesh.edges, or None
     if there is no result."""
-    f = frame_field(scene)
-    if f is None:
-        return None
-    if "omega" not in _FIELD_CACHE:
-        _FIELD_CACHE["omega"] = read_omega(scene.symframes.field, f.mesh.edges)
-    return _FIELD_CACHE["omega"]
+    f = solved_field(scene)
+    return None if f is None else f.omega
+
+
+def network_face_ids(scene) -> np.ndarray:
+    """(k,) ids in the stored field's tet mesh of the faces its network
+    passes through (empty if there is no result)."""
+    f = solved_field(scene)
+    return np.zeros(0, np.int64) if f is None else f.embedding.network_faces(f.mesh)
 
 
 def set_field(scene, me) -> None:

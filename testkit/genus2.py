@@ -111,7 +111,7 @@ def _end_angles(P: np.ndarray, axis: int) -> np.ndarray:
 
 
 def _distance(P: np.ndarray, Q: np.ndarray) -> float:
-    from solver.surface.trisurface import segments_distance
+    from solver.surface.intersect import segments_distance
 
     A0, A1 = np.repeat(P[:-1], len(Q) - 1, 0), np.repeat(P[1:], len(Q) - 1, 0)
     B0, B1 = np.tile(Q[:-1], (len(P) - 1, 1)), np.tile(Q[1:], (len(P) - 1, 1))

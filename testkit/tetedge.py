@@ -1,4 +1,4 @@
-"""Tet-edge networks: a network as other field tools export it (design notes §5).
+"""Tet-edge networks: a network as other field tools export it (docs/limitations.md, *Repaired networks*).
 
 Tools such as libSCOF and AlgoHex output a singular curve as a chain of
 edges of *their* tet mesh.  ``tet_edge_network`` makes such an input from

@@ -405,6 +405,8 @@ def test_cancelled_solve_writes_nothing():
     assert scene_state() == before and s.field is None
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_threaded_solve_then_finish():
     """The compute operator's modal path: the solve (meshing included) in a
     worker thread, the scene written on the main thread afterwards."""
@@ -432,6 +434,7 @@ def test_threaded_solve_then_finish():
 
 
 # ------------------------------------------------------------------ results
+@pytest.mark.mesher
 def test_compute_writes_field_glyphs_and_streamlines(cube):
     open_blend(cube.path)
     s = scene().symframes
@@ -453,22 +456,24 @@ def test_compute_writes_field_glyphs_and_streamlines(cube):
     assert r.metrics["monodromy_mean_deg"] < 1e-3
 
 
+@pytest.mark.mesher
 def test_field_attribute_equals_solver_frames(cube):
     """The stored 'frame' attribute is the solver's result on the same tet
     mesh, and every glyph's quaternion is the solver's interpolated frame."""
     open_blend(cube.path)
     inp = cube.inputs
     result = FieldProblem(inp.V, inp.F, inp.network, inp.options, mesh=cube.mesh).solve()
-    V, T, q = storage.read_field(scene().symframes.field)
-    np.testing.assert_allclose(V, cube.mesh.vertices, atol=1e-6)
-    assert np.array_equal(T, cube.mesh.tets)
-    np.testing.assert_allclose(quaternion_frames(q), result.frames, atol=2e-6)
+    sf = storage.solved_field(scene())
+    np.testing.assert_array_equal(sf.mesh.vertices, cube.mesh.vertices)
+    assert np.array_equal(sf.mesh.tets, cube.mesh.tets)
+    np.testing.assert_allclose(sf.frames, result.frames, atol=1e-9)
     P, Q = glyphs.glyph_points(output("glyphs"))
-    expect = FrameField.from_result(result).quaternions_at(P.astype(float))
+    expect = FrameField.from_field(result).quaternions_at(P.astype(float))
     assert np.all(np.isfinite(expect[:, 0]))
     assert np.abs(np.einsum("ij,ij->i", Q, expect)).min() > 1 - 1e-5  # q and -q are one rotation
 
 
+@pytest.mark.mesher
 def test_glyph_instances_follow_the_quaternion_attribute(cube):
     open_blend(cube.path)
     s = scene().symframes
@@ -494,6 +499,7 @@ def test_glyph_instances_follow_the_quaternion_attribute(cube):
             assert mesh.materials[p.material_index].name == glyphs.AXIS_MATERIALS[int(np.argmax(extent))]
 
 
+@pytest.mark.mesher
 def test_save_and_reload_keep_the_result(cube):
     open_blend(cube.path)
     assert storage.stored_report(scene()) == cube.report
@@ -508,6 +514,7 @@ def test_save_and_reload_keep_the_result(cube):
     assert len(output("glyphs").data.vertices) == GLYPHS
 
 
+@pytest.mark.mesher
 def test_recompute_replaces_the_result_cleanly(cube):
     open_blend(cube.path)
     s = scene().symframes
@@ -543,6 +550,7 @@ def test_undo_after_compute_restores_the_scene(cube):
     assert scene().symframes.field is not None and output("glyphs") is not None
 
 
+@pytest.mark.mesher
 def test_clear_removes_everything_it_added(cube):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     add_example("cube")
@@ -568,6 +576,7 @@ def test_clear_removes_everything_it_added(cube):
 
 
 # ------------------------------------------------------------------ display
+@pytest.mark.mesher
 def test_glyph_regions(cube):
     open_blend(cube.path)
     s = scene().symframes
@@ -587,6 +596,7 @@ def test_glyph_regions(cube):
     assert np.abs(np.einsum("ij,ij->i", Q, expect)).min() > 1 - 1e-5
 
 
+@pytest.mark.mesher
 def test_trace_streamlines_on_slice_plane(cube):
     open_blend(cube.path)
     s = scene().symframes
@@ -608,6 +618,8 @@ def test_trace_streamlines_on_slice_plane(cube):
 
 
 # -------------------------------------------------------- network + diagnostics
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_plate_with_curves_solves_without_spurious_singularities(plate):
     open_blend(plate.path)
     assert plate.inputs_after == plate.inputs_before
@@ -626,10 +638,12 @@ def test_plate_with_curves_solves_without_spurious_singularities(plate):
     differ = singular_mask(mesh, f.frames) != omega_singular_faces(mesh, omega, f.frames)
     assert differ.sum() == m["matching_disagreements"]
     net = np.zeros(mesh.n_vertices, bool)
-    net[storage.read_network_faces(scene().symframes.field)] = True
+    net[mesh.faces[storage.network_face_ids(scene())]] = True
     assert net[mesh.faces[differ]].any(axis=1).all()
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_singular_faces_match_the_solver(plate):
     open_blend(plate.path)
     assert bpy.ops.symframes.show_singular_faces() == {"FINISHED"}
@@ -646,24 +660,31 @@ def test_singular_faces_match_the_solver(plate):
     assert not sp.any() and not mat.any()
 
 
+@pytest.mark.mesher
 def test_spurious_singular_faces_are_highlighted(cube):
-    """Overwrite the stored frames with a field that turns by a quarter turn
+    """Overwrite the stored field with one that turns by a quarter turn
     around the z axis (the frame at angle theta is rotated by theta/4 about
-    z): the faces the axis pierces are singular, and since the cube's
-    network is empty they are all spurious."""
+    z, omega the turn along each edge up to a quarter turn): the faces the
+    axis pierces are singular, and since the cube's network is empty they
+    are all spurious."""
     open_blend(cube.path)
     me = scene().symframes.field
-    V, T, q = storage.read_field(me)
+    f0 = storage.solved_field(scene())
+    V, E = f0.mesh.vertices, f0.mesh.edges
     phi = np.arctan2(V[:, 1], V[:, 0]) / 4
-    q = np.c_[np.cos(phi / 2), np.zeros((len(V), 2)), np.sin(phi / 2)]
-    me.attributes[storage.FRAME_ATTRIBUTE].data.foreach_set("value", q.astype(np.float32).ravel())
-    me.update()
+    R = np.zeros((len(V), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = np.cos(phi), -np.sin(phi), np.sin(phi), np.cos(phi), 1
+    turn = phi[E[:, 1]] - phi[E[:, 0]]
+    turn -= np.round(turn / (np.pi / 2)) * (np.pi / 2)
+    group = me[storage.FIELD_KEY]
+    group["frames"] = R.ravel().tolist()
+    group["omega"] = np.c_[np.zeros((len(E), 2)), turn].ravel().tolist()
     storage._FIELD_CACHE.clear()  # the field was edited behind the add-on's back
     assert bpy.ops.symframes.show_singular_faces() == {"FINISHED"}
     obj = output("singular_faces")
     counts = obj[diagnostics.COUNTS_KEY].to_dict()
     f = storage.frame_field(scene())
-    omega = storage.field_omega(scene())  # the cube's: it does not turn the frames around z
+    omega = storage.field_omega(scene())
     sing = omega_singular_faces(f.mesh, omega, f.frames)
     differs = int((sing != singular_mask(f.mesh, f.frames)).sum())
     assert counts == {"singular": int(sing.sum()), "spurious": int(sing.sum()), "closest_differs": differs}
@@ -679,6 +700,8 @@ def test_spurious_singular_faces_are_highlighted(cube):
     assert mat.all()  # all red
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_glyphs_coloured_by_adaptation_error(plate):
     open_blend(plate.path)
     s = scene().symframes
@@ -733,6 +756,8 @@ def _face_colours(me) -> np.ndarray:
     return c.reshape(-1, 3, 4)[:, 0]  # every corner of a face has its colour
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_field_stores_the_solvers_omega(plate):
     """The field mesh holds exactly the tet-mesh edges with the solver's
     omega on them (same tet mesh, so the same solve)."""
@@ -748,7 +773,7 @@ def test_field_stores_the_solvers_omega(plate):
     assert np.linalg.norm(result.omega, axis=1).max() > 0.3  # a field that turns: the test can fail
     np.testing.assert_allclose(omega, result.omega, atol=1e-6)
     # its monodromy off the network is the report's (float32 storage costs < 1e-4 degrees)
-    regular = np.nonzero(regular_face_mask(f.mesh, storage.network_face_ids(me, f.mesh)))[0]
+    regular = np.nonzero(regular_face_mask(f.mesh, storage.network_face_ids(scene())))[0]
     mono = np.degrees(monodromy_angles(f.mesh, omega, regular))
     assert mono.mean() == pytest.approx(plate.report.metrics["monodromy_mean_deg"], abs=1e-4)
 
@@ -766,6 +791,8 @@ def test_an_arrow_along_minus_z_points_down():
     np.testing.assert_allclose(M[:, :3, 2], length * omega, atol=1e-6)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_omega_arrows_match_the_stored_omega(plate):
     open_blend(plate.path)
     s = scene().symframes
@@ -805,6 +832,8 @@ def test_omega_arrows_match_the_stored_omega(plate):
     assert sum(o.get(storage.ROLE_KEY) == "omega_arrows" for o in bpy.data.objects) == 1
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_monodromy_slice_matches_the_solver(plate):
     open_blend(plate.path)
     s = scene().symframes
@@ -829,7 +858,7 @@ def test_monodromy_slice_matches_the_solver(plate):
     np.testing.assert_allclose(value, monodromy_angles(f.mesh, omega, faces), atol=1e-6)
     # the network's faces are flagged and grey; they turn by a quarter turn (index -1/4)
     net = _face_attribute(me, "network", bool)
-    ids = f.mesh.face_index(storage.read_network_faces(s.field))
+    ids = storage.network_face_ids(scene())
     assert np.array_equal(net, np.isin(faces, ids))
     assert net.sum() >= 4
     np.testing.assert_allclose(np.degrees(value[net]).max(), 90.0, atol=0.5)
@@ -847,6 +876,8 @@ def test_monodromy_slice_matches_the_solver(plate):
     assert not np.allclose(C[~net], error_slice.ramp_colours(value[~net], 1.0))
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_adaptation_slice_is_the_cut_surface(plate):
     open_blend(plate.path)
     s = scene().symframes
@@ -879,6 +910,8 @@ def test_adaptation_slice_is_the_cut_surface(plate):
     assert np.abs(_face_colours(me)[~ok, :3] - error_slice.GREY).max() < 1e-6
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_glyphs_coloured_by_monodromy(plate):
     open_blend(plate.path)
     s = scene().symframes
@@ -896,7 +929,7 @@ def test_glyphs_coloured_by_monodromy(plate):
     # mean over the interior faces around the vertex that the network does not pass through
     omega = storage.field_omega(scene())
     net = np.zeros(mesh.n_faces, bool)
-    net[mesh.face_index(storage.read_network_faces(s.field))] = True
+    net[storage.network_face_ids(scene())] = True
     regular = np.nonzero(~net & ~mesh.is_boundary_face)[0]
     import scipy.sparse as sparse
 
@@ -923,6 +956,8 @@ def test_glyphs_coloured_by_monodromy(plate):
     np.testing.assert_allclose(P, mesh.vertices[np.unique(mesh.faces[sf])], atol=1e-6)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_diagnostics_survive_save_and_reload(plate, tmp_path):
     open_blend(plate.path)
     s = scene().symframes
@@ -949,22 +984,28 @@ def test_diagnostics_survive_save_and_reload(plate, tmp_path):
     np.testing.assert_array_equal(_face_attribute(output("error_slice").data, "monodromy"), value)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_field_without_its_omega_is_refused(plate):
     """A stored field missing what the solve stores (here its omega) is
     refused with what to do, and the scene is unchanged."""
     open_blend(plate.path)
     s = scene().symframes
     s.glyph_colour, s.slice_quantity = "MONODROMY", "MONODROMY"
-    s.field.attributes.remove(s.field.attributes[storage.OMEGA_ATTRIBUTE])
+    group = s.field[storage.FIELD_KEY]
+    layout = json.loads(group[storage.ARRAYS_LAYOUT])
+    del layout["omega"], group["omega"]
+    group[storage.ARRAYS_LAYOUT] = json.dumps(layout)
     storage._FIELD_CACHE.clear()  # the field was edited behind the add-on's back
     for op in (bpy.ops.symframes.show_omega, bpy.ops.symframes.show_slice, bpy.ops.symframes.show_glyphs,
                bpy.ops.symframes.show_singular_faces):
-        _fails("stores no omega; compute the field again", op)
-    with pytest.raises(RuntimeError, match="stores no omega"):
+        _fails("'omega' is missing.*compute the field again", op)
+    with pytest.raises(RuntimeError, match="'omega' is missing"):
         bpy.ops.symframes.export_field(filepath=str(plate.path.with_suffix(".vtu")), file_format="VTU")
     assert not plate.path.with_suffix(".vtu").exists()
 
 
+@pytest.mark.mesher
 def test_diagnostics_bad_plane_undo_and_recompute(cube):
     open_blend(cube.path)
     s = scene().symframes
@@ -994,11 +1035,13 @@ def test_diagnostics_bad_plane_undo_and_recompute(cube):
     g = output("glyphs")
     # monodromy glyphs sit on vertices: as many as asked for, or every vertex
     # of a small mesh (fTetWild's vertex count varies from run to run)
-    n_vertices = len(storage.read_field(scene().symframes.field)[0])
+    n_vertices = storage.solved_field(scene()).mesh.n_vertices
     assert len(g.data.vertices) == min(GLYPHS, n_vertices)
     assert glyphs.error_attribute(g) == glyphs.MONODROMY_ATTRIBUTE
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_panels_draw_the_diagnostics(plate):
     """Every panel draws (with a stand-in layout that checks each property
     exists) and the Diagnostics panel reports the error slice."""
@@ -1044,6 +1087,8 @@ def test_panels_draw_the_diagnostics(plate):
 
 
 # ------------------------------------------------------------------ headless
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_headless_script_builds_solves_saves_and_renders(tmp_path):
     cmd = [sys.executable, os.path.join(ROOT, "scripts", "symframes_run.py"), "--example", "cube",
            "--edge-length", str(CUBE_EDGE), "--glyphs", "200", "--streamlines", "10", "--out-dir", str(tmp_path),

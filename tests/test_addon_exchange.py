@@ -22,8 +22,10 @@ from tests.meshes import box_mesh
 from tests.test_addon import add_example, open_blend
 
 from symframes.solver import Curve, Network  # noqa: E402
-from symframes.solver.io import quaternion_frames, write_network, write_obj  # noqa: E402
-from symframes.solver.io.interchange import read_ovm, read_perm, read_qtn, write_ovm  # noqa: E402
+from symframes.solver.io import write_network, write_obj  # noqa: E402
+from symframes.solver.io.cubecover import read_perm  # noqa: E402
+from symframes.solver.io.ovm import read_ovm, write_ovm  # noqa: E402
+from symframes.solver.io.qtn import read_qtn  # noqa: E402
 from symframes.solver.mesh.tetmesh import TetMesh  # noqa: E402
 from symframes.symframes_addon import menus, storage  # noqa: E402
 
@@ -61,43 +63,69 @@ def test_export_without_a_field_is_refused():
     assert not bpy.ops.symframes.export_field.poll()
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_export_every_format_from_a_saved_field(cylinder, tmp_path):
     open_blend(cylinder)
-    me = storage.stored_field(bpy.context.scene)
-    V, T, q = storage.read_field(me)
-    fd = storage.read_field_data(bpy.context.scene)
-    assert (fd.curve >= 0).any() and fd.face_omega is not None and np.abs(fd.face_omega).max() > 1.0
+    f = storage.solved_field(bpy.context.scene)
+    V, T = f.mesh.vertices, f.mesh.tets
+    assert (f.curve >= 0).any() and np.abs(f.embedding.face_omega).max() > 1.0
     for fmt, ext in (("VTU", "vtu"), ("MEDIT", "mesh"), ("OVM", "ovm"), ("QTN", "qtn")):
         path = str(tmp_path / f"field.{ext}")
         assert bpy.ops.symframes.export_field(filepath=path, file_format=fmt) == {"FINISHED"}
         assert os.path.exists(path)
+    # VTU: the field as solved, on its own tet mesh
     m = meshio.read(str(tmp_path / "field.vtu"))
-    assert np.allclose(m.points, V, atol=1e-6) and np.array_equal(m.cells_dict["tetra"], T)
-    frames = quaternion_frames(q)
+    assert np.allclose(m.points, V, atol=1e-12) and np.array_equal(m.cells_dict["tetra"], T)
     for k in range(3):
-        assert np.allclose(m.point_data[f"axis{k}"], frames[:, :, k], atol=1e-6)
-    # tets the four curves cross are marked, in the tet order of every format
+        assert np.allclose(m.point_data[f"axis{k}"], f.frames[:, :, k], atol=1e-12)
     curve = m.cell_data["curve"][0]
     assert set(np.unique(curve[curve >= 0])) == {0, 1, 2, 3}
-    assert np.array_equal(curve, fd.curve)
-    assert len(read_qtn(str(tmp_path / "field.qtn"))) == len(T)
+    assert np.array_equal(curve, f.curve)
+    # the hex meshers' formats: the tet mesh split so that the curves run along its edges, tets in one order
+    n = len(meshio.read(str(tmp_path / "field.mesh")).cells_dict["tetra"])
+    assert n > len(T)
+    assert len(read_qtn(str(tmp_path / "field.qtn"))) == n
+    assert read_ovm(str(tmp_path / "field.ovm")).tets.shape == (n, 4)
     n_tets, pairs, perms = read_perm(str(tmp_path / "field.perm"))
-    assert n_tets == len(T) and len(pairs) > 0  # the field turns around the curves
-    assert read_ovm(str(tmp_path / "field.ovm")).tets.shape == T.shape
-    medit = meshio.read(str(tmp_path / "field.mesh"))
-    assert len(medit.cells_dict["tetra"]) == len(T)
+    assert n_tets == n and len(pairs) > 0  # the field turns around the curves
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_export_field_writes_what_the_command_line_writes(cylinder, tmp_path):
+    """Export Field and ``python -m solver --from-result R.npz --export``
+    write the same files, byte for byte: the curves on tet edges for the hex
+    meshers' formats."""
+    from symframes.solver.__main__ import main
+    from symframes.solver.io import save_field
+
+    open_blend(cylinder)
+    npz = str(tmp_path / "field.npz")
+    save_field(npz, storage.solved_field(bpy.context.scene))
+    for fmt, ext, side in (("MEDIT", "mesh", (".fra", ".perm")), ("OVM", "ovm", ()), ("VTU", "vtu", ())):
+        ours, cli = tmp_path / f"addon.{ext}", tmp_path / f"cli.{ext}"
+        assert bpy.ops.symframes.export_field(filepath=str(ours), file_format=fmt) == {"FINISHED"}
+        assert main(["--from-result", npz, "--export", str(cli), "--quiet"]) == 0
+        for suffix in (f".{ext}", *side):
+            a, b = ours.with_suffix(suffix).read_bytes(), cli.with_suffix(suffix).read_bytes()
+            assert a == b, f"{fmt} {suffix}: the add-on's export differs from the command line's"
+
+
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_export_into_a_missing_folder_is_refused(cylinder, tmp_path):
     open_blend(cylinder)
     with pytest.raises(RuntimeError, match="does not exist"):
         bpy.ops.symframes.export_field(filepath=str(tmp_path / "no" / "field.vtu"), file_format="VTU")
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_tet_mesh_as_object(cylinder):
     open_blend(cylinder)
-    V, T, _ = storage.read_field(storage.stored_field(bpy.context.scene))
-    mesh = TetMesh(V, T)
+    f = storage.solved_field(bpy.context.scene)
+    mesh = TetMesh(f.mesh.vertices, f.mesh.tets)
     before = scene_objects()
     assert bpy.ops.symframes.tet_mesh_object() == {"FINISHED"}
     (name,) = set(scene_objects()) - set(before)

@@ -25,7 +25,8 @@ from tests import addon_package
 from tests.addon_package import load_addon
 
 addon = load_addon()
-from symframes.solver import HexInput, HexReport, hex_source_arrays  # noqa: E402
+from symframes.solver import HexOptions, HexReport, SolvedField  # noqa: E402
+from symframes.solver import io as sio  # noqa: E402
 from symframes.symframes_addon import (  # noqa: E402
     exchange,
     hex_mesh,
@@ -124,7 +125,7 @@ def solve_and_hex(example: str, edge_length: float, path):
     Meshed afresh by Compute Field, not taken from conftest's session cache:
     what is tested is the add-on's own solve and what it stores, and the
     add-on runs the solver as the package ``symframes.solver``, whose classes
-    (Role, TetMesh, HexInput) are not those of the ``solver`` package that
+    (Role, TetMesh, SolvedField) are not those of the ``solver`` package that
     the cache's Results are made of."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.symframes.add_example(example=example)
@@ -137,12 +138,11 @@ def solve_and_hex(example: str, edge_length: float, path):
     obj = output(hex_mesh.ROLE)
     hm = job.cached_hex(obj.data[hex_mesh.HEX_ID_KEY])
     assert hm is not None, "the hex mesh written is kept in memory for the export"
-    solve_id = s.field[storage.SOLVE_ID_KEY]
-    result = job.cached_result(solve_id)
-    assert result is not None, "the solve's Result is kept for Hex Mesh"
+    field = storage.solved_field(scene())
+    assert isinstance(field, SolvedField), "the solved field is kept whole in the .blend"
     ns = SimpleNamespace(hm=hm, report=hm.report, stored=hex_mesh.stored_report(scene()),
-                         memory=(solve_id, result, obj.data[hex_mesh.HEX_ID_KEY], hm),
-                         source=hex_source_arrays(HexInput.from_result(result)), path=path)
+                         memory=(obj.data[hex_mesh.HEX_ID_KEY], hm), field=field, source=field.to_arrays(),
+                         path=path)
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     return ns
 
@@ -161,16 +161,17 @@ def ball(registered, tmp_path_factory):
 
 def reopen(cyl, new_session: bool = False):
     """Open the fixture's file with what the session that wrote it kept in
-    memory (its Result and HexMesh), or, as a new session, with nothing."""
+    memory (its HexMesh), or, as a new session, with nothing."""
     bpy.ops.wm.open_mainfile(filepath=str(cyl.path))
     job.forget_results()
     if not new_session:
-        solve_id, result, hex_id, hm = cyl.memory
-        job.remember_result(solve_id, result)
+        hex_id, hm = cyl.memory
         job.remember_hex(hex_id, hm)
 
 
 # ------------------------------------------------------------------ the run
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_the_hex_run_is_valid_and_reported(cyl):
     reopen(cyl)
     r = cyl.report
@@ -184,6 +185,8 @@ def test_the_hex_run_is_valid_and_reported(cyl):
     assert json.loads(output(hex_mesh.ROLE).data[hex_mesh.REPORT_KEY])["irregular"] == {"3": r.irregular[3]}
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_hex_object_is_a_cell_soup_with_the_reports_figures(cyl):
     reopen(cyl)
     obj = output(hex_mesh.ROLE)
@@ -221,6 +224,8 @@ def test_hex_object_is_a_cell_soup_with_the_reports_figures(cyl):
     assert np.all(per_cell > 0)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_quality_colors(cyl):
     reopen(cyl)
     me = output(hex_mesh.ROLE).data
@@ -249,6 +254,8 @@ def test_quality_colors(cyl):
     assert len(viewport) == hex_mesh.SJ_STEPS and len(set(viewport)) == hex_mesh.SJ_STEPS
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_irregular_edges_are_a_curve_per_edge_with_its_valence(cyl):
     reopen(cyl)
     obj = output(hex_mesh.EDGES_ROLE)
@@ -269,6 +276,8 @@ def test_irregular_edges_are_a_curve_per_edge_with_its_valence(cyl):
     assert obj.data.bevel_depth > 0
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_view_modifier_explodes_and_falls_away(cyl):
     reopen(cyl)
     obj = output(hex_mesh.ROLE)
@@ -333,6 +342,8 @@ def test_view_modifier_explodes_and_falls_away(cyl):
     assert evaluated_counts(obj)[:2] == (8 * m, 6 * m)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_panel_shows_the_verdict_and_figures(cyl):
     reopen(cyl)
     drawn = draw_hex_panel()
@@ -377,6 +388,8 @@ def _refused(op, pattern, **kw):
         op(**kw)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_refused_run_leaves_the_scene_unchanged(cyl):
     reopen(cyl)
     before = scene_state()
@@ -389,11 +402,13 @@ def test_a_refused_run_leaves_the_scene_unchanged(cyl):
     assert scene_state() == before
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_cancel_leaves_the_scene_unchanged(cyl):
     reopen(cyl)
     before = scene_state()
     scene().symframes.hex_cell_size = 0.0
-    j = job.HexJob(source=operators.hex_source(bpy.context), target_hexes=cyl.report.hexes)
+    j = job.HexJob(source=operators.hex_source(bpy.context), options=HexOptions(target_hexes=cyl.report.hexes))
     progress, seen = j._progress, []
 
     def cancel_at_the_map(stage, fraction, message):
@@ -411,6 +426,8 @@ def test_cancel_leaves_the_scene_unchanged(cyl):
     assert scene_state() == before
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_changed_network_is_refused_on_a_stored_field(cyl):
     reopen(cyl, new_session=True)
     before = scene_state()
@@ -437,6 +454,8 @@ def _delete_curve():
     bpy.data.objects.remove(_network_curve())
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("edit, what", [
     (_scale_domain, r"the domain '[^']+' was moved, scaled or edited"),
     (_change_index, r"curve '[^']+' has index -1/4, was \+1/4"),
@@ -448,7 +467,7 @@ def test_a_stale_field_is_refused_within_the_session(cyl, edit, what):
     with what changed (the inputs key of a reopened file), and the scene is
     unchanged; the inputs as solved give the session's Result."""
     reopen(cyl)
-    assert operators.hex_source(bpy.context) is cyl.memory[1]  # nothing changed: the session's Result
+    assert operators.hex_source(bpy.context) == cyl.field  # nothing changed: the solve's field
     edit()
     before = scene_state()
     _refused(bpy.ops.symframes.hex_mesh, "changed since the field was computed .*" + what)
@@ -456,19 +475,21 @@ def test_a_stale_field_is_refused_within_the_session(cyl, edit, what):
 
 
 # ------------------------------------------------------------ the stored field
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_hex_mesh_of_the_stored_field_in_a_thread(cyl):
-    """A reopened file has no Result in memory: the field is meshed with the
-    network its solve traced, kept in the .blend, and gives the same hex mesh."""
+    """A reopened file: the field is read back whole from the .blend, the
+    network as its solve traced it included, and gives the same hex mesh."""
     reopen(cyl, new_session=True)
     source = operators.hex_source(bpy.context)
-    assert isinstance(source, job.StoredField)
-    j = job.HexJob(source=source, target_hexes=scene().symframes.hex_cells)
+    assert source == cyl.field
+    j = job.HexJob(source=source, options=HexOptions(target_hexes=scene().symframes.hex_cells))
     j.start()
     j.join(300)
     assert j.done and j.error is None, j.error
     r = j.outcome.hex_mesh.report
     assert r.status == "valid" and r.hexes == cyl.report.hexes and r.irregular == cyl.report.irregular
-    assert r.sj_min == pytest.approx(cyl.report.sj_min, abs=1e-3)  # frames and omega kept in float32
+    assert r.sj_min == pytest.approx(cyl.report.sj_min, abs=1e-9)  # the field kept in full precision
     output(hex_mesh.ROLE).show_wire = False  # the user's choice, kept when the mesh is replaced
     level, msg = operators.finish_hex_job(scene(), j)
     assert level == "INFO" and f"{r.hexes:,} hexahedra" in msg and "exactly the prescribed curves" in msg
@@ -483,11 +504,14 @@ def test_hex_mesh_of_the_stored_field_in_a_thread(cyl):
     assert "Defective hex mesh" in draw_hex_panel().texts
 
 
-def test_the_field_keeps_its_solves_network_exactly(ball):
-    """The arrays of solver.hex_source_arrays come back from the .blend as
-    the solve made them (dtypes aside: integers as int64)."""
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_the_field_keeps_its_solve_exactly(ball, tmp_path):
+    """The arrays of SolvedField.to_arrays come back from the .blend as the
+    solve made them (dtypes aside: integers as int64), and the field read
+    back from the .blend equals the one read back from a result file."""
     reopen(ball, new_session=True)
-    kept = storage.read_hex_source(scene().symframes.field)
+    kept = storage.decode_arrays(scene().symframes.field[storage.FIELD_KEY])
     assert sorted(kept) == sorted(ball.source)
     for key, a in ball.source.items():
         a = np.asarray(a)
@@ -496,16 +520,27 @@ def test_the_field_keeps_its_solves_network_exactly(ball):
             assert str(kept[key]) == str(a)
         else:
             np.testing.assert_array_equal(kept[key], a, err_msg=key)
-    assert json.loads(str(kept["hex_meta"]))["nodes"]  # the ball's nodes, as the solve prepared them
+    assert json.loads(str(kept["meta"]))["nodes"]  # the ball's nodes, as the solve prepared them
+    f = storage.solved_field(scene())
+    assert f == ball.field
+    path = str(tmp_path / "ball.npz")
+    sio.save_field(path, f)
+    g = sio.load_field(path)
+    assert g == f
+    a, b = hexmesh_of(f), hexmesh_of(g)
+    np.testing.assert_array_equal(a.hexes, b.hexes)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_ball_from_a_reopened_file_gives_the_sessions_hex_mesh(ball):
     """Curves meeting at nodes: the solve's node regions come from the file,
     nothing is traced again, and the hex mesh is the session's."""
     r0 = ball.report
     assert r0.status == "valid" and r0.structure_exact and r0.irregular.get(3, 0) > 0, r0.summary()
     reopen(ball, new_session=True)
-    assert isinstance(operators.hex_source(bpy.context), job.StoredField)
+    assert operators.hex_source(bpy.context) == ball.field
     assert bpy.ops.symframes.hex_mesh() == {"FINISHED"}
     obj = output(hex_mesh.ROLE)
     hm = job.cached_hex(obj.data[hex_mesh.HEX_ID_KEY])
@@ -515,28 +550,38 @@ def test_ball_from_a_reopened_file_gives_the_sessions_hex_mesh(ball):
     np.testing.assert_array_equal(hm.hexes, ball.hm.hexes)
     np.testing.assert_array_equal(hm.irregular_edges, ball.hm.irregular_edges)
     np.testing.assert_array_equal(hm.irregular_valence, ball.hm.irregular_valence)
-    # the frames and omega are kept in float32: the map, hence the smoothed vertices, move by a hair
-    np.testing.assert_allclose(hm.vertices, ball.hm.vertices, atol=0.01 * r0.cell_size)
-    assert r.sj_min == pytest.approx(r0.sj_min, abs=1e-2)
+    # the field is kept in full precision: the same map, the same smoothed vertices
+    np.testing.assert_allclose(hm.vertices, ball.hm.vertices, atol=1e-9 * r0.cell_size)
+    assert r.sj_min == pytest.approx(r0.sj_min, abs=1e-9)
     assert list(output(hex_mesh.EDGES_ROLE).data[hex_mesh.VALENCE_KEY]) == ball.hm.irregular_valence.tolist()
 
 
-def test_a_field_without_its_network_is_refused(cyl):
-    """A field that keeps no network (or a damaged one): compute it again;
-    nothing is traced, nothing written."""
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_a_field_without_its_arrays_is_refused(cyl):
+    """A field whose stored arrays are damaged, or that keeps none (stored by
+    an earlier SymFrames): compute it again; nothing is traced, nothing
+    written."""
     reopen(cyl, new_session=True)
     field = scene().symframes.field
     before = scene_state()
-    group = field[storage.HEX_SOURCE_KEY]
-    del group["hex_tets"]  # an array of the layout missing
-    _refused(bpy.ops.symframes.hex_mesh, "not as Compute Field wrote it .*'hex_tets'.*compute the field again")
-    del field[storage.HEX_SOURCE_KEY]
-    _refused(bpy.ops.symframes.hex_mesh, "without the network as its solve traced it.*compute the field again")
+    group = field[storage.FIELD_KEY]
+    group["curve_tets"] = np.zeros(3, np.int32)  # Blender writes the first 3 values: a walk that is not one
+    storage._FIELD_CACHE.clear()  # the field was edited behind the add-on's back
+    _refused(bpy.ops.symframes.hex_mesh, "curve 0: its face .* does not lie between the tets.*compute the field again")
+    del group["curve_tets"]  # an array of the layout missing
+    storage._FIELD_CACHE.clear()
+    _refused(bpy.ops.symframes.hex_mesh, "not as Compute Field wrote them .*'curve_tets'.*compute the field again")
+    del field[storage.FIELD_KEY]
+    storage._FIELD_CACHE.clear()
+    _refused(bpy.ops.symframes.hex_mesh, "stored by an earlier SymFrames.*compute the field again")
     assert scene_state() == before
-    # while the solve is in memory, it is meshed from there
-    reopen(cyl)
-    del scene().symframes.field[storage.HEX_SOURCE_KEY]
-    assert operators.hex_source(bpy.context) is cyl.memory[1]
+
+
+def hexmesh_of(field):
+    from symframes.solver import hexmesh
+
+    return hexmesh(field, target_hexes=properties.HEX_PRESETS[HEX_PRESET])
 
 
 def test_arrays_kept_as_id_properties_round_trip():
@@ -560,6 +605,8 @@ def test_arrays_kept_as_id_properties_round_trip():
 
 
 # ------------------------------------------------------------------ export
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_export_writes_what_meshio_reads(cyl, tmp_path):
     reopen(cyl)
     hm = cyl.hm
@@ -581,6 +628,8 @@ def test_export_writes_what_meshio_reads(cyl, tmp_path):
     assert '2 3 "patch_3"' in (tmp_path / "cyl.msh").read_text()
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_moved_hex_object_is_exported_where_it_is(cyl, tmp_path):
     """The hex object moved, scaled and mirrored after it was made: the
     export writes it where it stands (the object's transform applied, said in
@@ -605,6 +654,8 @@ def test_a_moved_hex_object_is_exported_where_it_is(cyl, tmp_path):
     bpy.context.view_layer.update()
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_reopened_file_exports_vtu_and_refuses_hexex(cyl, tmp_path):
     reopen(cyl, new_session=True)
     hm = cyl.hm
@@ -630,6 +681,8 @@ def test_reopened_file_exports_vtu_and_refuses_hexex(cyl, tmp_path):
     assert not (tmp_path / "map.hexex").exists()
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_an_edited_hex_object_is_refused_for_export(cyl, tmp_path):
     reopen(cyl, new_session=True)
     me = output(hex_mesh.ROLE).data
@@ -645,6 +698,8 @@ def test_export_formats_are_the_solvers():
     assert sorted(exchange.HEX_EXTENSION.values()) == sorted(HEX_FORMATS)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_hex_only_hides_the_field_objects_and_shows_them_again(cyl):
     """Hex Mesh turns Hex Only on: the domain, the network curves and the
     field's outputs are hidden while the hex mesh is shown; off shows again
@@ -666,6 +721,8 @@ def test_hex_only_hides_the_field_objects_and_shows_them_again(cyl):
 
 
 # ------------------------------------------------------------------- clear
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_clear_removes_the_hex_mesh_and_its_helpers(cyl):
     reopen(cyl)
     assert output(hex_mesh.ROLE) is not None and output(hex_mesh.EDGES_ROLE) is not None

@@ -95,6 +95,8 @@ def test_files_that_go_together_are_written_all_or_none(tmp_path, monkeypatch):
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_full_disk_during_the_result_write_is_a_message(tmp_path, monkeypatch, cylinder_result):
     """The solve's last step: a disk that fills up while the .npz is written
     gives an OutputError (the command line prints it, exit 1), no partial file."""
@@ -111,6 +113,8 @@ def cylinder_result(solved):
     return solved("cylinder", edge_length=0.4, refine=0)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_the_result_is_written_at_exactly_the_path_given(tmp_path, cylinder_result):
     from solver import io
 
@@ -131,6 +135,8 @@ def test_check_output_path_names_the_format(tmp_path):
     assert os.listdir(tmp_path) == []  # the probe file is gone
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_result_the_folder_refuses_after_the_solve_is_kept_elsewhere(tmp_path, monkeypatch, cylinder_result):
     """The folder passed the check but refuses the write when the solve is
     done: the result goes to the temporary folder, and the message says where."""

@@ -409,7 +409,7 @@ def test_obj_negative_indices_read(tmp_path):
     p.write_text(TET_OBJ + "f -4 -2 -3\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
     V, F = io.read_obj(str(p))
     assert F[0].tolist() == [0, 2, 1]
-    from solver.surface.trisurface import validate_surface
+    from solver.surface.validation import validate_surface
 
     validate_surface(V, F)
 
@@ -501,7 +501,7 @@ def test_touching_or_overlapping_solids_refused(lo, hi):
 def test_cavity_still_allowed():
     V, F = box(n=2)
     Vc, Fc = box(lo=(-0.5,) * 3, hi=(0.5,) * 3, n=2)
-    from solver.surface.trisurface import validate_surface
+    from solver.surface.validation import validate_surface
 
     S = validate_surface(np.vstack([V, Vc]), np.vstack([F, Fc[:, ::-1] + len(V)]))
     assert S.n_components == 2
@@ -511,8 +511,9 @@ def test_self_intersection_broad_phase_per_triangle():
     """A few long triangles among many small ones: each triangle searches
     its own neighbourhood (one global radius made this quadratic: a 13,102-
     face version took 49 s, the 25k one ran out of memory)."""
+    from solver.surface.intersect import candidate_pairs
     from solver.surface.polygons import ear_clip
-    from solver.surface.trisurface import candidate_pairs, validate_surface
+    from solver.surface.validation import validate_surface
 
     V, F = box(n=20)
     top = np.all(np.isclose(V[F][:, :, 2], 1.0), axis=1)
@@ -631,12 +632,14 @@ def test_api_arguments_of_the_wrong_kind():
     assert len(net.curves) == 1
 
 
+@pytest.mark.slow
 def test_the_plane_side_early_out_never_hides_a_crossing():
     """_crossing drops pairs whose unshared corners lie strictly on one side
     of the other's plane before its six edge tests; on 3,000 random pairs
     (a third sharing a corner, many nearly coplanar) it finds a crossing
     exactly where the six edge tests alone do."""
-    from solver.surface.trisurface import TriSurface, _crossing, segment_crosses_triangle
+    from solver.surface.intersect import _crossing, segment_crosses_triangle
+    from solver.surface.trisurface import TriSurface
 
     rng = np.random.default_rng(7)
     n = 3000

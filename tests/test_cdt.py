@@ -12,6 +12,7 @@ from solver.mesh.cdt import tetrahedralize_cdt, wants_tetgen
 from solver.surface.trisurface import TriSurface
 
 
+@pytest.mark.mesher
 def test_tetgen_keeps_the_surface_exactly():
     """Every boundary vertex of the mesh lies on the input surface and the
     volumes agree to round-off; no tet is flat; the count is near the
@@ -28,6 +29,7 @@ def test_tetgen_keeps_the_surface_exactly():
     assert 0.5 * expected < mesh.n_tets < 1.5 * expected
 
 
+@pytest.mark.mesher
 def test_tetgen_failure_is_an_error_not_a_crash():
     """Two overlapping boxes (a surface that intersects itself, which
     validation would refuse): TetGen refuses it in its child process; the
@@ -38,6 +40,8 @@ def test_tetgen_failure_is_an_error_not_a_crash():
         tetrahedralize_cdt(S, 0.3)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_auto_takes_tetgen_for_a_clean_part_and_it_solves(solved):
     r = solved("prism")
     assert r.report.mesher == "TetGen" and "meshed by TetGen" in r.report.summary()
@@ -45,6 +49,7 @@ def test_auto_takes_tetgen_for_a_clean_part_and_it_solves(solved):
     assert r.report.metrics["normal_adaptation_mean_deg"] < 0.5
 
 
+@pytest.mark.mesher
 def test_where_tetgen_fails_ftetwild_meshes(monkeypatch):
     import solver.mesh.cdt as cdt
 
@@ -68,6 +73,8 @@ def test_dense_surfaces_and_singular_curves_go_to_ftetwild():
         Options(mesher="gmsh")
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_surface_of_thin_triangles_that_tetgen_overrefines_goes_to_ftetwild():
     """A box whose 1,728 triangles are squeezed towards x = 0 (up to 100:1):
     no denser than the mesh, but TetGen refines around the thin triangles
@@ -90,6 +97,8 @@ def _box_with_cavity():
     return np.vstack([V, Vc]), np.vstack([F, Fc[:, ::-1] + len(V)])
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_solid_with_a_cavity_solves_with_defaults():
     """TetGen fills cavities (it carves only outside the outer surface); the
     tets it puts in one are dropped: the mesh's boundary has the surface's
@@ -105,6 +114,8 @@ def test_a_solid_with_a_cavity_solves_with_defaults():
     assert r.report.converged, r.report.status_reason
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_where_tetgen_fills_a_cavity_ftetwild_meshes(monkeypatch):
     """Should TetGen's mesh still miss a component of the surface, fTetWild
     meshes instead and the report says why."""

@@ -53,6 +53,8 @@ def test_clustering_keeps_corners():
     assert not np.all(smooth)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_dense_ball_is_meshed_from_its_simplified_surface(dense_ball):
     """The ball's network on the 20,480-triangle sphere: the mesher gets the
     simplified surface (the report says from how many to how many), the
@@ -180,6 +182,8 @@ def test_closest_points_over_triangles_of_very_different_sizes():
     assert np.allclose(dw[near], exact[near], rtol=0, atol=1e-12) and np.all(fw[~near] == -1)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_dense_creased_solid_keeps_its_creases_and_solves():
     """The sculpt-like cylinder of testkit/sculpt.py at 20,000 triangles
     (bumped wall, two circular 90-degree creases) with the cylinder

@@ -158,6 +158,8 @@ def _all_tube_faces(problem):
     return np.nonzero((problem.constraints.kind == TUBE)[mesh.face_edges].all(axis=1) & ~emb.face_excluded)[0]
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_straight_tubes_keep_the_prescribed_curvature(solved):
     """On straight curves the tube's reference field is a rotation about one
     axis, so tube_curvature leaves Omega_f = 2 pi sigma T (or 0) as the
@@ -171,6 +173,8 @@ def test_straight_tubes_keep_the_prescribed_curvature(solved):
     assert np.abs(p.structure_omega - p.embedding.face_omega).max() < 1e-9
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_bent_tubes_carry_no_structure_error():
     """Around a bent singular curve the adapted rotations omega0 + beta T_e
     do not commute, and with Omega_f = 2 pi sigma T (or 0) the second-order
@@ -204,6 +208,8 @@ def test_bent_tubes_carry_no_structure_error():
     assert r.report.converged, r.report.status_reason
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     """The tube edges' reference winding theta is measured per vertex, in
     the frame of each vertex's nearest curve point; where a bent curve

@@ -30,6 +30,9 @@ from solver.analysis.measures import (
 from solver.examples import load_example
 from solver.linalg.rotations import cross_distance, exp_so3
 
+# every test here runs tet meshing (fTetWild/TetGen), itself or through the session fixtures
+pytestmark = pytest.mark.mesher
+
 H = {"cube": 0.3, "cylinder": 0.2, "ball": 0.18, "torus": 0.15}
 
 
@@ -137,6 +140,7 @@ def test_cube_frames_are_axis_aligned(at):
     assert r.report.lm.converged
 
 
+@pytest.mark.slow
 def test_lm_converges_on_a_field_without_turning(meshed):
     """The cube's field does not turn (omega = 0): steps measured relative
     to omega alone stay at a fixed fraction of round-off there, and LM ran
@@ -154,6 +158,7 @@ def test_lm_converges_on_a_field_without_turning(meshed):
 
 
 # ------------------------------------------------------------------- torus
+@pytest.mark.slow
 def test_torus_has_no_singularity_and_is_adapted(at):
     """A smooth solid torus: the frames must twist once around each meridian
     (SO(3) loop parity), and then need no singularity.  The twist turns the
@@ -182,11 +187,13 @@ def test_torus_has_no_singularity_and_is_adapted(at):
 
 
 # --------------------------------------------------- cylinder and the ball
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
 def test_singular_structure_matches_the_network(at, name):
     check_singular_structure(at(name))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
 def test_omega_matched_singular_faces_are_exactly_the_network(at, name):
     """Matched against the frame omega carries across each edge (not fooled
@@ -196,6 +203,7 @@ def test_omega_matched_singular_faces_are_exactly_the_network(at, name):
     check_omega_singular_set(at(name))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
 def test_frames_are_adapted_to_curves_and_boundary(at, name):
     r = at(name)
@@ -207,6 +215,7 @@ def test_frames_are_adapted_to_curves_and_boundary(at, name):
     assert na.mean() <= 1.7, na.mean()
 
 
+@pytest.mark.slow
 def test_frames_do_not_depend_on_the_turn_of_the_2d_field(at, meshed):
     """The 2D field is defined up to one turn about the normals (§3.4) and a
     common shift of the alphas of Eq. 20 leaves omega unchanged; the 3D field
@@ -223,12 +232,14 @@ def test_frames_do_not_depend_on_the_turn_of_the_2d_field(at, meshed):
     assert np.degrees(ta).mean() <= 2.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cylinder", "ball"])
 def test_monodromy_is_small(at, name):
     ang = regular_monodromy_deg(at(name))
     assert ang.mean() <= 0.1, ang.mean()
 
 
+@pytest.mark.slow
 def test_monodromy_falls_under_refinement(at):
     """Eq. 9 on a fixed subdomain a quarter unit away from the curves and the
     boundary (the paper's Fig. 15 measures away from the singular curves)."""
@@ -252,6 +263,7 @@ def cylinder_problem(meshed):
     return meshed("cylinder", edge_length=0.3)
 
 
+@pytest.mark.slow
 def test_initialisations_reach_the_same_field(cylinder_problem):
     p = cylinder_problem
     res = {init: p.solve(init=init) for init in ("zero", "constant", "random", "linear")}
@@ -262,6 +274,7 @@ def test_initialisations_reach_the_same_field(cylinder_problem):
         assert np.degrees(cross_distance(r.frames, ref.frames)).max() <= 0.01, init
 
 
+@pytest.mark.slow
 def test_lm_stops_within_its_tolerance_of_the_minimiser(cylinder_problem):
     """Wherever LM says it converged, the exact Newton step from there is
     below its step tolerance (1e-6 of omega), and started at that point it
@@ -291,6 +304,7 @@ def test_lm_stops_within_its_tolerance_of_the_minimiser(cylinder_problem):
     np.testing.assert_allclose(vp.omega(x2), vp.omega(x), atol=1e-7 * np.abs(vp.omega(x)).max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_the_field_does_not_depend_on_the_model_units(solved, scale):
     """The same solid, network and tet mesh in other units (millimetres
@@ -314,6 +328,7 @@ def test_the_field_does_not_depend_on_the_model_units(solved, scale):
     assert np.degrees(cross_distance(r.frames, ref.frames)).max() <= 1e-3
 
 
+@pytest.mark.slow
 def test_development_root_does_not_matter(at):
     r = at("cylinder")
     mesh = r.mesh
@@ -326,6 +341,7 @@ def test_development_root_does_not_matter(at):
         assert dev.max() <= 1.0, (root, dev.max())
 
 
+@pytest.mark.slow
 def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(meshed, monkeypatch):
     """Far from the minimum the full Hessian is indefinite: PCG stops on
     negative curvature and LM re-solves with Gauss-Newton.  Both solves'
@@ -349,6 +365,7 @@ def test_lm_counts_the_cg_steps_of_a_newton_attempt_that_falls_back(meshed, monk
     assert rep.final.energy < rep.iterations[0].energy
 
 
+@pytest.mark.slow
 def test_a_direction_of_negative_curvature_lowers_the_energy_past_gauss_newton(meshed):
     """From omega = c the full Hessian of Eq. 23 is indefinite, and PCG on
     it stops on a direction of negative curvature.  Moving on from the
@@ -376,6 +393,7 @@ def test_a_direction_of_negative_curvature_lowers_the_energy_past_gauss_newton(m
     assert np.linalg.norm(move - (move @ p) / (p @ p) * p) <= 1e-9 * np.linalg.norm(move)
 
 
+@pytest.mark.slow
 def test_lm_converges_on_a_coarse_torus(solved):
     """At h = 0.3 the torus's full Hessian stays indefinite over a dozen LM
     iterations near the minimum: Newton's attempts stopped on negative
@@ -396,6 +414,7 @@ def test_lm_converges_on_a_coarse_torus(solved):
     assert all(it.accepted for it in lm.iterations[:-1]), [it.iteration for it in lm.iterations if not it.accepted]
 
 
+@pytest.mark.slow
 def test_a_spurious_quarter_turn_in_the_lifted_boundary_field_is_refused(at):
     """Folded boundary triangles made the lift of the boundary field pick a
     wrong cross representative: a quarter turn no volume field can undo.

@@ -32,7 +32,7 @@ sys.path.insert(0, os.path.join(ROOT, "scripts"))
 import build_extension  # noqa: E402
 import matrix  # noqa: E402
 
-# the Blender release run besides the venv's (CI budget: README, Supported versions)
+# the Blender release run besides the venv's (CI budget: docs/platforms.md, Supported versions)
 OTHER_BLENDER = "4.2.23"
 
 
@@ -162,6 +162,8 @@ def _check_smoke(out: dict, res_dir=None):
     assert out["left"] == []
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_install_from_disk_and_run_the_installed_operators(linux_zip, tmp_path):
     res = tmp_path / "blender-user"
     res.mkdir()
@@ -179,6 +181,8 @@ def test_install_from_disk_and_run_the_installed_operators(linux_zip, tmp_path):
     assert venv_site_packages() == before  # nothing was installed into the venv
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_blender_4_2_lts_installs_and_runs_its_zip():
     """Blender 4.2 LTS (numpy 1.24.3) with the 4.2 variant's scipy 1.15.3;
     the first run downloads bpy 4.2.23 (335 MB) into .matrix/."""

@@ -14,6 +14,9 @@ from solver import hexmesh
 from solver.io import export_hexmesh
 from solver.io.femformats import write_hex_msh
 
+# every test here solves, meshes or hex meshes an example: slow and mesher (CONTRIBUTING.md, Testing)
+pytestmark = [pytest.mark.slow, pytest.mark.mesher]
+
 
 @pytest.fixture(scope="module")
 def plate(solved):

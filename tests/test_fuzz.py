@@ -379,7 +379,8 @@ def test_fuzz_random_networks(solids, seed):
 @pytest.fixture(scope="module")
 def tagged_files(tmp_path_factory):
     """Two valence-3/5 axes through a structured box, as OVM and MEDIT text."""
-    from solver.io.interchange import write_medit, write_ovm
+    from solver.io.medit import write_medit
+    from solver.io.ovm import write_ovm
     from tests.meshes import box_mesh
 
     d = tmp_path_factory.mktemp("tagged")
@@ -534,6 +535,7 @@ def test_fuzz_api_arguments(seed, stop_before_meshing):
 
 
 # ------------------------------------------------ dense curves, edge lengths
+@pytest.mark.slow
 @pytest.mark.parametrize("n", [10_000, 30_000, 100_000])
 def test_fuzz_dense_curve(n):
     """One curve of 1e4-1e5 points (a Blender curve at a high resolution),
@@ -625,25 +627,25 @@ HEX_VALUES = WEIRD + ["result.npz", np.zeros((3, 3)), object()]
 
 def _hex_call(rng, seed, path, arrays, res, tmp):
     """One call of a public hex name with some arguments replaced."""
-    from solver import HexInput, default_cell_size, hex_source_arrays, hexmesh, input_from_arrays
+    from solver import SolvedField, default_cell_size, hex_source_arrays, hexmesh
     from solver.hexmesh import field_on_edges
 
     def pick(good, p=0.5):
         return HEX_VALUES[int(rng.integers(len(HEX_VALUES)))] if rng.random() < p else good
 
-    inp = HexInput.from_result(res)
-    hex_arrays = {k: v for k, v in arrays.items() if k.startswith("hex_")}
+    inp = res.field
+    hex_arrays = {k: v for k, v in arrays.items() if k != "report"}
     if rng.random() < 0.5:
         k = str(rng.choice(sorted(hex_arrays)))
         if rng.random() < 0.5:
             del hex_arrays[k]
         else:
             hex_arrays[k] = pick(None, 1.0)
-    if rng.random() < 0.3:  # a HexInput made by hand, one field wrong
+    if rng.random() < 0.3:  # a SolvedField made by hand, one field wrong: refused as it is made
         import dataclasses
 
-        name = str(rng.choice([f.name for f in dataclasses.fields(HexInput)]))
-        inp = dataclasses.replace(inp, **{name: pick(None, 1.0)})
+        name = str(rng.choice([f.name for f in dataclasses.fields(SolvedField)]))
+        return lambda: dataclasses.replace(inp, **{name: pick(None, 1.0)})
     k = seed % 8
     if k == 0:
         return lambda: hexmesh(pick(inp, 0.4), pick(None), smooth=pick(True, 0.2), target_hexes=pick(3000, 0.3),
@@ -651,24 +653,25 @@ def _hex_call(rng, seed, path, arrays, res, tmp):
     if k == 1:
         return lambda: default_cell_size(pick(inp), pick(3000))
     if k == 2:
-        return lambda: input_from_arrays(pick(inp.mesh, 0.2), pick(inp.frames, 0.2), pick(inp.omega, 0.2),
-                                         pick(hex_arrays, 0.2))
+        return lambda: SolvedField.from_arrays(pick(hex_arrays, 0.2))
     if k == 3:
         return lambda: hex_source_arrays(pick(inp, 0.8))
     if k == 4:
         return lambda: io.export_hexmesh(pick(None, 1.0), pick(str(tmp / "h.vtu"), 0.5))
     if k == 5:
-        return lambda: HexInput.from_result(pick(res, 0.8))
+        return lambda: SolvedField.from_result(pick(res, 0.8))
     if k == 6:
         return lambda: field_on_edges(pick(inp, 0.8))
-    return lambda: io.load_hex_input(pick(path, 0.8))
+    return lambda: io.load_field(pick(path, 0.8))
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("seed", range(64))
 def test_fuzz_hex_api(stored_field, stop_before_hex_stages, tmp_path, seed):
     """The public hex names with wrong types in each place: SymFrames errors
     only (hexmesh("result.npz"), hexmesh(None), target_hexes=0,
-    input_from_arrays(..., {}), export_hexmesh(None, ...))."""
+    SolvedField.from_arrays({}), export_hexmesh(None, ...))."""
     path, arrays, res = stored_field
     rng = np.random.default_rng(9000 + seed)
     fn = _hex_call(rng, seed, path, arrays, res, tmp_path)
@@ -705,6 +708,8 @@ def _mutate_arrays(rng, arrays):
     return a
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("seed", range(64))
 def test_fuzz_result_file(stored_field, tmp_path, seed):
     """Damaged result files (arrays dropped, cut, scaled, shifted, retyped;
@@ -723,14 +728,14 @@ def test_fuzz_result_file(stored_field, tmp_path, seed):
         p.write_bytes(bytes(raw))
     else:
         np.savez(p, **_mutate_arrays(rng, arrays))
-    outcome = run_case(f"result file seed {9500 + seed}", lambda: io.load_hex_input(str(p)))
+    outcome = run_case(f"result file seed {9500 + seed}", lambda: io.load_field(str(p)))
     assert outcome in ("ok", "ReadError"), outcome
 
 
 @pytest.fixture(scope="module")
 def interchange_texts():
     """Valid .hexex, .fra, .perm and .qtn texts of a small field."""
-    from solver.io.interchange import fra_text, perm_text
+    from solver.io.cubecover import fra_text, perm_text
     from tests.meshes import box_mesh
 
     rng = np.random.default_rng(1)
@@ -752,7 +757,8 @@ def interchange_texts():
 def test_fuzz_interchange_readers(interchange_texts, tmp_path, seed):
     """Mutated .hexex / .fra / .perm / .qtn files: read, or a ReadError naming
     the file (and the line), never a plain ValueError or a traceback."""
-    from solver.io.interchange import read_fra, read_perm, read_qtn
+    from solver.io.cubecover import read_fra, read_perm
+    from solver.io.qtn import read_qtn
 
     ext = [".hexex", ".fra", ".perm", ".qtn"][seed % 4]
     rng = np.random.default_rng(9800 + seed)
@@ -765,7 +771,8 @@ def test_fuzz_interchange_readers(interchange_texts, tmp_path, seed):
 
 def test_fuzz_interchange_readers_read_their_own_files(interchange_texts, tmp_path):
     """Not vacuous: the unmutated files read back."""
-    from solver.io.interchange import read_fra, read_perm, read_qtn
+    from solver.io.cubecover import read_fra, read_perm
+    from solver.io.qtn import read_qtn
 
     for ext, fn in {".hexex": io.read_hexex, ".fra": read_fra, ".perm": read_perm, ".qtn": read_qtn}.items():
         p = tmp_path / f"f{ext}"
@@ -789,6 +796,8 @@ def _public_names():
     return out
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("name", _public_names())
 def test_fuzz_every_public_name(name, stored_field, stop_before_meshing, stop_before_hex_stages, tmp_path,
                                 monkeypatch):
@@ -818,6 +827,8 @@ def test_fuzz_every_public_name(name, stored_field, stop_before_meshing, stop_be
             pass
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("method", ["develop", "curve_tets", "curve_faces", "curve_vertices"])
 def test_fuzz_result_methods(stored_field, method):
     """A Result's methods with wrong indices (issue 52: Result.develop):

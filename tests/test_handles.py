@@ -106,6 +106,8 @@ def test_a_combination_of_generators_is_read_along_one_closed_loop_off_the_sharp
     assert np.array_equal(chain, want)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("holes, xs", [(1, (0.25, 1.25)), (2, (0.25, 2.25))])
 def test_a_singular_pair_on_either_side_of_a_hole_solves(holes, xs):
     """The pair twists the field across an arm of the block by a quarter

@@ -64,6 +64,8 @@ def cylinder_problem(meshed):
     return meshed("cylinder", edge_length=0.3)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_assembled_gauss_newton_and_newton_terms_match_the_jacobian(cylinder_problem):
     """On a problem with every kind of edge (free, boundary, fixed sharp,
     curve tube): the gradient, H = 2 P^T (W + a J^T J) P and the Newton term
@@ -102,6 +104,8 @@ def test_assembled_gauss_newton_and_newton_terms_match_the_jacobian(cylinder_pro
     assert np.allclose(D.diagonal(), 0.5 * np.r_[np.einsum("nii->ni", B).ravel(), d], atol=1e-12 * scale)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_energy_along_a_step_is_the_exact_quartic_and_its_minimum_is_found(cylinder_problem):
     """E(x + t dx) of Eq. 23 is a quartic in t (the structure residual is
     quadratic in omega): the coefficients of VolumeProblem.energy_along
@@ -132,6 +136,8 @@ def test_energy_along_a_step_is_the_exact_quartic_and_its_minimum_is_found(cylin
     assert vp.line_minimum(np.array([4.0, -4.0, 5.0, -4.0, 1.0]), 1.5) == 1.5
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_lm_replaces_an_overshooting_step_by_the_line_minimum_and_ends_at_the_same_minimiser(cylinder_problem):
     """From a random start the Gauss-Newton step overshoots: LM takes the
     minimum along it (line_step < 1) instead of rejecting it, and ends where

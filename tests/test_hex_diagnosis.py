@@ -3,7 +3,6 @@
 and a message naming the cause and the place; no numpy or scipy message
 reaches the user, and a field that did not converge is never meshed."""
 
-import dataclasses
 import os
 
 import numpy as np
@@ -11,21 +10,26 @@ import pytest
 
 from solver import io
 from solver.__main__ import EXIT_NO_HEX_MESH, EXIT_NOT_CONVERGED, main
-from solver.hexmesh import HexInput, HexMeshError, hexmesh, mesher
+from solver.hexmesh import HexMeshError, hexmesh, mesher, smooth
+from testkit.fields import with_curve
+
+# every test here runs tet meshing (fTetWild/TetGen), itself or through the session fixtures
+pytestmark = pytest.mark.mesher
 
 
+@pytest.mark.slow
 def test_kinds_name_whose_limit_it_is(solved):
     res = solved("cylinder")
     with pytest.raises(HexMeshError, match="larger than half the solid") as e:
         hexmesh(res, 10.0)
     assert e.value.kind == "settings"
-    inp = HexInput.from_result(res)
-    inp.network.curves[0] = dataclasses.replace(inp.network.curves[0], sigma=0.5)
+    inp = with_curve(res.field, 0, sigma=0.5)
     with pytest.raises(HexMeshError, match="valence 2") as e:
         hexmesh(inp)
     assert e.value.kind == "network"
 
 
+@pytest.mark.slow
 def test_a_field_that_did_not_converge_is_not_meshed(solved, tmp_path, capsys):
     res = solved("cylinder", max_iterations=1)
     assert not res.report.converged, res.report.summary()
@@ -42,6 +46,7 @@ def test_a_field_that_did_not_converge_is_not_meshed(solved, tmp_path, capsys):
     assert not os.path.exists(out)
 
 
+@pytest.mark.slow
 def test_an_internal_failure_is_said_as_a_limit_of_symframes(solved, monkeypatch, tmp_path, capsys):
     """A numpy error inside a stage (here the extraction's, as a singular
     matrix) becomes a HexMeshError of kind 'map' naming the stage; at the
@@ -76,6 +81,7 @@ def test_an_internal_failure_is_said_as_a_limit_of_symframes(solved, monkeypatch
     assert "Traceback" not in err and not os.path.exists(out)
 
 
+@pytest.mark.slow
 def test_a_map_failure_at_the_automatic_size_steps_the_cell_down(solved, monkeypatch):
     """The first automatic cell size fails (as a stalled untangling would);
     the next one meshes, and the report says what happened."""
@@ -96,6 +102,7 @@ def test_a_map_failure_at_the_automatic_size_steps_the_cell_down(solved, monkeyp
     assert hm.report.notes and "the map failed" in hm.report.notes[0] and "note:" in hm.report.summary()
 
 
+@pytest.mark.slow
 def test_a_smooth_torus_without_curves_is_a_map_limit_with_the_reason(solved):
     """The seamless map of the smooth solid torus folds; the message says it
     is SymFrames' map that failed, and why such a solid needs curves, without
@@ -109,24 +116,26 @@ def test_a_smooth_torus_without_curves_is_a_map_limit_with_the_reason(solved):
     assert "not a proof" in str(e.value) and "add them" in str(e.value)
 
 
+@pytest.mark.slow
 def test_the_automatic_cell_size_says_why_and_keeps_close_curves_apart(solved):
     """Issue 48d: the default cell size resolves the network and says why:
     the cylinder's 4 axial curves are 0.7 apart, so the target's cells rule;
     with one curve moved to 0.12 from another, 1.5 cells fit between them."""
-    from solver.hexmesh.mesher import cell_choice
+    from solver.hexmesh.cellsize import cell_choice
 
     res = solved("cylinder")
-    inp = HexInput.from_result(res)
+    inp = res.field
     cell, why = cell_choice(inp)
     assert why.startswith("about 3,000 cells"), why
     P0 = inp.network.curves[0].points
     moved = P0 + np.array([0.12, 0.0, 0.0])
-    inp.network.curves[1] = dataclasses.replace(inp.network.curves[1], points=moved)
+    inp = with_curve(inp, 1, points=moved)
     close, why = cell_choice(inp)
     assert np.isclose(close, 0.12 / 1.5, rtol=0.05) and close < cell, (close, why)
     assert "between curve" in why and "0.12 apart" in why, why
 
 
+@pytest.mark.slow
 def test_a_smoothing_run_that_diverges_keeps_the_maps_own_places(solved, monkeypatch):
     """A smoothing run whose positions go non-finite (seen once on a
     generated genus-2 part: scipy's "'x' must be finite") is dropped; with
@@ -136,7 +145,7 @@ def test_a_smoothing_run_that_diverges_keeps_the_maps_own_places(solved, monkeyp
     def diverges(V, *a, **k):
         raise ValueError("'x' must be finite, check for nan or inf values")
 
-    monkeypatch.setattr(mesher, "optimise", diverges)
+    monkeypatch.setattr(smooth, "optimise", diverges)
     hm = hexmesh(res)
     assert hm.report.sj_min == pytest.approx(hm.report.sj_min_raw)
     assert np.isfinite(hm.vertices).all()
@@ -170,6 +179,7 @@ def test_a_radial_curve_inside_its_node_ball_is_put_onto_edges():
     assert radial == 8
 
 
+@pytest.mark.slow
 def test_a_map_that_needs_a_finer_field_solves_it_again_finer(monkeypatch, tmp_path, capsys):
     """The command line: where SymFrames' map fails on the field (here its
     first step, as when two nodes are closer than the field's mesh
@@ -193,7 +203,7 @@ def test_a_map_that_needs_a_finer_field_solves_it_again_finer(monkeypatch, tmp_p
     err = capsys.readouterr().err
     assert "solving the field again finer" in err and "solved again on a uniform mesh at edge length" in err
     assert len(calls) == 2 and calls[1] > 2 * calls[0]  # 0.7 times the edge length: ~2.9 times the tets
-    assert os.path.exists(out) and io.load_hex_input(npz).mesh.n_tets == calls[1]
+    assert os.path.exists(out) and io.load_field(npz).mesh.n_tets == calls[1]
     calls.clear()
     assert main(["--example", "cube", "--edge-length", "0.3", "-o", npz, "--hex", out + ".vtu", "-q"]) == \
         EXIT_NO_HEX_MESH
@@ -202,33 +212,34 @@ def test_a_map_that_needs_a_finer_field_solves_it_again_finer(monkeypatch, tmp_p
     assert len(calls) == 1 and not os.path.exists(out + ".vtu")
 
 
+@pytest.mark.slow
 def test_the_verdict_has_a_level_for_a_boundary_slightly_off(solved, monkeypatch):
     """valid; valid with warnings (the boundary 1-2% of the diagonal off the
     surface, said with the figure); defective past 2%.  At the automatic cell
     size a mesh with warnings gives way to a smaller size's clean one, and is
     kept where no size is clean."""
-    from solver.hexmesh.report import HexReport
+    from solver.hexmesh.report import HexReport, verdict
 
     r = HexReport(euler=[2], euler_expected=[2], structure_exact=True, hausdorff_relative=0.015)
-    mesher._verdict(r)
+    verdict(r)
     assert r.valid and len(r.warnings) == 1 and "1.50% of the diagonal" in r.warnings[0]
     assert "valid, with warnings: the boundary is 1.50%" in r.summary()
     r.hausdorff_relative = 0.025
-    mesher._verdict(r)
+    verdict(r)
     assert not r.valid and "2.50% of the diagonal" in r.reason and not r.warnings
     r.hausdorff_relative = 0.005
-    mesher._verdict(r)
+    verdict(r)
     assert r.valid and not r.warnings
     res = solved("cylinder")
-    real, sizes = mesher._assess, []
+    real, sizes = mesher.assess, []
 
     def off(report, inp, V, H, cell):  # the first size's boundary 1.5% off, the others on it
         real(report, inp, V, H, cell)
         sizes.append(cell)
         report.hausdorff_relative = 0.015 if len(sizes) == 1 else 0.001
-        mesher._verdict(report)
+        verdict(report)
 
-    monkeypatch.setattr(mesher, "_assess", off)
+    monkeypatch.setattr(mesher, "assess", off)
     hm = hexmesh(res)
     assert len(sizes) >= 2 and "valid with warnings" in hm.report.notes[0]
     # the first clean size's mesh; the warned one only where no smaller size gave a valid mesh

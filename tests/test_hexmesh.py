@@ -7,14 +7,17 @@ cells) and at one for about 2,000.  fTetWild is not deterministic, so the
 bounds have a margin over what the meshes here score.
 """
 
-import dataclasses
 
 import numpy as np
 import pytest
 
 from solver import OptionsError
-from solver.hexmesh import HexInput, HexMeshError, default_cell_size, hexmesh
+from solver.hexmesh import HexMeshError, default_cell_size, hexmesh
 from solver.hexmesh.quality import scaled_jacobian
+from testkit.fields import with_curve
+
+# every test here solves, meshes or hex meshes an example: slow and mesher (CONTRIBUTING.md, Testing)
+pytestmark = [pytest.mark.slow, pytest.mark.mesher]
 
 EXAMPLES = ["cube", "cylinder", "ball", "plate", "l_prism", "cylinder:tet-edge", "ball:tet-edge"]
 SIZES = {"default": None, "coarser": 2000}
@@ -27,13 +30,17 @@ def hex_of(solved, example: str, size: str):
         res = solved(example)
         cell = None
         if SIZES[size] is not None:
-            cell = default_cell_size(HexInput.from_result(res), SIZES[size])
+            cell = default_cell_size(res.field, SIZES[size])
         _CACHE[key] = (res, hexmesh(res, cell))
     return _CACHE[key]
 
 
-@pytest.mark.parametrize("size", list(SIZES))
-@pytest.mark.parametrize("example", EXAMPLES)
+# every example at the default size; a second, coarser size where the
+# network is densest for its cells (nodes close together, four curves)
+CASES = [(e, "default") for e in EXAMPLES] + [("cylinder", "coarser"), ("ball", "coarser")]
+
+
+@pytest.mark.parametrize("example,size", CASES)
 def test_hex_mesh_is_valid_with_the_prescribed_structure(solved, example, size):
     res, hm = hex_of(solved, example, size)
     r = hm.report
@@ -88,17 +95,18 @@ def test_the_memory_estimate_is_said_before_the_work_and_guards_it(solved, monke
     import importlib
 
     mesher = importlib.import_module("solver.hexmesh.mesher")  # (solver.hexmesh is also the function)
+    cellsize = importlib.import_module("solver.hexmesh.cellsize")
 
-    inp = HexInput.from_result(solved("cube"))
+    inp = solved("cube").field
     said = []
     with pytest.raises(mesher.Cancelled):
         hexmesh(inp, 0.1, progress=lambda stage, f, msg: said.append(msg), cancel=lambda: True)
-    n, mb = mesher.hex_estimate(inp, 0.1)
+    n, mb = cellsize.hex_estimate(inp, 0.1)
     assert said == [f"hex: cell size 0.1: expected ~{n:,.0f} cells and ~{mb:,.0f} MB of memory for the hex stages"]
-    assert 7000 < n < 9000 and mesher.hex_memory_mb(n, inp.mesh.n_tets) == mb > mesher.HEX_BASE_MB
+    assert 7000 < n < 9000 and cellsize.hex_memory_mb(n, inp.mesh.n_tets) == mb > cellsize.HEX_BASE_MB
     ram = 2 * mb  # 75% of it holds the estimate at 0.1, not at 0.05 (8x the cells)
-    monkeypatch.setattr(mesher, "physical_memory_mb", lambda: ram)
-    assert mesher.memory_refusal(inp, 0.1) is None
+    monkeypatch.setattr(cellsize, "physical_memory_mb", lambda: ram)
+    assert cellsize.memory_refusal(inp, 0.1) is None
     said.clear()
     with pytest.raises(HexMeshError, match=r"cell size 0.05 would make about [\d,]+ hexahedra, and the hex stages "
                        r"would need ~[\d.]+ GB of memory \(4.1 KB per cell, 5 KB per tet of the field's [\d,]+\), "
@@ -107,10 +115,10 @@ def test_the_memory_estimate_is_said_before_the_work_and_guards_it(solved, monke
     assert e.value.kind == "settings" and said == []
     floor = float(e.value.args[0].split("at least ")[1].split(" ")[0])
     assert 0.05 < floor < 0.1
-    assert mesher.memory_refusal(inp, 1.01 * floor) is None and mesher.memory_refusal(inp, 0.99 * floor)
+    assert cellsize.memory_refusal(inp, 1.01 * floor) is None and cellsize.memory_refusal(inp, 0.99 * floor)
     # a machine the field's tets alone fill: no cell size is offered
-    monkeypatch.setattr(mesher, "physical_memory_mb", lambda: mesher.hex_memory_mb(0, inp.mesh.n_tets) / 0.75)
-    assert "the field's tets alone take most of it: mesh a coarser field" in mesher.memory_refusal(inp, 0.5)
+    monkeypatch.setattr(cellsize, "physical_memory_mb", lambda: cellsize.hex_memory_mb(0, inp.mesh.n_tets) / 0.75)
+    assert "the field's tets alone take most of it: mesh a coarser field" in cellsize.memory_refusal(inp, 0.5)
 
 
 def test_a_smaller_automatic_cell_past_the_memory_estimate_is_not_tried(solved, monkeypatch):
@@ -120,10 +128,11 @@ def test_a_smaller_automatic_cell_past_the_memory_estimate_is_not_tried(solved, 
     import importlib
 
     mesher = importlib.import_module("solver.hexmesh.mesher")
-    inp = HexInput.from_result(solved("cube"))
-    cell = mesher.default_cell_size(inp)
-    mb0, mb1 = mesher.hex_estimate(inp, cell)[1], mesher.hex_estimate(inp, 0.85 * cell)[1]
-    monkeypatch.setattr(mesher, "physical_memory_mb", lambda: (mb0 + mb1) / 2 / mesher.RAM_FRACTION)
+    cellsize = importlib.import_module("solver.hexmesh.cellsize")
+    inp = solved("cube").field
+    cell = cellsize.default_cell_size(inp)
+    mb0, mb1 = cellsize.hex_estimate(inp, cell)[1], cellsize.hex_estimate(inp, 0.85 * cell)[1]
+    monkeypatch.setattr(cellsize, "physical_memory_mb", lambda: (mb0 + mb1) / 2 / cellsize.RAM_FRACTION)
 
     def fail(inp, c, *a):
         raise mesher._Retry(f"the map failed at {c:.4g} (a test)", kind="map")
@@ -138,7 +147,6 @@ def test_a_smaller_automatic_cell_past_the_memory_estimate_is_not_tried(solved, 
 def test_a_curve_of_index_one_half_is_refused_with_its_valence(solved):
     """Valence 4 - 4 sigma = 2: two cells meeting flat, no valid hex mesh."""
     res = solved("cylinder")
-    inp = HexInput.from_result(res)
-    inp.network.curves[0] = dataclasses.replace(inp.network.curves[0], sigma=0.5)
+    inp = with_curve(res.field, 0, sigma=0.5)
     with pytest.raises(HexMeshError, match="valence 2"):
         hexmesh(inp)

@@ -8,12 +8,15 @@ import meshio
 import numpy as np
 import pytest
 
-from solver import io
+from solver import SolvedField, io
 from solver.__main__ import main
-from solver.hexmesh import HexInput, hexmesh
+from solver.hexmesh import hexmesh
 from solver.hexmesh.transitions import edge_rings
-from solver.io.interchange import permutation_matrix, read_fra, read_perm
+from solver.io.cubecover import permutation_matrix, read_fra, read_perm
 from solver.mesh.tetmesh import TetMesh
+
+# every test here solves, meshes or hex meshes an example: slow and mesher (CONTRIBUTING.md, Testing)
+pytestmark = [pytest.mark.slow, pytest.mark.mesher]
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +126,7 @@ def test_a_hex_input_round_trips_through_its_arrays(solved, tmp_path):
     res = solved("ball")
     path = str(tmp_path / "ball.npz")
     io.save_result(path, res)
-    a, b = hexmesh(res, 0.2), hexmesh(io.load_hex_input(path), 0.2)
+    a, b = hexmesh(res, 0.2), hexmesh(io.load_field(path), 0.2)
     assert a.report.hexes == b.report.hexes and a.report.irregular == b.report.irregular
     assert np.allclose(a.vertices, b.vertices)
-    assert isinstance(io.load_hex_input(path), HexInput)
+    assert isinstance(io.load_field(path), SolvedField)

@@ -1,6 +1,7 @@
 """The hex-meshing stage's parts on inputs with known answers (no meshing)."""
 
 import itertools
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -231,7 +232,8 @@ def test_extraction_of_the_identity_map_is_the_grid():
     U = mesh.vertices[mesh.tets] / cell
     faces = np.nonzero(~mesh.is_boundary_face)[0]
     ab = mesh.face_tets[faces]
-    raw = extract_hexes(mesh, faces, ab, np.zeros(len(faces), np.int64), U, cell)
+    raw = extract_hexes(mesh, SimpleNamespace(faces=faces, tets=ab, transition=np.zeros(len(faces), np.int64)), U,
+                        cell)
     assert len(raw.hexes) == 8 * 4 * 4 and raw.lost_corners == 0
     assert np.allclose(scaled_jacobian(raw.vertices, raw.hexes), 1.0)
     assert np.allclose(raw.vertices / cell, np.rint(raw.vertices / cell))
@@ -253,6 +255,6 @@ def test_extraction_follows_a_rotated_chart_across_a_cut():
     M[~right[ab[:, 0]] & right[ab[:, 1]]] = g
     inv = int(np.argmax(np.isclose(np.einsum("kij,ij->k", CUBE_GROUP, R.T), 3.0)))  # R^T
     M[right[ab[:, 0]] & ~right[ab[:, 1]]] = inv
-    raw = extract_hexes(mesh, faces, ab, M, U, cell)
+    raw = extract_hexes(mesh, SimpleNamespace(faces=faces, tets=ab, transition=M), U, cell)
     assert len(raw.hexes) == 8 * 4 * 4 and raw.lost_corners == 0 and raw.duplicate_cells == 0
     assert np.allclose(scaled_jacobian(raw.vertices, raw.hexes), 1.0)

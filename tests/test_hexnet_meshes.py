@@ -10,6 +10,9 @@ import pytest
 from solver import hexmesh, solve
 from testkit.hexnet import hexnet_input
 
+# every test here solves, meshes or hex meshes an example: slow and mesher (CONTRIBUTING.md, Testing)
+pytestmark = [pytest.mark.slow, pytest.mark.mesher]
+
 
 # The genus-2 plate is meshed by TetGen (the same mesh each run): on about
 # one fTetWild mesh in five of it SymFrames' seamless map folds before

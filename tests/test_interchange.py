@@ -1,6 +1,7 @@
 """Tests of solver/io/interchange.py (export of a solved field: VTU, MEDIT +
-.fra + .perm, OVM, .qtn) and solver/io/tetnetwork.py (a network read from a tet
-mesh with tagged edges).
+.fra + .perm, OVM, .qtn; the writers and readers of vtu.py, medit.py,
+cubecover.py, ovm.py and qtn.py) and solver/io/tetnetwork.py (a network read
+from a tet mesh with tagged edges).
 
 One cylinder (four axial curves, sigma = 1/4) is solved once per session
 (tests/conftest.py).
@@ -19,27 +20,17 @@ from scipy.sparse.csgraph import dijkstra
 from solver import NetworkError, OutputError, solve
 from solver.analysis.measures import tet_frames as karcher_tet_frames
 from solver.field.matchings import face_matchings, omega_matchings, omega_tet_frames
-from solver.io.interchange import (
-    boundary_triangles,
-    export_field,
-    field_export,
-    permutation_matrix,
-    quaternion_frames,
-    read_fra,
-    read_ovm,
-    read_perm,
-    read_qtn,
-    signed_permutation,
-    vtu_field_data,
-    write_medit,
-    write_ovm,
-    write_vtu,
-)
+from solver.io.cubecover import permutation_matrix, read_fra, read_perm, signed_permutation
+from solver.io.interchange import export_field, field_export, vtu_field_data
+from solver.io.medit import boundary_triangles, write_medit
+from solver.io.ovm import read_ovm, write_ovm
+from solver.io.qtn import quaternion_frames, read_qtn
 from solver.io.tetnetwork import (
     chain_edges,
     read_tet_network,
     tag_sigma,
 )
+from solver.io.vtu import write_vtu
 from solver.linalg.rotations import (
     CUBE_GROUP,
     GROUP_INVERSE,
@@ -118,6 +109,8 @@ def test_group_tables_and_cubecover_encoding():
 
 
 # ------------------------------------------------------------ frames per tet
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_tet_frames_are_the_documented_average(cylinder, fe):
     mesh, omega, E = cylinder.mesh, cylinder.omega, cylinder.frames
     T = mesh.tets
@@ -170,6 +163,8 @@ def test_face_matchings_on_a_synthetic_field():
 
 
 # ---------------------------------------------------------------------- VTU
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_vtu_round_trip_through_meshio(cylinder, fe, files, tmp_path):
     mesh = cylinder.mesh
     crossed = np.zeros(mesh.n_tets, bool)
@@ -197,6 +192,8 @@ def test_vtu_round_trip_through_meshio(cylinder, fe, files, tmp_path):
 
 
 # -------------------------------------------------------------------- MEDIT
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_medit_round_trip_through_meshio(cylinder, fe, files):
     mesh = cylinder.mesh
     m = meshio.read(files["mesh"])
@@ -236,6 +233,8 @@ def face_symmetries_from_perm(mesh, path):
     return out
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_perm_matchings_follow_omega(cylinder, files):
     mesh, omega, E = cylinder.mesh, cylinder.omega, cylinder.frames
     g = face_symmetries_from_perm(mesh, files["perm"])
@@ -272,6 +271,8 @@ def test_perm_matchings_follow_omega(cylinder, files):
                        np.eye(3), atol=np.sin(np.radians(30)))
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_perm_singular_edges_are_on_the_curves(cylinder, files):
     """What CubeCover derives from the .perm (FrameField::setSingularEdges):
     composing the matchings around an interior edge gives the identity except
@@ -314,6 +315,8 @@ def test_perm_singular_edges_are_on_the_curves(cylinder, files):
 
 
 # ---------------------------------------------------------------- QTN / OVM
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_qtn_and_ovm_round_trip(cylinder, fe, files):
     mesh = cylinder.mesh
     q = read_qtn(files["qtn"])
@@ -360,6 +363,8 @@ def check_ovm_topology(d):
     assert np.all(np.einsum("cfk,cfk->cf", n, cen[:, None, :] - P[:, :, 0]) > 0)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_export_rejects_unknown_format(cylinder, tmp_path):
     with pytest.raises(OutputError, match=r"unknown format '\.stl'; the file name must end in \.vtu or"):
         export_field(cylinder, str(tmp_path / "x.stl"))
@@ -444,6 +449,8 @@ def shortest_interior_path(mesh, a, b):
     return np.array(path[::-1])
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_import_tagged_tet_mesh_and_solve(cylinder, tmp_path):
     mesh = cylinder.mesh
     curves = cylinder.problem.network.curves
@@ -518,6 +525,7 @@ def test_import_tagged_tet_mesh_and_solve(cylinder, tmp_path):
     assert m["normal_adaptation_mean_deg"] < 0.5 and m["tangent_adaptation_mean_deg"] < 1.0
 
 
+@pytest.mark.mesher
 def test_cli_exports_every_format_and_refuses_a_bad_one_before_solving(tmp_path, capsys):
     """``python -m solver --export``: each format written after the solve, an
     unknown extension or a missing folder refused before any work.  The cube's
@@ -580,6 +588,8 @@ CONVENTION_TAGS = {"index": lambda s: np.rint(4 * s), "negated": lambda s: -np.r
                    "valence": lambda s: 4 - np.rint(4 * s)}
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("example", ["cylinder", "ball"])
 def test_the_tag_convention_is_detected_and_a_wrong_one_refused(example, example_input, tet_mesh, tmp_path, capsys):
     """An example's curves routed along the edges of its session tet mesh

@@ -167,3 +167,34 @@ def test_functions_stay_short_and_the_pipeline_keeps_only_the_order():
                 problem = n
     assert not long, long
     assert problem is not None and problem <= 200, problem
+
+
+def test_each_package_names_its_modules():
+    """The docstring of each package's __init__.py names every module of the
+    package (by its stem, "meshing" or "meshing.py"): the floor plan a reader
+    opens first lists every room."""
+    import re
+
+    missing = {}
+    for init in sorted((ROOT / "solver").glob("*/__init__.py")):
+        doc = ast.get_docstring(ast.parse(init.read_text(encoding="utf-8"), str(init))) or ""
+        stems = sorted(p.stem for p in init.parent.glob("*.py") if p.name != "__init__.py")
+        absent = [s for s in stems if not re.search(rf"\b{re.escape(s)}(\.py)?\b", doc)]
+        if absent:
+            missing[str(init.parent.relative_to(ROOT))] = absent
+    assert not missing, "package docstrings that do not name their modules:\n" + "\n".join(
+        f"{pkg}/__init__.py: {', '.join(stems)}" for pkg, stems in missing.items())
+
+
+def test_only_the_pipeline_reads_a_results_problem():
+    """No file of the solver or the add-on but solver/pipeline.py reads into
+    a Result's problem (the text ``.problem.``): what a caller needs of a
+    solve is a field of the Result."""
+    offenders = []
+    for path in sorted([*(ROOT / "solver").rglob("*"), *(ROOT / "symframes_addon").rglob("*")]):
+        if not path.is_file() or "__pycache__" in path.parts or path == ROOT / "solver" / "pipeline.py":
+            continue
+        text = path.read_bytes().decode("utf-8", errors="replace")
+        offenders += [f"{path.relative_to(ROOT)}:{i}: {line.strip()}"
+                      for i, line in enumerate(text.splitlines(), 1) if ".problem." in line]
+    assert not offenders, "reads into a Result's problem outside solver/pipeline.py:\n" + "\n".join(offenders)

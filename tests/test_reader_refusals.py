@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from solver import NetworkError, ReadError, io
-from solver.io.interchange import read_fra, read_perm, read_qtn
+from solver.io.cubecover import read_fra, read_perm
+from solver.io.qtn import read_qtn
 
 FRAME = "1 0 0\n0 1 0\n0 0 1\n"
 TET = "0 1 2 3 " + "0 " * 12 + "\n"
@@ -51,8 +52,9 @@ def test_interchange_readers_refuse_naming_file_line_and_value(tmp_path, k):
 
 
 def test_the_readers_read_what_the_writers_write(tmp_path):
+    from solver.io.cubecover import write_fra, write_perm
     from solver.io.hexformats import write_hexex
-    from solver.io.interchange import write_fra, write_perm, write_qtn
+    from solver.io.qtn import write_qtn
 
     rng = np.random.default_rng(0)
     V, T, U = rng.normal(size=(5, 3)), np.array([[0, 1, 2, 3], [1, 2, 3, 4]]), rng.normal(size=(2, 4, 3))
@@ -71,7 +73,7 @@ def test_the_readers_read_what_the_writers_write(tmp_path):
 
 
 def test_an_ovm_with_two_tag_properties_is_refused_naming_both(tmp_path):
-    from solver.io.interchange import write_ovm
+    from solver.io.ovm import write_ovm
     from solver.io.tetnetwork import import_tet_network
     from tests.meshes import box_mesh
 

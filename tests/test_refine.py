@@ -56,6 +56,8 @@ def test_whitney_prolongation_is_exact_for_constant_forms(box_refinement):
     assert np.allclose((ref.whitney @ wc)[half], 0.5 * sign * wc[par])
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_refined_boundary_lies_on_the_input_surface():
     V, F = icosphere(3)
     S = TriSurface(V, F)
@@ -73,6 +75,8 @@ def test_refined_boundary_lies_on_the_input_surface():
     assert np.isclose(fine.tet_volumes.sum(), 4.0 / 3.0 * np.pi, rtol=0.03)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_cube_on_a_refined_mesh_keeps_its_sharp_edges():
     V, F, net = load_example("cube")
     problem = FieldProblem(V, F, net, Options(edge_length=0.15, refine=1))  # meshed here: refinement is the point
@@ -94,6 +98,8 @@ def test_refine_option_is_checked():
         Options(refine=7)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_cylinder_on_a_refined_mesh_has_the_network_as_its_singular_set():
     """The O-grid cylinder solved on a refined mesh (fTetWild at 0.23, one
     level of red refinement): the same singular-structure and adaptation

@@ -161,6 +161,8 @@ def test_bisection_is_conforming():
     assert np.sum(mesh.face_areas[mesh.boundary_faces]) == pytest.approx(6.0)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_short_curve_within_budget(monkeypatch):
     """The cube-sphere network with an inner cube 0.03 across: node-to-node
     curves 0.03 long.  The uniform default meshed it at h = 0.01 (~6e7 tets
@@ -206,6 +208,8 @@ def test_short_curve_within_budget(monkeypatch):
     assert np.median(h[near]) < 0.5 * np.median(h[~near])
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_short_curves_solve_within_budget():
     """Node-to-node curves 0.1 long (the cube-sphere network with an inner
     cube 0.1 across), shorter than the bulk edge length the budget allows
@@ -251,6 +255,7 @@ def test_short_curves_solve_within_budget():
 
 
 # ------------------------------------------------------------------ status
+@pytest.mark.mesher
 def test_not_converged_status_and_exit_code(solved, tmp_path, capsys):
     res = solved("cube", edge_length=0.4, max_iterations=1, init="random")
     assert res.report.status == "not converged" and not res.report.converged
@@ -264,6 +269,8 @@ def test_not_converged_status_and_exit_code(solved, tmp_path, capsys):
     assert "not converged" in capsys.readouterr().err
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_the_iteration_cap_says_how_close_it_came(solved):
     """Stopped by the cap with the penalty already at the discretisation
     level: the status names the energy's last change and the option to
@@ -278,6 +285,7 @@ def test_the_iteration_cap_says_how_close_it_came(solved):
     assert "close to a minimum" not in why  # it was still falling fast
 
 
+@pytest.mark.mesher
 def test_converged_status(solved):
     res = solved("cube", edge_length=0.4)
     assert res.report.converged, res.report.summary()
@@ -285,6 +293,8 @@ def test_converged_status(solved):
 
 
 # ------------------------------------------------ issue 41b: the default follows the network
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_the_default_spends_what_the_network_asks_and_converges(monkeypatch):
     """A genus-2 block with three +-1/4 pairs across its arms (testkit/genus2.py)
     asks for about twice a budget of 10,000 tets: by default the mesh spends

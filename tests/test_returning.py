@@ -37,6 +37,7 @@ def torus():
     return torus_surface(R, r, n_major=48, n_minor=16)
 
 
+@pytest.mark.mesher
 def test_a_feature_curve_across_a_smooth_torus_is_refused(torus):
     V, F = torus
     net = Network(curves=[Curve(across_tube(0.0), sigma=0, role="feature", name="across")])
@@ -44,6 +45,8 @@ def test_a_feature_curve_across_a_smooth_torus_is_refused(torus):
         solve(V, F, net, Options(edge_length=0.15))
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_singular_pair_across_a_smooth_torus_is_refused_naming_both(torus):
     V, F = torus
     net = Network(curves=[Curve(across_tube(0.0), sigma=1, name="plus"),
@@ -81,6 +84,7 @@ def on_the_box(net, mesh):
     return FieldProblem(V, F, net, Options(edge_length=0.25), mesh=mesh)
 
 
+@pytest.mark.mesher
 def test_a_u_shaped_curve_under_one_face_is_refused(box_mesh):
     net = Network(curves=[Curve(u_curve(0.5), sigma=0, role="feature", name="u")], sharp_angle=30.0)
     with pytest.raises(TopologyError, match=r"curve 0 'u' meets the surface .* arrives reversed"):
@@ -94,6 +98,7 @@ def quarter_circle(n: int = 13) -> np.ndarray:
     return np.c_[1.0 - 0.6 * np.cos(t), np.zeros(n), 1.0 - 0.6 * np.sin(t)]
 
 
+@pytest.mark.mesher
 def test_a_curve_from_a_top_face_to_a_side_face_is_refused(box_mesh):
     """A quarter circle from the box's top face to a side face, meeting both
     along the normal: the vertical axis the top face gives it stays
@@ -105,6 +110,8 @@ def test_a_curve_from_a_top_face_to_a_side_face_is_refused(box_mesh):
         on_the_box(net, box_mesh)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_curve_between_opposite_faces_is_carried(box_mesh):
     """From the top face straight down to the bottom face: the vertical axis
     is carried over the sharp edges and the side faces, and arrives along
@@ -116,6 +123,8 @@ def test_a_curve_between_opposite_faces_is_carried(box_mesh):
     assert res.report.metrics["tangent_adaptation_max_deg"] < 1.0, res.report.metrics
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_field_off_its_curve_is_not_converged_whatever_its_penalty(box_mesh, monkeypatch):
     """The quarter circle with the check switched off: LM meets its stopping
     rule with a penalty of ~3e-5, but the frames are ~43 degrees off the
@@ -132,6 +141,8 @@ def test_a_field_off_its_curve_is_not_converged_whatever_its_penalty(box_mesh, m
     assert "off the curves' tangents on average" in res.report.status_reason
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_curve_the_singular_curves_link_is_left_to_the_solve():
     """The ball's vertical diameter as a feature curve, from pole to pole:
     its axis arrives reversed over the smooth sphere, but every loop it

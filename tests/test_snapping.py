@@ -4,6 +4,7 @@ sharp edges, corners and patches."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.spatial import cKDTree
 
 from solver import FieldProblem, Options
@@ -94,6 +95,8 @@ def test_without_sharp_edges_nothing_moves():
     assert out is shaken and stats.moved == 0
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_l_prism_field_is_the_identity():
     """An L-shaped prism (a concave sharp edge, nothing singular): the exact
     field is constant.  Without snapping fTetWild's thin triangles along the

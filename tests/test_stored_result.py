@@ -26,7 +26,8 @@ def stored(stored_field):
 @pytest.fixture(scope="module")
 def tagged(tmp_path_factory):
     """A tagged tet mesh (.mesh and .ovm): inputs for --tet-network."""
-    from solver.io.interchange import write_medit, write_ovm
+    from solver.io.medit import write_medit
+    from solver.io.ovm import write_ovm
     from tests.meshes import box_mesh
 
     d = tmp_path_factory.mktemp("tagged")
@@ -122,18 +123,28 @@ def _damaged(arrays):
     yield "frames reflected", {"frames": -a["frames"]}, ["not rotations"]
     yield "fractional tets", {"tets": T + 0.5}, ["'tets'", "whole numbers"]
     yield "tets out of range", {"tets": np.where(T == T.max(), len(a["vertices"]) + 5, T)}, ["'tets'", "run from 0"]
-    yield "trace tets out of range", {"hex_tets": a["hex_tets"] + len(T)}, ["'hex_tets'", "tet ids run from 0"]
-    yield "offsets", {"hex_faces_offsets": a["hex_faces_offsets"][::-1]}, ["'hex_faces_offsets'"]
-    yield "no meta", {"hex_meta": None}, ["'hex_meta' is missing"]
-    yield "meta not JSON", {"hex_meta": np.array("{curves")}, ["'hex_meta' is not JSON"]
-    meta = json.loads(str(a["hex_meta"]))
+    yield "trace tets out of range", {"curve_tets": a["curve_tets"] + len(T)}, ["'curve_tets'", "tet ids run from 0"]
+    yield "offsets", {"curve_faces_offsets": a["curve_faces_offsets"][::-1]}, ["'curve_faces_offsets'"]
+    yield "no meta", {"meta": None}, ["'meta' is missing"]
+    yield "meta not JSON", {"meta": np.array("{curves")}, ["'meta' is not JSON"]
+    meta = json.loads(str(a["meta"]))
     meta["curves"][0]["sigma"] = "x"
-    yield "meta sigma", {"hex_meta": np.array(json.dumps(meta))}, ["curve 0", "sigma"]
+    yield "meta sigma", {"meta": np.array(json.dumps(meta))}, ["curve 0", "sigma"]
     yield "vertices as text", {"vertices": a["vertices"].astype(str)}, ["'vertices'", "not floats"]
-    yield "sharp short", {"hex_surface_sharp": a["hex_surface_sharp"][:-2]}, ["'hex_surface_sharp'", "shape"]
-    yield "edges shuffled", {"edges": a["edges"][::-1]}, ["'edges'", "not the edge list"]
+    yield "sharp short", {"surface_sharp": a["surface_sharp"][:-2]}, ["'surface_sharp'", "shape"]
+    yield "root out of range", {"root": np.int64(len(a["vertices"]) + 3)}, ["'root'", "vertex id"]
+    yield "Omega faces out of range", {"omega_faces": a["omega_faces"] + 10**7}, ["'omega_faces'", "face ids"]
+    yield "Omega values short", {"omega_values": a["omega_values"][:-1]}, ["'omega_values'", "shape"]
+    yield "feature vertices short", {"feature_vertices": a["feature_vertices"][:-1]}, ["'feature_vertices'"]
+    yield "tube curve past the curves", {"tube_curve": a["tube_curve"] + 99}, ["'tube_curve'", "curve ids"]
+    walk = a["curve_tets"].copy()
+    walk[[1, 2]] = walk[[2, 1]]
+    yield "a walk out of order", {"curve_tets": walk}, ["curve 0", "does not lie between the tets"]
+    yield "an earlier layout", {"meta": None, "hex_meta": a["meta"]}, ["earlier SymFrames"]
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_damaged_result_files_are_refused_naming_file_and_fault(stored, tmp_path, capsys):
     _, arrays = stored
     out = tmp_path / "h.vtu"
@@ -141,13 +152,15 @@ def test_damaged_result_files_are_refused_naming_file_and_fault(stored, tmp_path
         bad = {**arrays, **change}
         path = _write(tmp_path / f"bad{k}.npz", {n: v for n, v in bad.items() if v is not None})
         with pytest.raises(ReadError) as e:
-            io.load_hex_input(path)
+            io.load_field(path)
         for w in [path] + words:
             assert w in str(e.value), (label, str(e.value))
         _refused(capsys, ["--from-result", path, "--hex", str(out)], path)
         assert not out.exists(), label
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_truncated_empty_and_foreign_files_are_refused(stored, tmp_path, capsys):
     path, _ = stored
     data = open(path, "rb").read()
@@ -176,6 +189,8 @@ def test_truncated_empty_and_foreign_files_are_refused(stored, tmp_path, capsys)
     assert not (tmp_path / "h.vtu").exists()
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_an_unused_member_is_never_read(stored, tmp_path):
     """A result with an extra member whose data are garbage (as an unused
     huge one would be expensive): only the arrays hex meshing needs are read."""
@@ -185,13 +200,15 @@ def test_an_unused_member_is_never_read(stored, tmp_path):
     with zipfile.ZipFile(p, "a") as zf:
         zf.writestr("huge.npy", b"\x93NUMPY\x01\x00v\x00{'descr': '<f8', 'fortran_order': False, 'shape': "
                                 b"(400000000000,), }" + b" " * 60 + b"\n" + b"garbage")
-    inp = io.load_hex_input(str(p))
+    inp = io.load_field(str(p))
     assert inp.mesh.n_tets == len(arrays["tets"]) and inp.status == "converged"
 
 
 # ------------------------------------------------------------ status and flags
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_stored_field_that_did_not_converge_exits_3(stored, tmp_path, capsys):
     """The status the solve's report gives wins over hex data that say
     converged: exit 3 and no hex file, as --hex after the solve does."""
@@ -200,7 +217,7 @@ def test_a_stored_field_that_did_not_converge_exits_3(stored, tmp_path, capsys):
     report.update(status="not converged", converged=False)
     path = _write(tmp_path / "nc.npz", {**arrays, "report": np.array(json.dumps(report))})
     out = tmp_path / "h.vtu"
-    assert io.load_hex_input(path).status == "not converged"
+    assert io.load_field(path).status == "not converged"
     _refused(capsys, ["--from-result", path, "--hex", str(out)], "not converged", "--mesh-unconverged",
              code=EXIT_NOT_CONVERGED)
     assert not out.exists()
@@ -213,6 +230,8 @@ def test_a_stored_field_that_did_not_converge_exits_3(stored, tmp_path, capsys):
     assert out.exists() and "meshed as asked" in text.out and "not converged" in text.err
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_from_result_honours_export_and_check_and_refuses_o(stored, solved, tmp_path, capsys):
     path, _ = stored
     capsys.readouterr()
@@ -235,6 +254,8 @@ def test_from_result_honours_export_and_check_and_refuses_o(stored, solved, tmp_
 # ------------------------------------------------------------ hex settings first
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @pytest.mark.parametrize("size", ["10", "1e-4", "1e-300"])
 def test_a_cell_size_that_cannot_fit_is_refused_before_the_solve(tmp_path, capsys, size, stored):
     err = _refused(capsys, ["--example", "cube", "--hex", str(tmp_path / "h.vtu"), "--cell-size", size],
@@ -269,6 +290,7 @@ def test_check_hex_says_the_hex_settings_fit(tmp_path, capsys):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.mesher
 def test_a_field_stopped_after_one_iteration_from_a_random_start_is_read_not_refused(solved, tmp_path, capsys):
     """Its omega is far from integrable, but the frames are developed from it
     along a spanning tree: the file is whole, its field not converged (exit 3,
@@ -277,6 +299,6 @@ def test_a_field_stopped_after_one_iteration_from_a_random_start_is_read_not_ref
     assert not res.report.converged
     path = str(tmp_path / "r.npz")
     io.save_result(path, res)
-    assert io.load_hex_input(path).status == "not converged"
+    assert io.load_field(path).status == "not converged"
     _refused(capsys, ["--from-result", path, "--hex", str(tmp_path / "h.vtu")], "not converged",
              code=EXIT_NOT_CONVERGED)

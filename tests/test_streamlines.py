@@ -315,9 +315,11 @@ def cylinder(solved):
     return solved("cylinder", edge_length=0.3)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_streamlines_of_a_solved_cylinder_follow_the_field(cylinder):
     result = cylinder
-    f = FrameField.from_result(result)
+    f = FrameField.from_field(result)
     seeds = seed_points(f, 30, seed=16)
     lines = trace_streamlines(result, seeds, family="all")
     assert len(lines) >= 80

@@ -48,6 +48,8 @@ def test_sphere_gets_the_cube_sphere_network(sphere):
     assert "20 curves" in rep.summary()
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_sphere_suggestion_solves_and_meshes(sphere):
     """As `python -m solver SURFACE.obj --hex` does: solved at the budget the
     suggestion asks for (at the default 15,000 the penalty ended at 7.69
@@ -72,6 +74,8 @@ def test_box_and_L_part_need_no_singular_curve():
         check_input(V, F, net)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_a_crease_inside_a_chart_is_left_smooth():
     """The prism example's walls bend by 47 degrees at one wall top: at the
     default sharp angle that is a crease, but both walls take one label, and
@@ -137,6 +141,7 @@ def _nodes_and_depths(net, rep):
     return out
 
 
+@pytest.mark.slow
 def test_proportioned_keeps_a_core_as_thick_as_the_padding():
     """The experimental ``proportioned`` suggestion (docs/suggest.md,
     *Proportions*): on a flat ellipsoid (1.5 x 1.5 x 0.5) the corners sit
@@ -200,6 +205,8 @@ def test_cli_writes_the_suggestion_and_refuses_it_with_a_network(tmp_path, capsy
         assert json.load(fh)["surface"] == os.path.join("..", "s.obj")
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_cli_meshes_a_bare_surface(tmp_path, capsys):
     """`python -m solver SURFACE.obj --hex out.vtu` with no network: the
     suggestion (the cylinder's O-grid) is solved and meshed."""

@@ -14,6 +14,9 @@ from solver.examples import icosphere
 from solver.mesh import tetwild
 from solver.surface.trisurface import TriSurface
 
+# every test here runs fTetWild on the ball: slow and mesher (CONTRIBUTING.md, Testing)
+pytestmark = [pytest.mark.slow, pytest.mark.mesher]
+
 
 @pytest.mark.parametrize("mesher", tetwild.MESHERS)
 def test_each_mesher_fills_the_ball(mesher, monkeypatch):

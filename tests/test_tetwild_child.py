@@ -86,6 +86,8 @@ def _wait(cond, seconds=HANG):
     return False
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @linux
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_terminating_the_command_stops_ftetwild_and_removes_its_folder(tmp_path, sig):
@@ -103,6 +105,8 @@ def test_terminating_the_command_stops_ftetwild_and_removes_its_folder(tmp_path,
             os.kill(child, signal.SIGKILL)
 
 
+@pytest.mark.slow
+@pytest.mark.mesher
 @linux
 def test_killed_parent_takes_the_child_along_and_its_folder_is_removed_later(tmp_path):
     """SIGKILL cannot be handled: the child dies with its parent
@@ -137,6 +141,7 @@ def test_only_dead_owners_folders_are_removed(tmp_path):
     assert mine.exists() and live.exists() and foreign.exists() and other.exists() and not stale.exists()
 
 
+@pytest.mark.mesher
 @linux
 def test_cancel_stops_ftetwild_and_removes_its_folder(tmp_path, monkeypatch):
     import tempfile

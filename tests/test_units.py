@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from solver import Curve, Network, Options, solve
 from solver.examples import cylinder_example
+
+# every test here solves, meshes or hex meshes an example: slow and mesher (CONTRIBUTING.md, Testing)
+pytestmark = [pytest.mark.slow, pytest.mark.mesher]
 
 
 def test_cylinder_at_micrometre_scale_solves():

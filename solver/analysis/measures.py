@@ -30,9 +30,10 @@ from scipy.spatial.transform import Rotation
 
 from .. import checks
 from ..errors import OptionsError
-from ..field.constraints import TUBE
 from ..field.develop import develop
 from ..field.matchings import omega_matchings
+from ..field.matchings import tet_frames as matching_tet_frames
+from ..field.solved import as_field
 from ..linalg.rotations import CUBE_GROUP, closest_symmetry, cross_distance, exp_so3, log_so3, match_to, rotation_angle
 from ..mesh.tetmesh import TetMesh
 from ..network.curves import CurveGeometry
@@ -363,11 +364,13 @@ def singular_structure(mesh: TetMesh, frames: np.ndarray, expected: np.ndarray |
     return out
 
 
-def network_singular_structure(result) -> SingularStructure:
-    """singular_structure of a solved Result against its network: expected
+def network_singular_structure(field) -> SingularStructure:
+    """singular_structure of a solved field (SolvedField or Result) against
+    its network: expected
     are the faces where the field must be singular
     (Embedding.prescribed_singular); allowed also the node regions and the
     boundary faces where curves end."""
+    result = as_field(field, "network_singular_structure")
     mesh, emb = result.mesh, result.embedding
     n = mesh.face_normals
     idx = np.einsum("ij,ij->i", emb.face_omega, n) / (2 * np.pi)
@@ -490,7 +493,7 @@ def normal_adaptation(mesh: TetMesh, frames: np.ndarray, normals: np.ndarray | N
     return axis_alignment(frames[bv], N)
 
 
-def vertex_normal_adaptation(result) -> np.ndarray:
+def vertex_normal_adaptation(field) -> np.ndarray:
     """Normal adaptation of a solved field at every vertex where it is measured.
 
     The frames of sharp-feature vertices are fixed to the feature (§3.3), so
@@ -499,7 +502,7 @@ def vertex_normal_adaptation(result) -> np.ndarray:
 
     Parameters
     ----------
-    result : solver.Result
+    field : SolvedField, or a solver Result
 
     Returns
     -------
@@ -508,12 +511,11 @@ def vertex_normal_adaptation(result) -> np.ndarray:
         axis at each boundary vertex off the sharp features; -1 at interior
         and sharp-feature vertices.
     """
-    if not all(hasattr(result, a) for a in ("mesh", "frames", "problem")):
-        raise OptionsError(f"result = {checks.describe(result)}: must be the Result of solve(...)")
-    mesh = result.mesh
+    f = as_field(field, "vertex_normal_adaptation")
+    mesh = f.mesh
     out = np.full(mesh.n_vertices, -1.0)
-    free = ~np.asarray(result.problem.boundary.is_feature_vertex, bool)
-    out[mesh.boundary_vertices[free]] = normal_adaptation(mesh, result.frames)[free]
+    free = ~f.feature_vertices[mesh.boundary_vertices]
+    out[mesh.boundary_vertices[free]] = normal_adaptation(mesh, f.frames)[free]
     return out
 
 
@@ -533,24 +535,22 @@ def curve_tangent_adaptation(points: np.ndarray, frames: np.ndarray, polyline: n
     return axis_alignment(frames, geo.tangent(s, t))
 
 
-def tangent_adaptation(result) -> tuple[np.ndarray, np.ndarray]:
+def tangent_adaptation(field) -> tuple[np.ndarray, np.ndarray]:
     """Angle between the curve tangent (at the nearest curve point) and the
-    nearest frame axis at every vertex carrying a curve constraint.
+    nearest frame axis at every vertex carrying a curve constraint, of a
+    solved field (SolvedField or Result).
 
     Returns (vertex ids, angles in radians).
     """
-    mesh = result.mesh
-    cons = result.problem.constraints
-    emb = result.embedding
+    f = as_field(field, "tangent_adaptation")
     verts, angs = [], []
-    for ci, tr in enumerate(emb.traces):
-        e = np.nonzero((cons.kind == TUBE) & (cons.tube_curve == ci))[0]
-        if len(e) == 0:
+    for ci, tr in enumerate(f.embedding.traces):
+        v = f.curve_vertices(ci)
+        if len(v) == 0:
             continue
-        v = np.unique(mesh.edges[e])
         verts.append(v)
-        angs.append(curve_tangent_adaptation(mesh.vertices[v], result.frames[v], tr.polyline,
-                                             result.problem.network.curves[ci].closed))
+        angs.append(curve_tangent_adaptation(f.mesh.vertices[v], f.frames[v], tr.polyline,
+                                             f.network.curves[ci].closed))
     if not verts:
         return np.zeros(0, int), np.zeros(0)
     return np.concatenate(verts), np.concatenate(angs)
@@ -561,10 +561,14 @@ def tangent_adaptation(result) -> tuple[np.ndarray, np.ndarray]:
 
 def tet_frames(mesh: TetMesh, frames: np.ndarray) -> np.ndarray:
     """(#T, 3, 3) one frame per tet: the Karcher mean of its four vertex
-    frames (matched to the first vertex), as for CubeCover in §5.5."""
+    frames matched to the first vertex by the closest rotation, as for
+    CubeCover in §5.5 (field.matchings.tet_frames without omega)."""
     from .streamlines import barycentric_karcher_mean
 
-    return barycentric_karcher_mean(frames[mesh.tets], np.full((mesh.n_tets, 4), 0.25), iterations=8)
+    def karcher(matched, weights):
+        return barycentric_karcher_mean(matched, weights, iterations=8)
+
+    return matching_tet_frames(mesh, frames, mean=karcher).frames
 
 
 def dual_face_weights(mesh: TetMesh, faces: np.ndarray) -> np.ndarray:
@@ -737,19 +741,22 @@ def regular_face_mask(mesh: TetMesh, network_faces: np.ndarray) -> np.ndarray:
     return mask
 
 
-def regular_faces(result) -> np.ndarray:
-    """Ids of the regular faces (regular_face_mask) of a Result where the
-    structure equation is imposed (not Embedding.face_excluded)."""
-    mesh, emb = result.mesh, result.embedding
+def regular_faces(field) -> np.ndarray:
+    """Ids of the regular faces (regular_face_mask) of a solved field
+    (SolvedField or Result) where the structure equation is imposed (not
+    Embedding.face_excluded)."""
+    f = as_field(field, "regular_faces")
+    mesh, emb = f.mesh, f.embedding
     return np.nonzero(regular_face_mask(mesh, emb.network_faces(mesh)) & ~emb.face_excluded)[0]
 
 
-def subdomain_faces(result, away: float) -> np.ndarray:
+def subdomain_faces(field, away: float) -> np.ndarray:
     """Regular faces whose three vertices all lie at least ``away`` from
     every network curve (a fixed subdomain for a refinement study)."""
-    mesh = result.mesh
-    f = regular_faces(result)
-    curves = [c.points for c in result.problem.network.curves]
+    field = as_field(field, "subdomain_faces")
+    mesh = field.mesh
+    f = regular_faces(field)
+    curves = [c.points for c in field.network.curves]
     if not curves or away <= 0:
         return f
     near = vertices_near_polylines(mesh.vertices, curves, away)
@@ -759,8 +766,10 @@ def subdomain_faces(result, away: float) -> np.ndarray:
 # ================================================================ summaries
 
 
-def quick_metrics(result) -> dict:
-    """The headline figures of a solve, in degrees where angles."""
+def quick_metrics(field) -> dict:
+    """The headline figures of a solved field (SolvedField or Result), in
+    degrees where angles."""
+    result = as_field(field, "quick_metrics")
     mesh = result.mesh
     emb = result.embedding
     net_faces = emb.network_faces(mesh)

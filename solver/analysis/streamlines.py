@@ -22,7 +22,7 @@ the boundary, and the last one is clipped at the boundary face it crosses.
 
 Typical use::
 
-    field = FrameField.from_result(result)          # or FrameField(V, T, E)
+    field = FrameField.from_field(result.field)     # or FrameField(V, T, E)
     lines = trace_streamlines(field, seed_points(field, 500), family="all")
     points, quats = sample_glyphs(field, spacing=0.1, clip_normal=(0, 0, 1))
 """
@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 
 from .. import checks
 from ..errors import OptionsError
+from ..field.solved import as_field
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.embed import TetLocator
 from ..mesh.tetmesh import TetMesh
@@ -236,7 +237,7 @@ class FrameField:
         One rotation per vertex; its columns are the cross axes.
     mesh : TetMesh, optional
         An existing mesh on the same vertices and tets, to reuse its
-        precomputed connectivity (``FrameField.from_result`` passes it).
+        precomputed connectivity (``FrameField.from_field`` passes it).
 
     Precomputes point location (KD-tree on tet centroids, then a straight
     walk through the mesh) and the vertex frames as quaternions.
@@ -297,10 +298,13 @@ class FrameField:
         self._bary = B
 
     @classmethod
-    def from_result(cls, result) -> FrameField:
-        """The field of a solved ``solver.Result`` (reuses its tet mesh)."""
-        mesh = result.mesh
-        return cls(mesh.vertices, mesh.tets, result.frames, mesh=mesh)
+    def from_field(cls, field) -> FrameField:
+        """The frames of a solved field (a ``SolvedField``, or a
+        ``solver.Result``), interpolated on its own tet mesh."""
+        f = as_field(field, "FrameField.from_field")
+        return cls(f.mesh.vertices, f.mesh.tets, f.frames, mesh=f.mesh)
+
+    from_result = from_field  # the earlier name, removed in the next release
 
     @property
     def mean_edge_length(self) -> float:
@@ -465,9 +469,7 @@ def _as_points(points, name: str) -> np.ndarray:
 def _as_field(field) -> FrameField:
     if isinstance(field, FrameField):
         return field
-    if hasattr(field, "mesh") and hasattr(field, "frames"):
-        return FrameField.from_result(field)
-    checks.instance("field", field, FrameField, OptionsError, "or a solved solver.Result")
+    return FrameField.from_field(field)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -72,7 +72,8 @@ def omega_matchings(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, pairs:
 
 @dataclass
 class TetFrames:
-    """One frame per tet from the vertex frames and omega (module docs, §5.5).
+    """One frame per tet from the vertex frames (``tet_frames``; module docs,
+    §5.5).
 
     Parameters
     ----------
@@ -81,7 +82,7 @@ class TetFrames:
     matching : (#T, 4) int array
         CUBE_GROUP index h_k per local vertex k: E_{tets[t, k]} @ G[h_k] is
         the representative averaged (identity, 0, at the reference vertex
-        k = 0).
+        k = 0; per source where the tets take their frames from sources).
     spread : (#T,) float array
         Largest angle (radians) between F_t and a matched vertex frame.
     """
@@ -91,12 +92,109 @@ class TetFrames:
     spread: np.ndarray
 
 
+def pair_matchings(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """``omega_matchings`` of ordered vertex pairs, computed once per edge
+    (on (i, j) with i < j) and inverted for (j, i), so that g_ji = g_ij^-1
+    exactly; the identity where i == j.
+
+    Parameters
+    ----------
+    mesh, omega, frames
+        As ``omega_matchings``.
+    pairs : (k, 2) int array
+        Ordered vertex pairs (i, j), each an edge of the mesh or i == j.
+
+    Returns
+    -------
+    (k,) int array
+        Indices into CUBE_GROUP.
+
+    Raises
+    ------
+    ValueError
+        A pair of two vertices that no edge joins.
+    """
+    pairs = np.asarray(pairs)
+    out = np.zeros(len(pairs), dtype=np.int64)
+    diff = pairs[:, 0] != pairs[:, 1]
+    if not diff.any():
+        return out
+    lo = np.minimum(pairs[diff, 0], pairs[diff, 1])
+    hi = np.maximum(pairs[diff, 0], pairs[diff, 1])
+    e = mesh.edge_index(lo, hi)
+    if np.any(e < 0):
+        raise ValueError("internal: two vertices of a pair to match are not joined by an edge")
+    ue, inv = np.unique(e, return_inverse=True)
+    g = omega_matchings(mesh, omega, frames, mesh.edges[ue])[inv]
+    fwd = pairs[diff, 0] < pairs[diff, 1]
+    out[diff] = np.where(fwd, g, GROUP_INVERSE[g])
+    return out
+
+
+def tet_frames(mesh: TetMesh, frames: np.ndarray, omega: np.ndarray | None = None, *,
+               sources: np.ndarray | None = None, mean=None) -> TetFrames:
+    """One frame per tet from the frames at its vertices (module docs, §5.5).
+
+    Each tet averages the frames of its sources (its four vertices by
+    default); the first is its reference r, and every other source s is
+    matched to it, ``E_s G[h_s]``: by omega's transport along the edge rs
+    (``pair_matchings``, Eq. 8, the §5.5 remark) when omega is given, else
+    by the closest rotation (as the paper did).  The matched frames are then
+    averaged: by default their chordal mean projected to SO(3),
+    ``polar(sum_s E_s G[h_s])``.
+
+    The field's exports (``omega_tet_frames``), the hex mesher's split mesh
+    (hexmesh/transitions.py: omega, its tets' old vertices as sources) and
+    the §5.4 smoothness measure (analysis.tet_frames: closest rotation, the
+    Karcher mean) all take their tet frames here.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+        The mesh the frames (and omega) live on.
+    frames : (#V, 3, 3) float array
+        Columns are the cross axes.
+    omega : (#E, 3) float array, optional
+        As ``omega_matchings``; None matches by the closest rotation.
+    sources : (#T, 4) int array, optional
+        Per tet, the vertices of ``mesh`` whose frames it averages, -1
+        padded (a padded entry counts the reference once more; every row
+        needs one vertex).  Default ``mesh.tets``; a mesh split from
+        ``mesh`` passes the old vertices of its tets.
+    mean : callable(matched, weights) -> (#T, 3, 3) float array, optional
+        The average of the matched frames (#T, 4, 3, 3) with weights
+        (#T, 4); default the chordal mean projected to SO(3).
+
+    Returns
+    -------
+    TetFrames
+        ``matching`` is h per source (the identity at the reference and at
+        padded entries), ``spread`` the largest angle between the tet frame
+        and a matched frame.
+    """
+    src = mesh.tets if sources is None else np.asarray(sources)
+    n = len(src)
+    has = src >= 0
+    ref = src[np.arange(n), np.argmax(has, axis=1)]
+    S = np.where(has, src, ref[:, None])
+    R = np.repeat(ref, 4)
+    if omega is not None:
+        h = pair_matchings(mesh, omega, frames, np.c_[R, S.reshape(-1)]).reshape(n, 4)
+    else:
+        h = closest_symmetry(np.einsum("nji,njk->nik", frames[R], frames[S.reshape(-1)])).reshape(n, 4)
+    matched = frames[S] @ CUBE_GROUP[h]  # (#T, 4, 3, 3)
+    F = polar_rotation(matched.sum(axis=1)) if mean is None else mean(matched, np.full((n, 4), 0.25))
+    rel = np.swapaxes(F, 1, 2)[:, None] @ matched
+    spread = rotation_angle(rel).max(axis=1)
+    return TetFrames(F, h, spread)
+
+
 def omega_tet_frames(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> TetFrames:
     """Per-tet frames: the chordal mean, projected to SO(3), of the four vertex
     frames matched to the tet's first vertex by omega's transport (§5.5 remark,
-    Eq. 8).  (``analysis.tet_frames`` is the Karcher mean with closest-rotation
-    matching, as the paper did; the two agree wherever no tet edge turns by
-    45 degrees or more.)
+    Eq. 8): ``tet_frames(mesh, frames, omega)``.  (``analysis.tet_frames`` is
+    the Karcher mean with closest-rotation matching, as the paper did; the two
+    agree wherever no tet edge turns by 45 degrees or more.)
 
     Parameters
     ----------
@@ -107,16 +205,7 @@ def omega_tet_frames(mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> Te
     -------
     TetFrames
     """
-    T = mesh.tets
-    nT = len(T)
-    pairs = np.stack([np.repeat(T[:, 0], 3), T[:, 1:].reshape(-1)], axis=1)  # r -> k, k = 1..3
-    h = np.zeros((nT, 4), dtype=np.int64)
-    h[:, 1:] = omega_matchings(mesh, omega, frames, pairs).reshape(nT, 3)
-    matched = frames[T] @ CUBE_GROUP[h]  # (#T, 4, 3, 3)
-    F = polar_rotation(matched.sum(axis=1))
-    rel = np.swapaxes(F, 1, 2)[:, None] @ matched
-    spread = rotation_angle(rel).max(axis=1)
-    return TetFrames(F, h, spread)
+    return tet_frames(mesh, frames, omega)
 
 
 @dataclass

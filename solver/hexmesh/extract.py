@@ -1,7 +1,7 @@
-"""Stage 5 of hex meshing: hexahedra from an integer-grid map.
+"""Stage 6 of hex meshing: hexahedra from an integer-grid map.
 
 For a locally injective map whose boundary, curves and transitions are
-integer (quantize.py), the hex mesh is the preimage of the integer grid
+integer (seamless.py), the hex mesh is the preimage of the integer grid
 (HexEx, Lyon et al. 2016; HexHex, Kohler et al. 2025, which likewise
 requires local injectivity).  Here:
 
@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.tetmesh import TetMesh
-from .transitions import GROUP_INVERSE
+from .transitions import GROUP_INVERSE, Transitions
 
 SNAP = 2.0**-20
 EPS = 1e-9
@@ -164,16 +164,17 @@ def trace(U, Binv, nbr, rot, tau, t0, p0, d, max_steps: int = 200):
     return t, p, ok
 
 
-def extract_hexes(mesh: TetMesh, faces: np.ndarray, ab: np.ndarray, M: np.ndarray, corners: np.ndarray,
-                  cell: float) -> RawHexes:
+def extract_hexes(mesh: TetMesh, tr: Transitions, corners: np.ndarray, cell: float) -> RawHexes:
     """Hexahedra of an integer-grid map (module docs).
 
     Parameters
     ----------
     mesh : TetMesh
         the split mesh the map lives on
-    faces, ab, M : interior faces, their tets (A, B) and transitions
-        (CUBE_GROUP index, u_B = G[M] u_A + tau)
+    tr : transitions.Transitions
+        its interior faces, their tets (A, B) and transitions (CUBE_GROUP
+        index M, u_B = G[M] u_A + tau): ``tr.faces``, ``tr.tets`` and
+        ``tr.transition`` are read (an EdgeField has them too)
     corners : (#T, 4, 3) parameter points (cells) of the tet corners
     cell : the cell size (model units), for the merge tolerance
 
@@ -181,6 +182,7 @@ def extract_hexes(mesh: TetMesh, faces: np.ndarray, ab: np.ndarray, M: np.ndarra
     -------
     RawHexes
     """
+    faces, ab, M = tr.faces, tr.tets, tr.transition
     U = snap(corners)
     Binv = _barycentric_frames(U)
     X = mesh.vertices[mesh.tets]  # (#T, 4, 3)

@@ -1,4 +1,5 @@
-"""Stage 6 of hex meshing: quality measures of a hex mesh."""
+"""Stage 8 of hex meshing: quality measures of a hex mesh (the verdict on
+them is report.py's)."""
 
 from __future__ import annotations
 
@@ -74,6 +75,57 @@ def euler_characteristic(quads: np.ndarray) -> int:
         return 0
     QE = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
     return len(np.unique(quads)) - len(np.unique(QE, axis=0)) + len(quads)
+
+
+def euler_per_component(quads: np.ndarray) -> list:
+    """The sorted Euler characteristics of the connected parts of a quad
+    surface (k, 4)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    q = quads
+    if not len(q):
+        return []
+    n = int(q.max()) + 1
+    a = np.r_[q[:, 0], q[:, 1], q[:, 2]]
+    b = np.r_[q[:, 1], q[:, 2], q[:, 3]]
+    _, lab = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+    comp = lab[q[:, 0]]
+    return sorted(euler_characteristic(q[comp == c]) for c in np.unique(comp))
+
+
+def irregular_edges(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The interior edges (k, 2) of a hex mesh whose valence is not 4, and
+    their valences (k,)."""
+    q, _ = boundary_quads(H)
+    e, val, onb = edge_valences(H, q)
+    irr = (~onb) & (val != 4)
+    return e[irr], val[irr]
+
+
+def polyline_distance(P: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Distance from points X (k, 3) to the polyline P (n, 3)."""
+    a, d = P[:-1], P[1:] - P[:-1]
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    out = np.full(len(X), np.inf)
+    for s in range(0, len(X), 4096):
+        Y = X[s:s + 4096]
+        t = np.clip(np.einsum("kij,ij->ki", Y[:, None] - a[None], d) / dd, 0.0, 1.0)
+        out[s:s + 4096] = np.linalg.norm(Y[:, None] - (a[None] + t[..., None] * d[None]), axis=2).min(axis=1)
+    return out
+
+
+def segments_distance(X: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Distance from points X (k, 3) to the nearest of the segments A -> B
+    (s, 3)."""
+    out = np.full(len(X), np.inf)
+    d = B - A
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    for s in range(0, len(A), 2048):
+        a, dv, ddv = A[s:s + 2048], d[s:s + 2048], dd[s:s + 2048]
+        t = np.clip(np.einsum("kij,ij->ki", X[:, None] - a[None], dv) / ddv, 0.0, 1.0)
+        out = np.minimum(out, np.linalg.norm(X[:, None] - (a[None] + t[..., None] * dv[None]), axis=2).min(axis=1))
+    return out
 
 
 HAUSDORFF_CHUNK = 32_768

@@ -1,12 +1,33 @@
-"""What a hex-meshing run reports, and when its mesh counts as valid."""
+"""What a hex-meshing run reports (``HexReport``), and when its mesh counts
+as valid: the measures of quality.py filled in (``assess``), the irregular
+edges matched against the prescribed curves (``curve_matches``) and the
+verdict (``verdict``)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
 
+import numpy as np
+
+from .quality import (
+    boundary_quads,
+    edge_valences,
+    euler_per_component,
+    hausdorff_distance,
+    polyline_distance,
+    scaled_jacobian,
+    segments_distance,
+)
+
 VALID = "valid"
 DEFECTIVE = "defective"
+HAUSDORFF_BAR = 0.01
+"""A valid mesh's boundary lies within this share of the bounding-box
+diagonal of the input surface."""
+HAUSDORFF_WARNED = 0.02
+"""Past HAUSDORFF_BAR and up to this, the mesh is valid with a warning
+(a secondary measure slightly over its bar); past it, defective."""
 
 
 @dataclass
@@ -172,3 +193,127 @@ class HexReport:
                 lines.append(f"  curve {c.curve} {c.name!r}: {c.edges} edges of valence {c.valence}, covers "
                              f"{100 * c.covered:.0f}%, up to {c.distance:.3g} away")
         return "\n".join(lines)
+
+
+def where(points: np.ndarray) -> str:
+    """The centre of some points (k, 3), for a message: '(x, y, z)'."""
+    c = points.mean(axis=0)
+    return f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})"
+
+
+def assess(report: HexReport, inp, V: np.ndarray, H: np.ndarray, cell: float) -> None:
+    """Fill in the report's measures of the hex mesh (V, H) and its verdict.
+
+    Parameters
+    ----------
+    report : HexReport
+        filled in place
+    inp : SolvedField
+        the field meshed (its surface and network are measured against)
+    V, H : (n, 3) float array, (m, 8) int array
+        the mesh's vertices and cells
+    cell : float
+        the cell size: the tolerance of the curves' match
+    """
+    sj = scaled_jacobian(V, H)
+    report.hexes, report.vertices = len(H), len(V)
+    report.inverted = int(np.sum(sj <= 0))
+    report.sj_min, report.sj_mean = float(sj.min()), float(sj.mean())
+    q, over = boundary_quads(H)
+    report.faces_over_two = over
+    report.euler = euler_per_component(q)
+    report.euler_expected = sorted(int(x) for x in inp.surface.euler_characteristics())
+    e, val, onb = edge_valences(H, q)
+    irr = (~onb) & (val != 4)
+    report.irregular = {int(v): int(n) for v, n in zip(*np.unique(val[irr], return_counts=True))}
+    # cells touching an irregular edge
+    if irr.any():
+        touch = np.isin(H, np.unique(e[irr])).sum(axis=1) >= 2
+        report.sj_mean_irregular = float(sj[touch].mean()) if touch.any() else 1.0
+    else:
+        report.sj_mean_irregular = 1.0
+    match_curves(report, inp, V, e[irr], val[irr], cell)
+    report.hausdorff = hausdorff_distance(inp.surface, V, q)
+    report.hausdorff_relative = report.hausdorff / inp.surface.bbox_diagonal
+    verdict(report)
+
+
+def match_curves(report: HexReport, inp, V, E, val, cell: float) -> None:
+    """Each irregular interior edge near a singular curve of the right index,
+    and every singular curve covered by such edges (within one cell): against
+    the curves the field followed (the verdict), and against the curves as
+    the user gave them (reported: the intake may have moved them)."""
+    net = inp.network
+    sing = [(c.points, float(c.sigma), int(net.source[i]), c.name) for i, c in enumerate(net.curves) if c.sigma != 0]
+    report.extra_irregular, report.curves = curve_matches(sing, V, E, val, cell)
+    report.structure_exact = bool(report.extra_irregular == 0 and all(c.covered >= 1.0 for c in report.curves))
+    given = inp.given if inp.given is not None else sing
+    extra, matches = curve_matches([g for g in given if g[1] != 0], V, E, val, cell)
+    report.given_extra = extra
+    report.given_distance = max([c.distance for c in matches if c.edges] + [0.0])
+    report.given_covered = min([c.covered for c in matches] + [1.0])
+
+
+def curve_matches(curves: list, V, E, val, cell: float) -> tuple[int, list]:
+    """Irregular edges E (k, 2) with valences val against singular curves
+    [(points, sigma, id, name)]: how many lie more than a cell from every
+    curve of their valence, and a CurveMatch per curve."""
+    mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]]) if len(E) else np.zeros((0, 3))
+    if not curves:
+        return len(E), []
+    D = np.stack([polyline_distance(P, mid) for P, *_ in curves], axis=1) if len(E) else \
+        np.zeros((0, len(curves)))
+    want = np.array([int(round(4 - 4 * sigma)) for _, sigma, *_ in curves])
+    # the nearest curve of the edge's own valence
+    D = np.where(val[:, None] == want[None, :], D, np.inf) if len(E) else D
+    near = np.argmin(D, axis=1) if len(E) else np.zeros(0, dtype=np.int64)
+    dist = D[np.arange(len(E)), near] if len(E) else np.zeros(0)
+    ok = dist <= cell
+    out = []
+    for j, (P, sigma, cid, name) in enumerate(curves):
+        mine = ok & (near == j)
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        n = np.maximum(1, np.ceil(seg / (0.25 * cell)).astype(int))
+        S = np.vstack([P[k] + np.linspace(0, 1, n[k], endpoint=False)[:, None] * (P[k + 1] - P[k])
+                       for k in range(len(seg))] + [P[-1:]])
+        if mine.any():
+            # covered by the edges of its valence within a cell of it, also those nearer
+            # another curve (at a node, where curves meet, an edge is near all of them)
+            Em = E[D[:, j] <= cell]
+            d = segments_distance(S, V[Em[:, 0]], V[Em[:, 1]])
+            covered, far = float(np.mean(d <= cell)), float(dist[mine].max())
+        else:
+            covered, far = 0.0, float("inf")
+        out.append(CurveMatch(cid, name, sigma, int(want[j]), int(mine.sum()), covered, far))
+    return int(np.sum(~ok)), out
+
+
+def verdict(report: HexReport) -> None:
+    """Set the report's status (VALID or DEFECTIVE), its reason and its
+    warnings from its figures: a valid mesh is pure hex, has no inverted
+    cell, no lost corner and no face in more than two cells, has the
+    surface's Euler characteristics, irregular edges exactly on the
+    prescribed curves and a boundary within HAUSDORFF_WARNED of the surface
+    (past HAUSDORFF_BAR with a warning)."""
+    why = []
+    if report.non_hex_cells:
+        why.append(f"{report.non_hex_cells} cells are not hexahedra")
+    if report.inverted:
+        why.append(f"{report.inverted} cells are inverted")
+    if report.lost_corners:
+        why.append(f"{report.lost_corners} cell corners could not be traced (their cells are missing)")
+    if report.faces_over_two:
+        why.append(f"{report.faces_over_two} faces are shared by more than two cells")
+    if report.euler != report.euler_expected:
+        why.append(f"the boundary's Euler characteristic is {report.euler}, the surface's {report.euler_expected}")
+    if not report.structure_exact:
+        why.append("the irregular edges are not exactly the prescribed curves")
+    warn = []
+    off = f"the boundary is {100 * report.hausdorff_relative:.2f}% of the diagonal off the surface"
+    if report.hausdorff_relative > HAUSDORFF_WARNED:
+        why.append(off)
+    elif report.hausdorff_relative > HAUSDORFF_BAR:
+        warn.append(f"{off} (the bar is {100 * HAUSDORFF_BAR:g}%; up to {100 * HAUSDORFF_WARNED:g}% is a warning)")
+    report.status = DEFECTIVE if why else VALID
+    report.reason = "; ".join(why)
+    report.warnings = warn

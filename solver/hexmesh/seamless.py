@@ -1,4 +1,5 @@
-"""Stage 3 of hex meshing: the seamless map and its integer variables.
+"""Stages 3-5 of hex meshing: the map system, the seamless map and the
+integer-grid map.
 
 The map u gives each tet corner a point of R^3 (parameter units: cells).
 It minimises the frame-fitting energy (AlgoHex's FrameFittingElement3D,
@@ -24,8 +25,29 @@ holonomy), and linear relations among the translations alone (at cut
 junctions).  Those relations, and the parity of the singular lines, are
 eliminated over the integers with unimodular pivots (``IntegerSpace``), so
 that integer values of the remaining variables give integer translations,
-boundary planes and curve lines: the integer-grid map (quantize.py) is then
-a rounding of plain coordinates of the reduced vector z.
+boundary planes and curve lines: the integer-grid map is then a rounding of
+plain coordinates of the reduced vector z.  Building this system is the
+stage "map system" (``map_system``: where some tets are flat in every map
+it allows, an edge of each is split and the transitions and the system are
+built again).
+
+The seamless map and the integer-grid map (stages "seamless map" and
+"integer-grid map").  The integer unknowns of the reduced system are plain
+coordinates of z: the translations across the cut, the boundary planes and
+the curve lines.  Their energy, with every other unknown at its optimum,
+is a small dense quadratic: with z split into continuous y and integer w,
+
+    y(w) = Q_yy^-1 (b_y - Q_yw w),
+    E(w) = 1/2 w' S w - c' w,   S = Q_ww - Q_wy Q_yy^-1 Q_yw,
+
+one sparse factorisation and one solve per integer unknown give S exactly
+(``_Reduced``).  Its minimum over real w is the seamless map
+(``seamless_map``); greedy rounding of w (quantize.py) gives the
+integer-grid map (``integer_grid_map``), with no re-solve of the large
+system between roundings.  Inverted tets left by the rounding are then
+stiffened (MIQ; AlgoHex's ``update_cell_weights``): their weight grows and
+the continuous unknowns are solved again, keeping the best map; a map still
+folded is untangled with its integers fixed (``optimise_map``).
 """
 
 from __future__ import annotations
@@ -34,12 +56,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
+from ..errors import HexMeshError
+from ..linalg.lbfgs import lbfgs
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.tetmesh import TET_FACES, TetMesh
-from .curve_edges import CurveEdgeError, CurveEdgeMesh
+from .curve_edges import CurveEdgeError, CurveEdgeMesh, split_edges
+from .extract import snap
 from .quality import det3
+from .quantize import greedy_round
+from .smooth import SHARP_DIHEDRAL, foldover_free
 from .transitions import GROUP_INVERSE, GROUP_PRODUCT, Transitions, edge_rings
 
 G = CUBE_GROUP
@@ -683,3 +711,250 @@ def degenerate_tets(ms: MapSystem, seed: int = 0) -> np.ndarray:
         scale = np.linalg.norm(E, axis=2).max(axis=1) ** 3
         flat &= np.abs(det3(E)) <= 1e-9 * np.maximum(scale, 1e-300)
     return np.nonzero(flat)[0]
+
+
+def freeing_edges(cem: CurveEdgeMesh, tets: np.ndarray) -> np.ndarray:
+    """One edge per structurally flat tet whose midpoint frees it: between two
+    constrained vertices (boundary or curve), not a curve edge nor a sharp
+    boundary edge; interior edges first, then the longest."""
+    mesh = cem.mesh
+    X = mesh.vertices
+    constrained = mesh.is_boundary_vertex.copy()
+    chain_keys = set()
+    for ch in cem.chains:
+        constrained[ch.vertices] = True
+        for a, b in ch.edges.tolist():
+            chain_keys.add((min(a, b), max(a, b)))
+    B = mesh.boundary
+    sharp_local = B.edges[np.degrees(B.dihedral_angles) > SHARP_DIHEDRAL]
+    sharp = {tuple(sorted(e)) for e in mesh.boundary_vertices[sharp_local].tolist()}
+    onb = mesh.is_boundary_edge
+    out = set()
+    for t in tets.tolist():
+        T = mesh.tets[t]
+        cands = []
+        for i in range(4):
+            for j in range(i + 1, 4):
+                a, b = sorted((int(T[i]), int(T[j])))
+                if (a, b) in chain_keys or (a, b) in sharp:
+                    continue
+                e = int(mesh.edge_index(np.array([a]), np.array([b]))[0])
+                both = constrained[a] and constrained[b]
+                cands.append((not both, bool(onb[e]), -float(np.linalg.norm(X[a] - X[b])), (a, b)))
+        if cands:
+            out.add(min(cands)[3])
+    return np.array(sorted(out), dtype=np.int64).reshape(-1, 2)
+
+
+def map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, report=None) -> tuple[MapSystem, np.ndarray]:
+    """The map system of the split mesh and its transitions, and the tets
+    flat in every map it allows (``degenerate_tets``).
+
+    Parameters
+    ----------
+    cem : CurveEdgeMesh
+    tr : Transitions
+        the transitions of cem (transitions.checked_transitions)
+    cell : float
+        the cell size
+    report : HexReport, optional
+        carried by a refusal
+
+    Returns
+    -------
+    (MapSystem, (k,) int array)
+
+    Raises
+    ------
+    HexMeshError
+        kind 'map', where the constraints cannot be met
+    """
+    try:
+        ms = build_map_system(cem, tr, cell)
+    except MapError as e:
+        raise HexMeshError(f"the map's constraints cannot be met: {e}", report, kind="map") from None
+    return ms, degenerate_tets(ms)
+
+
+def split_flat(cem: CurveEdgeMesh, flat: np.ndarray) -> CurveEdgeMesh | None:
+    """cem with an edge of each flat tet split at its midpoint
+    (``freeing_edges``), or None where no edge would free one."""
+    edges = freeing_edges(cem, flat)
+    return split_edges(cem, edges) if len(edges) else None
+
+
+# ============================================================ the maps
+
+
+@dataclass
+class GridMap:
+    """An integer-grid map (or its relaxed seamless version).
+
+    z        : (nz,) the reduced unknowns; z[system.integer] are integers
+    corners  : (#T, 4, 3) parameter points of the tet corners (cells)
+    det      : (#T,) det of cell * grad(u) F per tet (> 0: not inverted)
+    energy   : the frame-fitting energy
+    rounded  : how many integer unknowns were rounded
+    max_shift: largest move of an integer unknown off its relaxed value
+    stiffening : stiffening iterations used
+    """
+
+    z: np.ndarray
+    corners: np.ndarray
+    det: np.ndarray
+    energy: float
+    rounded: int = 0
+    max_shift: float = 0.0
+    stiffening: int = 0
+
+    @property
+    def inverted(self) -> int:
+        """How many tets the map inverts or flattens (det <= 0)."""
+        return int(np.sum(self.det <= 0))
+
+    def folded(self) -> int:
+        """Tets the map inverts or flattens, measured also on the snapped
+        corners the extraction reads (a tet whose tiny positive volume
+        snapping erases cannot be traced through)."""
+        U = snap(self.corners)
+        d = det3(np.transpose(U[:, 1:] - U[:, :1], (0, 2, 1)))
+        return int(np.sum((self.det <= 0) | (np.sign(self.det) * d <= 1e-12)))
+
+
+def _jacobian_det(ms: MapSystem, z: np.ndarray):
+    U = ms.corners(z)
+    J = np.einsum("tca,tcj->taj", U, ms.grad)
+    return U, det3(J)
+
+
+def _grid_map(ms: MapSystem, z: np.ndarray, **kw) -> GridMap:
+    U, det = _jacobian_det(ms, z)
+    return GridMap(z, U, det, ms.energy(z), **kw)
+
+
+class _Reduced:
+    """The energy as a function of the integer unknowns (module docs)."""
+
+    def __init__(self, Q: sp.csr_matrix, b: np.ndarray, integer: np.ndarray):
+        self.iw = np.nonzero(integer)[0]
+        self.iy = np.nonzero(~integer)[0]
+        Q = Q.tocsc()
+        Qyy = Q[self.iy][:, self.iy]
+        Qyw = Q[self.iy][:, self.iw].toarray()
+        Qww = Q[self.iw][:, self.iw].toarray()
+        # SPD: symmetric mode with a symmetric ordering is several times
+        # faster than SuperLU's default (COLAMD, partial pivoting)
+        self.lu = spla.splu(Qyy.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
+        self.y0 = self.lu.solve(b[self.iy])
+        self.Z = self.lu.solve(Qyw) if len(self.iw) else np.zeros((len(self.iy), 0))
+        self.S = Qww - Qyw.T @ self.Z
+        self.c = b[self.iw] - Qyw.T @ self.y0
+        self.n = len(b)
+
+    def z(self, w: np.ndarray) -> np.ndarray:
+        out = np.empty(self.n)
+        out[self.iw] = w
+        out[self.iy] = self.y0 - self.Z @ w
+        return out
+
+    def relaxed(self) -> np.ndarray:
+        if not len(self.iw):
+            return np.zeros(0)
+        return np.linalg.solve(self.S + 1e-12 * np.eye(len(self.S)) * np.trace(self.S), self.c)
+
+
+def seamless_map(ms: MapSystem) -> tuple[GridMap, _Reduced]:
+    """The relaxed (real-valued) seamless map and its reduced energy."""
+    red = _Reduced(ms.Q, ms.b, ms.integer)
+    z = red.z(red.relaxed())
+    return _grid_map(ms, z), red
+
+
+def integer_grid_map(ms: MapSystem, red: _Reduced | None = None, stiffen_iters: int = 6,
+                     stiffen_factor: float = 5.0) -> GridMap:
+    """Round the integer unknowns greedily and stiffen inverted tets.
+
+    Parameters
+    ----------
+    ms : MapSystem
+    red : the reduced energy of ms (seamless_map's), computed if None
+    stiffen_iters : at most this many re-solves with inverted tets' weights
+        multiplied by stiffen_factor
+
+    Returns
+    -------
+    GridMap  (the least inverted of the maps tried)
+    """
+    red = red or _Reduced(ms.Q, ms.b, ms.integer)
+    w, shift = greedy_round(red.S, red.c)
+    best = _grid_map(ms, red.z(w), rounded=len(w), max_shift=shift)
+    if best.inverted == 0 or stiffen_iters == 0:
+        return best
+    # stiffening: the integer unknowns stay, the continuous ones move
+    LX, weight = ms.least_squares()
+    wts = weight.copy()
+    nT = len(ms.tet_weight)
+    cur = best
+    for it in range(1, stiffen_iters + 1):
+        bad = cur.det <= 0
+        if not bad.any():
+            break
+        scale = np.ones(nT)
+        scale[bad] = stiffen_factor
+        wts = wts * np.repeat(scale, 9)
+        Q = (LX.T @ sp.diags(wts) @ LX).tocsr()
+        b = LX.T @ (wts * np.tile(np.eye(3).reshape(-1), nT))
+        red_s = _Reduced(Q, np.asarray(b).ravel(), ms.integer)
+        cur = _grid_map(ms, red_s.z(w), rounded=len(w), max_shift=shift, stiffening=it)
+        if cur.inverted < best.inverted or (cur.inverted == best.inverted and cur.det.min() > best.det.min()):
+            best = cur
+    return best
+
+
+def optimise_map(ms: MapSystem, gm: GridMap, mu: float = 10.0, lam: float = 0.0, iters: int = 300,
+                 rounds: int = 4, callback=None) -> GridMap:
+    """Lower the map's distortion with its integers fixed, untangling
+    inverted tets on the way: minimise, over the continuous unknowns,
+
+        sum_t V_t ( ||J_t - I||^2 + mu f(J_t) ),   J_t = cell grad(u_t) F_t,
+
+    f the foldover-free energy of smooth.py (mean-ratio shape plus volume,
+    finite while eps > 0 so an inverted start is allowed, a barrier as eps
+    -> 0).  The first term keeps the map aligned with the field (f alone is
+    blind to rotation).  AlgoHex likewise follows its linear solve with a
+    locally injective optimisation under the same constraints.
+    """
+    iy = np.nonzero(~ms.integer)[0]
+    z = gm.z.copy()
+    w = ms.tet_weight / ms.tet_weight.sum()
+    X = ms.X
+    Xy = X[:, iy].tocsc()
+    base = X @ z - Xy @ z[iy]  # the integer part of the corners, fixed
+    coef = ms.grad
+    eye = np.eye(3)
+    best = gm
+    for _ in range(rounds):
+        U = ms.corners(z)
+        J = np.einsum("tca,tcj->taj", U, coef)
+        Dmin = float(det3(J).min())
+        eps = 1e-3 if Dmin > 1e-2 else float(np.sqrt(1e-6 + 0.04 * Dmin * Dmin))
+
+        def fun(y):
+            U = (base + Xy @ y).reshape(-1, 4, 3)
+            J = np.einsum("tca,tcj->taj", U, coef)
+            f, dJ = foldover_free(J, eps, lam)
+            R = J - eye
+            e = float(np.sum(w * (np.einsum("tij,tij->t", R, R) + mu * f)))
+            dJ = w[:, None, None] * (2.0 * R + mu * dJ)
+            dU = np.einsum("taj,tcj->tca", dJ, coef)
+            return e, Xy.T @ dU.reshape(-1)
+
+        res = lbfgs(fun, z[iy], max_iterations=iters, callback=callback)
+        z[iy] = res.x
+        cur = _grid_map(ms, z.copy(), rounded=gm.rounded, max_shift=gm.max_shift, stiffening=gm.stiffening)
+        if cur.inverted <= best.inverted:
+            best = cur
+        if cur.inverted == 0 and Dmin > 1e-2:
+            break
+    return best

@@ -20,7 +20,9 @@ Boundary vertices move in the tangent plane of the input surface and are
 projected back onto it (sharp-feature vertices along their feature, corners
 not at all); vertices of irregular edges (the network) are held near their
 place by a spring.  A pass is kept only if the minimum scaled Jacobian does
-not decrease; the report says what smoothing gained.
+not decrease; the report says what smoothing gained.  ``smooth_hexes`` is
+that policy (which vertex moves how, the spring's weight, what is kept);
+``optimise`` the optimisation itself.
 """
 
 from __future__ import annotations
@@ -28,9 +30,26 @@ from __future__ import annotations
 import numpy as np
 
 from ..linalg.lbfgs import lbfgs
-from .quality import HEX_CORNER_NEIGHBOURS, det3
+from .quality import (
+    HEX_CORNER_NEIGHBOURS,
+    HEX_EDGES,
+    boundary_quads,
+    det3,
+    polyline_distance,
+    scaled_jacobian,
+    segments_distance,
+)
 
 LAMBDA = 0.5
+SHARP_DIHEDRAL = 30.0
+"""A boundary edge whose two faces meet at more than this many degrees is a
+crease: of the hex boundary, smoothed along the input's sharp edges it
+follows; of the tet mesh, never split to free a flat tet (seamless.py)."""
+SPRING = 0.1
+"""Weight of the spring holding singular-curve vertices during smoothing
+(per cell of displacement, against the mean corner energy): at 1.0 the
+ball's cells at its nodes kept a minimum scaled Jacobian of 0.54, at 0.1
+0.72, with the irregular edges still within a cell of their curves."""
 
 
 def _chi(D, eps):
@@ -210,3 +229,132 @@ def optimise(V: np.ndarray, H: np.ndarray, cell: float, motion: BoundaryMotion, 
         res = lbfgs(fun, np.zeros(offs[-1]), max_iterations=iters, callback=callback)
         V = motion.project(positions(res.x))
     return V
+
+
+# ------------------------------------------------------------ the policy
+
+
+def curve_vertices(V: np.ndarray, cem, cell: float) -> list:
+    """Per chain of the CurveEdgeMesh: the hex vertices lying on it (the map
+    puts them there)."""
+    X = cem.mesh.vertices
+    out = []
+    for ch in cem.chains:
+        A, B = X[ch.vertices[:-1]], X[ch.vertices[1:]]
+        d = segments_distance(V, A, B)
+        out.append(np.nonzero(d <= 1e-6 * cell)[0])
+    return out
+
+
+def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=None) -> np.ndarray:
+    """Untangle and improve the vertex positions (``optimise``): interior
+    vertices freely, boundary vertices along the input surface, vertices of
+    sharp edges and of the network's feature curves along them, vertices of
+    singular curves held by a spring (the weakest of SPRING, 3, 10 and 100
+    times it that keeps them within 0.9 of a cell of their curves); kept
+    only if the minimum scaled Jacobian does not drop.
+
+    Parameters
+    ----------
+    V, H : (n, 3) float array, (m, 8) int array
+        the extracted mesh
+    cell : float
+        the cell size
+    inp : SolvedField
+        the field meshed: its surface, sharp edges and network
+    cem : curve_edges.CurveEdgeMesh
+        the split tet mesh the map lives on (its chains are the curves)
+    callback : callable(iteration, energy), optional
+        after each L-BFGS iteration (it may raise to cancel)
+
+    Returns
+    -------
+    (n, 3) float array
+        the new positions (V itself where no run kept the minimum)
+    """
+    on_curve = curve_vertices(V, cem, cell)
+    q, _ = boundary_quads(H)
+    S = inp.surface
+    sharp = S.edges[inp.sharp]
+    segs_a, segs_b = [S.V[sharp[:, 0]]], [S.V[sharp[:, 1]]]
+    # creases of the hex boundary that follow the input's sharp edges (a
+    # crease the cells make on a smooth bend is smoothed like the surface)
+    fe = feature_edges(q, V)
+    if len(fe) and len(sharp):
+        d = segments_distance(0.5 * (V[fe[:, 0]] + V[fe[:, 1]]), segs_a[0], segs_b[0])
+        fe = fe[d <= 0.25 * cell]
+    else:
+        fe = fe[:0]
+    lines = [fe]
+    # hex edges along each curve (singular or feature), and the curve itself
+    E = np.sort(H[:, HEX_EDGES].reshape(-1, 2), axis=1)
+    E = np.unique(E, axis=0)
+    fixed = np.zeros(len(V), bool)
+    onb = np.zeros(len(V), bool)
+    onb[np.unique(q)] = True
+    anchor = np.zeros(len(V), bool)
+    for verts, c in zip(on_curve, inp.network.curves):
+        if not len(verts):
+            continue
+        if c.sigma != 0:
+            # singular curves, their ends on the surface too: held near the
+            # map's place by a spring (the cells around nodes and ends need
+            # room); the report checks that they stay within a cell
+            anchor[verts] = True
+            continue
+        fixed[verts[onb[verts]]] = True  # where a feature curve meets the surface
+        mark = np.zeros(len(V), bool)
+        mark[verts] = True
+        lines.append(E[mark[E[:, 0]] & mark[E[:, 1]]])
+        segs_a.append(c.points[:-1])
+        segs_b.append(c.points[1:])
+    motion = BoundaryMotion(V, q, np.vstack(lines), S, (np.vstack(segs_a), np.vstack(segs_b)), fixed)
+    best_min = float(scaled_jacobian(V, H).min())
+    spring = anchor & ~fixed
+
+    sing_curves = [c.points for c in inp.network.curves if c.sigma != 0]
+    sv = np.nonzero(spring)[0]
+
+    def moved(W):
+        """Largest distance of a singular curve's vertex from the curves."""
+        if not len(sv):
+            return 0.0
+        return float(np.min([polyline_distance(P, W[sv]) for P in sing_curves], axis=0).max())
+
+    # the weakest spring that keeps the curves' vertices within 0.9 of a
+    # cell of the curves, then the largest step towards the stiffest optimum
+    # that keeps the minimum
+    W = V
+    for weight in (SPRING, 3 * SPRING, 10 * SPRING, 100 * SPRING):
+        try:
+            Wk = optimise(V, H, cell, motion, anchor=spring, anchor_weight=weight, callback=callback)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            continue  # a run that diverged (non-finite positions): the next spring, or the map's own places
+        if not np.all(np.isfinite(Wk)):
+            continue
+        W = Wk
+        if moved(W) <= 0.9 * cell and float(scaled_jacobian(W, H).min()) >= best_min:
+            return W
+    for a in (0.5, 0.25, 0.125):
+        Wa = V + a * (W - V)
+        if moved(Wa) <= 0.9 * cell and float(scaled_jacobian(Wa, H).min()) >= best_min:
+            return Wa
+    return V
+
+
+def feature_edges(quads: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """(k, 2) edges of the quad boundary whose two quads meet at more than
+    SHARP_DIHEDRAL degrees."""
+    Q = quads
+    P = V[Q]
+    n = np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 1])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)
+    key = np.sort(E, axis=1)
+    f = np.repeat(np.arange(len(Q)), 4)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    key, f = key[order], f[order]
+    same = np.all(key[1:] == key[:-1], axis=1)
+    i = np.nonzero(same)[0]
+    cosang = np.einsum("ij,ij->i", n[f[i]], n[f[i + 1]])
+    return key[i[cosang < np.cos(np.radians(SHARP_DIHEDRAL))]]

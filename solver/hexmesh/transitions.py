@@ -4,7 +4,7 @@ combing and the cut.
 Transitions from omega (paper §5 "Meshing": matchings "should be ... even
 more robust near singularities by using angle information from omega").
 For an edge ij of the field's mesh, g_ij is the cube symmetry with
-``E_j G[g_ij]`` nearest ``exp(omega_ij) E_i`` (Eq. 8; analysis.measures.
+``E_j G[g_ij]`` nearest ``exp(omega_ij) E_i`` (Eq. 8; field.matchings.
 omega_matchings): the frame at i carried across the edge by the field's own
 Darboux derivative, not compared with E_j directly.  Its margin is the
 integrability defect, not the turn along the edge, so it holds where the
@@ -35,10 +35,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from ..field.matchings import omega_matchings
-from ..linalg.rotations import CUBE_GROUP, GROUP_INVERSE, GROUP_PRODUCT, closest_symmetry, polar_rotation
+from ..errors import HexMeshError
+from ..field.matchings import pair_matchings
+from ..field.matchings import tet_frames as matching_tet_frames
+from ..linalg.rotations import CUBE_GROUP, GROUP_INVERSE, GROUP_PRODUCT, closest_symmetry
 from ..mesh.tetmesh import TET_EDGES, TetMesh
-from .curve_edges import CurveEdgeError, CurveEdgeMesh
+from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges
+from .intake import hex_input, unconverged
+from .report import where
 
 G = CUBE_GROUP
 IDENTITY = 0  # CUBE_GROUP[0] is the identity
@@ -92,40 +96,16 @@ class Transitions:
     ambiguous_faces: np.ndarray
 
 
-def _pair_matchings(field_mesh: TetMesh, omega, frames, src_pairs: np.ndarray) -> np.ndarray:
-    """CUBE_GROUP index g_ij for ordered old-vertex pairs (i, j); the
-    identity where i == j.  Computed once per edge and inverted for the
-    reverse direction, so g_ji = g_ij^-1 exactly."""
-    out = np.zeros(len(src_pairs), dtype=np.int64)
-    diff = src_pairs[:, 0] != src_pairs[:, 1]
-    if not diff.any():
-        return out
-    lo = np.minimum(src_pairs[diff, 0], src_pairs[diff, 1])
-    hi = np.maximum(src_pairs[diff, 0], src_pairs[diff, 1])
-    e = field_mesh.edge_index(lo, hi)
-    if np.any(e < 0):
-        raise CurveEdgeError("internal: two old vertices of a split tet are not joined by an edge")
-    ue, inv = np.unique(e, return_inverse=True)
-    g = omega_matchings(field_mesh, omega, frames, field_mesh.edges[ue])[inv]
-    fwd = src_pairs[diff, 0] < src_pairs[diff, 1]
-    out[diff] = np.where(fwd, g, GROUP_INVERSE[g])
-    return out
-
-
 def tet_frames(cem: CurveEdgeMesh, field_mesh: TetMesh, omega, frames):
     """Base old vertex per tet (#T,) and the tet frames (#T, 3, 3): the
-    chordal mean of the frame sources' frames matched to the base."""
+    chordal mean of the frame sources' frames matched to the base by omega
+    (field.matchings.tet_frames with the split tets' frame sources)."""
     src = cem.frame_sources  # (#T, 4), -1 padded
     has = src >= 0
     if not has.any(axis=1).all():
         raise CurveEdgeError("internal: a split tet has no vertex of the field's mesh to take its frame from")
     base = src[np.arange(len(src)), np.argmax(has, axis=1)]
-    acc = np.zeros((len(src), 3, 3))
-    for k in range(4):
-        s = np.where(has[:, k], src[:, k], base)
-        g = _pair_matchings(field_mesh, omega, frames, np.c_[base, s])
-        acc += frames[s] @ G[g]
-    return base, polar_rotation(acc)
+    return base, matching_tet_frames(field_mesh, frames, omega, sources=src).frames
 
 
 def face_transitions(cem: CurveEdgeMesh, base: np.ndarray, field_mesh: TetMesh, omega, frames):
@@ -140,8 +120,8 @@ def face_transitions(cem: CurveEdgeMesh, base: np.ndarray, field_mesh: TetMesh, 
     for k in range(4):
         s = src[A, k]
         ok = (s >= 0) & (src[B] == s[:, None]).any(axis=1)
-        g1 = _pair_matchings(field_mesh, omega, frames, np.c_[base[A[ok]], s[ok]])
-        g2 = _pair_matchings(field_mesh, omega, frames, np.c_[s[ok], base[B[ok]]])
+        g1 = pair_matchings(field_mesh, omega, frames, np.c_[base[A[ok]], s[ok]])
+        g2 = pair_matchings(field_mesh, omega, frames, np.c_[s[ok], base[B[ok]]])
         M[ok, k] = GROUP_PRODUCT[g2, g1]
     none = np.nonzero((M < 0).all(axis=1))[0]
     if len(none):
@@ -342,3 +322,113 @@ def build_transitions(cem: CurveEdgeMesh, field_mesh: TetMesh, omega: np.ndarray
         elif h != IDENTITY:
             bad.append(e)
     return Transitions(F, faces, ab, Mc, cut, hol, np.nonzero(sing)[0], bad, ambiguous)
+
+
+def checked_transitions(cem: CurveEdgeMesh, inp, report=None) -> Transitions:
+    """The transitions of the split mesh (``build_transitions``), refused
+    where they do not close as the network prescribes.
+
+    Parameters
+    ----------
+    cem : CurveEdgeMesh
+    inp : SolvedField
+        the field (its mesh, omega and frames)
+    report : HexReport, optional
+        receives ``holonomy_bad_edges``; carried by a refusal
+
+    Returns
+    -------
+    Transitions
+
+    Raises
+    ------
+    HexMeshError
+        kind 'field', naming how many tet edges and where
+    """
+    tr = build_transitions(cem, inp.mesh, inp.omega, inp.frames)
+    if report is not None:
+        report.holonomy_bad_edges = len(tr.bad_edges)
+    if tr.bad_edges or len(tr.ambiguous_faces):
+        P = cem.mesh.vertices[np.r_[cem.mesh.edges[tr.bad_edges].reshape(-1),
+                                    cem.mesh.faces[tr.ambiguous_faces].reshape(-1)].astype(np.int64)]
+        raise HexMeshError(
+            f"the field's transitions do not close as the network prescribes around {len(tr.bad_edges)} tet "
+            f"edges ({len(tr.ambiguous_faces)} faces ambiguous) near {where(P)}: the field has singularities "
+            "the network does not ask for there" + unconverged(inp) + "; a field that is not hex-meshable as "
+            "solved cannot give a hex mesh (solve it on a finer mesh, or check the network there)", report,
+            kind="field")
+    return tr
+
+
+# ------------------------------------------------------------ for other hex meshers
+
+
+@dataclass
+class EdgeField:
+    """A solved field on its tet mesh split so that the network runs along
+    tet edges (curve_edges.py), one frame per tet, ready for a hex mesher
+    that wants singular edges on mesh edges (CubeCover, AlgoHex).
+
+    mesh         : TetMesh, the split mesh
+    tet_frames   : (#T, 3, 3) combed per-tet frames, columns the cross axes
+    faces, tets  : (k,) interior faces and (k, 2) their tets (A, B)
+    transition   : (k,) CUBE_GROUP index g with F_A ~ F_B G[g]
+    curve        : (#T,) the prepared curve whose chain runs along an edge of
+                   the tet, -1 elsewhere
+    vertex_frames: (#V, 3, 3) the field's frame at its own vertices; at the
+                   inserted ones (on the curves) that of a tet around them
+    chains       : the curve_edges.Chain of every prepared curve
+    """
+
+    mesh: object
+    tet_frames: np.ndarray
+    faces: np.ndarray
+    tets: np.ndarray
+    transition: np.ndarray
+    curve: np.ndarray
+    vertex_frames: np.ndarray
+    chains: list
+
+
+def field_on_edges(result) -> EdgeField:
+    """The field of a solved field (or a Result) with its curves on tet edges.
+
+    Parameters
+    ----------
+    result : SolvedField, or a solver Result
+
+    Returns
+    -------
+    EdgeField
+
+    Raises
+    ------
+    HexMeshError
+        where the network cannot be put onto tet edges or the field's
+        transitions do not close as the network prescribes (then no hex
+        mesher can use it either)
+    """
+    inp = hex_input(result, "field_on_edges")
+    try:
+        cem = curves_on_edges(inp.mesh, inp.embedding, inp.network)
+    except CurveEdgeError as e:
+        raise HexMeshError(f"the network cannot be put onto the tet mesh's edges: {e}", kind="map") from None
+    tr = build_transitions(cem, inp.mesh, inp.omega, inp.frames)
+    if tr.bad_edges or len(tr.ambiguous_faces):
+        raise HexMeshError(f"the field's transitions do not close as the network prescribes around "
+                           f"{len(tr.bad_edges)} tet edges" + unconverged(inp), kind="field")
+    mesh = cem.mesh
+    curve = np.full(mesh.n_tets, -1, dtype=np.int64)
+    for ch in cem.chains:
+        e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
+        curve[np.nonzero(np.isin(mesh.tet_edges, e).any(axis=1))[0]] = ch.curve
+    VF = np.zeros((mesh.n_vertices, 3, 3))
+    src = cem.source_vertex
+    VF[src >= 0] = inp.frames[src[src >= 0]]
+    new = np.nonzero(src < 0)[0]
+    if len(new):
+        # the first tet around each inserted vertex
+        t_of = np.full(mesh.n_vertices, -1, dtype=np.int64)
+        t_of[mesh.tets.reshape(-1)[::-1]] = np.repeat(np.arange(mesh.n_tets), 4)[::-1]
+        VF[new] = tr.frames[t_of[new]]
+    return EdgeField(mesh, tr.frames, tr.faces, tr.tets, tr.transition, curve, VF, cem.chains)

@@ -37,7 +37,7 @@ import re
 import numpy as np
 
 from .atomic import write_files, write_text
-from .interchange import _fmt_rows
+from .text import format_rows
 
 _GMSH_LINE, _GMSH_QUAD, _GMSH_HEX = 1, 3, 5
 
@@ -101,12 +101,12 @@ def _msh_ascii(V, H, lo, hi, curves, surfaces, blocks, n_el) -> bytes:
     out += [f"{t} {_reals(b)} 1 {p} 0\n" for t, b, p in curves + surfaces]
     out.append(f"1 {_reals(np.r_[lo, hi])} 1 1 {len(surfaces)}" + "".join(f" {t}" for t, _, _ in surfaces) + "\n")
     out += ["$EndEntities\n", "$Nodes\n", f"1 {len(V)} 1 {len(V)}\n", f"3 1 0 {len(V)}\n",
-            _fmt_rows(np.arange(1, len(V) + 1), "%d"), _fmt_rows(V, "%.17g"), "$EndNodes\n",
+            format_rows(np.arange(1, len(V) + 1), "%d"), format_rows(V, "%.17g"), "$EndNodes\n",
             "$Elements\n", f"{len(blocks)} {n_el} 1 {n_el}\n"]
     tag = 1
     for dim, ent, kind, cells in blocks:
         out.append(f"{dim} {ent} {kind} {len(cells)}\n")
-        out.append(_fmt_rows(np.c_[np.arange(tag, tag + len(cells)), np.asarray(cells) + 1], "%d"))
+        out.append(format_rows(np.c_[np.arange(tag, tag + len(cells)), np.asarray(cells) + 1], "%d"))
         tag += len(cells)
     out.append("$EndElements\n")
     return "".join(out).encode()
@@ -153,7 +153,7 @@ def write_hex_inp(path: str, vertices: np.ndarray, hexes: np.ndarray, patches=No
     H = np.asarray(hexes, np.int64)
     out = ["*HEADING\n", heading.replace("\n", " ")[:120] + "\n", "*NODE, NSET=NALL\n",
            ("%d, %.12g, %.12g, %.12g\n" * len(V)) % tuple(np.c_[np.arange(1, len(V) + 1), V].reshape(-1).tolist()),
-           "*ELEMENT, TYPE=C3D8, ELSET=EALL\n", _fmt_rows(np.c_[np.arange(1, len(H) + 1), H + 1], "%d")
+           "*ELEMENT, TYPE=C3D8, ELSET=EALL\n", format_rows(np.c_[np.arange(1, len(H) + 1), H + 1], "%d")
            .replace(" ", ", ")]
     if patches is not None:
         for i, name in enumerate(patches.names, start=1):

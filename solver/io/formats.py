@@ -21,13 +21,16 @@ Network JSON (all keys but ``curves`` optional)::
 solver/network/network.py); ``role`` is ``singular``, ``feature`` or ``sharp``;
 ``torsion`` is ``free`` (Eq. 21) or ``fixed`` (Eq. 22).
 
-Result NPZ: ``vertices`` (#V,3), ``tets`` (#T,4), ``edges`` (#E,2),
-``omega`` (#E,3), ``frames`` (#V,3,3; columns are the cross axes),
-``quaternions`` (#V,4; w,x,y,z), ``root``, per prepared curve the pierced faces
-and crossed tets as flat arrays with offsets (``curve_faces`` /
-``curve_faces_offsets``, ``curve_tets`` / ``curve_tets_offsets``),
-``faces`` (#faces,3) and ``report`` (a JSON string: ``Report.to_dict()`` with the
-solve's ``options`` added; ``Report.from_dict`` reads it back).
+Result NPZ: the solved field in its one layout, ``SolvedField.to_arrays()``
+(solver/field/solved.py lists the arrays: ``vertices`` (#V,3), ``tets``
+(#T,4), ``frames`` (#V,3,3; columns are the cross axes), ``omega`` (#E,3 on
+``TetMesh(vertices, tets).edges``), ``root``, per prepared curve the crossed
+tets and pierced faces as flat arrays with offsets (``curve_tets`` /
+``curve_tets_offsets``, ``curve_faces`` / ``curve_faces_offsets``), the
+network, the input surface and what else the stages after the solve need),
+and ``report`` (a JSON string: ``Report.to_dict()`` with the solve's
+``options`` added; ``Report.from_dict`` reads it back).  ``io.load_field``
+reads the field back, checked.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from .. import checks
 from ..errors import NetworkError, OptionsError, SurfaceError
 from ..network.network import Curve, Network
 from ..surface.polygons import triangulate_polygons
-from ..surface.trisurface import MAX_COORDINATE
+from ..surface.validation import MAX_COORDINATE
 from .atomic import write_files, write_text
 from .text import read_text
 
@@ -354,17 +357,10 @@ def options_from_dict(d: dict):
     return Options(**d)
 
 
-def _flat(parts: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    offsets = np.cumsum([0] + [len(p) for p in parts]).astype(np.int64)
-    flat = np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, np.int64)
-    return flat, offsets
-
-
 def save_result(path: str, result) -> None:
-    """Write a solved field to an ``.npz`` file (the module docs list its
-    arrays), with what hex meshing needs to mesh it again, at exactly
-    ``path`` (numpy would add '.npz' to a name without it) and whole or not
-    at all (atomic.py).
+    """Write a solved field to an ``.npz`` file (its one layout, module
+    docs) with the solve's report, at exactly ``path`` (numpy would add
+    '.npz' to a name without it) and whole or not at all (atomic.py).
 
     Parameters
     ----------
@@ -381,22 +377,38 @@ def save_result(path: str, result) -> None:
     from ..pipeline import Result
 
     checks.instance("save_result: result", result, Result, OptionsError, "the Result of solve(...)")
-    mesh = result.mesh
-    n = len(result.embedding.traces)
-    cf, cfo = _flat([result.curve_faces(i) for i in range(n)])
-    ct, cto = _flat([result.curve_tets(i) for i in range(n)])
     report = result.report.to_dict()
-    report["options"] = asdict(result.problem.options)
-    from ..hexmesh import HexInput, hex_source_arrays
+    report["options"] = asdict(result.options)
+    save_field(path, result.field, report)
 
-    arrays = dict(
-        vertices=mesh.vertices, tets=mesh.tets, edges=mesh.edges, faces=mesh.faces, omega=result.omega,
-        frames=result.frames, quaternions=result.quaternions(), root=np.int64(result.root),
-        curve_faces=cf, curve_faces_offsets=cfo, curve_tets=ct, curve_tets_offsets=cto,
-        report=np.array(json.dumps(report, default=float)),
-        # what hex meshing needs to mesh this field again (hexmesh/source.py)
-        **hex_source_arrays(HexInput.from_result(result)),
-    )
+
+def save_field(path: str, field, report: dict | None = None) -> None:
+    """Write a solved field to an ``.npz`` file in its one layout, exactly
+    at ``path`` and whole or not at all (atomic.py); ``io.load_field``
+    reads it back.
+
+    Parameters
+    ----------
+    path : str
+    field : SolvedField
+        a Result's ``.field``, or one read back
+    report : dict, optional
+        ``Report.to_dict()`` of its solve, stored as ``report``
+
+    Raises
+    ------
+    OptionsError
+        field not a SolvedField, report not a dict
+    OutputError
+        a path that cannot be written
+    """
+    from ..field.solved import SolvedField
+
+    checks.instance("save_field: field", field, SolvedField, OptionsError, "a SolvedField (Result.field)")
+    arrays = field.to_arrays()
+    if report is not None:
+        checks.instance("save_field: report", report, dict, OptionsError, "Report.to_dict() or None")
+        arrays["report"] = np.array(json.dumps(report, default=float))
     # compressed in memory: numpy leaves its zip file open when a write
     # fails, and it would complain again when collected
     buf = BytesIO()

@@ -3,10 +3,12 @@
 ``export_hexmesh(hex_mesh, path)`` picks the format from the extension:
 
 ``.vtu``    VTK XML UnstructuredGrid of VTK_HEXAHEDRON cells (ParaView,
-            meshio) with the scaled Jacobian per cell
+            meshio) with the scaled Jacobian per cell (vtu.py's writer, the
+            one a solved field's tets are written with)
 ``.vtk``    the same as legacy ASCII VTK (older tools, Gmsh, HexaLab)
 ``.mesh``   MEDIT ``Hexahedra`` (Gmsh, meshio, many FE codes), and the
             boundary ``Quadrilaterals`` with their patch id as ref
+            (medit.py's writer)
 ``.msh``    Gmsh MSH 4.1 (ASCII), the boundary patches and the irregular
             edges as physical groups (femformats.py)
 ``.inp``    Abaqus / CalculiX input, C3D8, with a node set, an element set
@@ -33,34 +35,12 @@ import numpy as np
 from ..errors import OutputError, ReadError
 from .atomic import check_output_path, write_text
 from .femformats import write_hex_exodus, write_hex_inp, write_hex_msh
-from .interchange import _fmt_rows, _vtu_array
-
-_VTK_HEXAHEDRON = 12
+from .medit import write_medit
+from .text import Tokens, format_rows
+from .vtu import VTK_HEXAHEDRON, write_vtu
 
 HEX_FORMATS = {".vtu": "VTK XML", ".vtk": "legacy VTK", ".mesh": "MEDIT", ".msh": "Gmsh MSH 4.1",
                ".inp": "Abaqus/CalculiX input", ".exo": "Exodus II", ".hexex": "HexEx integer-grid map"}
-
-
-def write_hex_vtu(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None,
-                  binary: bool = True) -> None:
-    """VTK XML UnstructuredGrid of hexahedra (VTK_HEXAHEDRON, type 12, VTK
-    corner order); cell_data: name -> (m,) or (m, k) array."""
-    V = np.asarray(vertices, float)
-    H = np.asarray(hexes, np.int64)
-    m = len(H)
-    out = ['<?xml version="1.0"?>\n',
-           '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
-           "<UnstructuredGrid>\n", f'<Piece NumberOfPoints="{len(V)}" NumberOfCells="{m}">\n',
-           "<Points>\n", _vtu_array("Points", V, binary), "</Points>\n", "<Cells>\n",
-           _vtu_array("connectivity", H.reshape(-1), binary),
-           _vtu_array("offsets", 8 * np.arange(1, m + 1, dtype=np.int64), binary),
-           _vtu_array("types", np.full(m, _VTK_HEXAHEDRON, np.uint8), binary), "</Cells>\n"]
-    if cell_data:
-        out.append("<CellData>\n")
-        out.extend(_vtu_array(k, v, binary) for k, v in cell_data.items())
-        out.append("</CellData>\n")
-    out += ["</Piece>\n", "</UnstructuredGrid>\n", "</VTKFile>\n"]
-    write_text(path, "".join(out))
 
 
 def write_hex_vtk(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None) -> None:
@@ -70,14 +50,14 @@ def write_hex_vtk(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data:
     H = np.asarray(hexes, np.int64)
     m = len(H)
     out = ["# vtk DataFile Version 4.2\n", "SymFrames hex mesh\n", "ASCII\n", "DATASET UNSTRUCTURED_GRID\n",
-           f"POINTS {len(V)} double\n", _fmt_rows(V, "%.17g"),
-           f"CELLS {m} {9 * m}\n", _fmt_rows(np.c_[np.full(m, 8), H], "%d"),
-           f"CELL_TYPES {m}\n", _fmt_rows(np.full((m, 1), _VTK_HEXAHEDRON), "%d")]
+           f"POINTS {len(V)} double\n", format_rows(V, "%.17g"),
+           f"CELLS {m} {9 * m}\n", format_rows(np.c_[np.full(m, 8), H], "%d"),
+           f"CELL_TYPES {m}\n", format_rows(np.full((m, 1), VTK_HEXAHEDRON), "%d")]
     if cell_data:
         out.append(f"CELL_DATA {m}\n")
         for name, a in cell_data.items():
             out += [f"SCALARS {name} double 1\n", "LOOKUP_TABLE default\n",
-                    _fmt_rows(np.asarray(a, float).reshape(-1, 1), "%.9g")]
+                    format_rows(np.asarray(a, float).reshape(-1, 1), "%.9g")]
     write_text(path, "".join(out))
 
 
@@ -86,17 +66,9 @@ def write_hex_medit(path: str, vertices: np.ndarray, hexes: np.ndarray, refs=Non
     """MEDIT ASCII mesh with a ``Hexahedra`` section (1-based, VTK's corner
     order, which MEDIT shares), refs default 0, and where given the boundary
     ``Quadrilaterals`` (k, 4) with their refs (the patch ids)."""
-    V = np.asarray(vertices, float)
-    H = np.asarray(hexes, np.int64)
-    r = np.zeros(len(H), np.int64) if refs is None else np.asarray(refs, np.int64)
-    out = ["MeshVersionFormatted 2\n", "Dimension 3\n", f"Vertices\n{len(V)}\n",
-           _fmt_rows(np.c_[V, np.zeros(len(V))], "%.17g")]
-    if quads is not None and len(quads):
-        Q = np.asarray(quads, np.int64)
-        qr = np.zeros(len(Q), np.int64) if quad_refs is None else np.asarray(quad_refs, np.int64)
-        out += [f"Quadrilaterals\n{len(Q)}\n", _fmt_rows(np.c_[Q + 1, qr], "%d")]
-    out += [f"Hexahedra\n{len(H)}\n", _fmt_rows(np.c_[H + 1, r], "%d"), "End\n"]
-    write_text(path, "".join(out))
+    if quads is not None and not len(quads):
+        quads = None
+    write_medit(path, vertices, None, quads=quads, quad_refs=quad_refs, hexes=hexes, hex_refs=refs)
 
 
 def write_hexex(path: str, vertices: np.ndarray, tets: np.ndarray, params: np.ndarray) -> None:
@@ -108,8 +80,8 @@ def write_hexex(path: str, vertices: np.ndarray, tets: np.ndarray, params: np.nd
     V = np.asarray(vertices, float)
     T = np.asarray(tets, np.int64)
     U = np.asarray(params, float).reshape(len(T), 12)
-    out = [f"{len(V)}\n", _fmt_rows(V, "%.17g"), f"{len(T)}\n",
-           _fmt_rows(np.c_[T, U], "%.17g")]  # %g writes the vertex ids as integers
+    out = [f"{len(V)}\n", format_rows(V, "%.17g"), f"{len(T)}\n",
+           format_rows(np.c_[T, U], "%.17g")]  # %g writes the vertex ids as integers
     write_text(path, "".join(out))
 
 
@@ -135,15 +107,13 @@ def read_hexex(path: str):
         repeated vertex, or data after the last tet; naming the file, the
         line and the value
     """
-    from .interchange import _end, _text_tokens
-
-    tok = _text_tokens(path, ".hexex (integer-grid map)")
+    tok = Tokens.of_file(path, ReadError, ".hexex (integer-grid map)")
     n = tok.count("vertices", 3)
     V = tok.block(n, 3, "vertex coordinates")
     m = tok.count("tets", 16)
     first = tok.pos
     rows = tok.block(m, 16, "tets")
-    _end(tok, "the last tet")
+    tok.end("the last tet")
     ids = rows[:, :4]
     line = tok.lines[first::16] if m else tok.lines[:0]
     bad = np.nonzero((ids != np.round(ids)).any(axis=1) | ((ids < 0) | (ids >= n)).any(axis=1))[0]
@@ -192,7 +162,7 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     V, H = hex_mesh.vertices, hex_mesh.hexes
     sj = np.asarray(hex_mesh.scaled_jacobian, float)
     if ext == ".vtu":
-        write_hex_vtu(path, V, H, {"scaled_jacobian": sj})
+        write_vtu(path, V, H, cell_data={"scaled_jacobian": sj}, cell_type=VTK_HEXAHEDRON)
     elif ext == ".vtk":
         write_hex_vtk(path, V, H, {"scaled_jacobian": sj})
     elif ext == ".mesh":

@@ -1,10 +1,10 @@
-"""A stored result read back for hex meshing (``--from-result``), checked
-like every other reader.
+"""A stored result's field read back (``--from-result``), checked like
+every other reader.
 
-``load_hex_input(path)`` opens the ``.npz`` as a zip archive and reads only
-the arrays hex meshing needs, each member's header (dtype, shape) before its
-data, so an unused member, however large, is never read; the arrays are
-checked by hexmesh/arrays.py.  Whatever is wrong -- an empty, truncated or
+``load_field(path)`` opens the ``.npz`` as a zip archive and reads the
+field's arrays (``SolvedField.to_arrays``), each member's header (dtype,
+shape) before its data, so an unused member, however large, is never read;
+the arrays are checked by field/arrays.py.  Whatever is wrong -- an empty, truncated or
 foreign file, a damaged member, a missing or inconsistent array -- is a
 ``ReadError`` naming the file and what is wrong.
 """
@@ -18,7 +18,8 @@ import zlib
 import numpy as np
 
 from ..errors import ReadError
-from ..hexmesh.arrays import ArraySource, read_hex_input
+from ..field.arrays import ArraySource, read_field
+from ..field.solved import SolvedField
 
 
 class _Archive(ArraySource):
@@ -78,9 +79,10 @@ def open_archive(path) -> zipfile.ZipFile:
         raise ReadError(f"{path}: cannot be read ({e.strerror or e})") from None
 
 
-def load_hex_input(path):
-    """The field of a saved result, to mesh it again without solving
-    (``python -m solver --from-result``), read and checked (module docs).
+def load_field(path):
+    """The solved field of a saved result, to mesh or export it again
+    without solving (``python -m solver --from-result``), read and checked
+    (module docs).
 
     Parameters
     ----------
@@ -89,9 +91,9 @@ def load_hex_input(path):
 
     Returns
     -------
-    hexmesh.HexInput
+    field.solved.SolvedField
         its ``status`` 'converged' or 'not converged' (the stricter of the
-        hex data's and the solve report's)
+        field's and the solve report's)
 
     Raises
     ------
@@ -99,4 +101,8 @@ def load_hex_input(path):
         naming the file, the array and what is wrong with it
     """
     with open_archive(path) as zf:
-        return read_hex_input(_Archive(os.fspath(path), zf))
+        return SolvedField(**read_field(_Archive(os.fspath(path), zf)))
+
+
+load_hex_input = load_field
+"""The earlier name of ``load_field``, removed in the next release."""

@@ -1,6 +1,7 @@
 """A singularity network read from a tet mesh whose edges carry an integer tag.
 
-Field tools (libSCOF, AlgoHex and kin, design notes §5) export a singular
+Field tools (libSCOF, AlgoHex and kin; docs/usage.md, *Import a network from a
+tet mesh with tagged edges*) export a singular
 curve as a chain of tet-mesh edges with an integer per-edge index.  This module
 turns such a file into the solver's input: the boundary of the tet mesh as the
 domain surface, the tagged interior edges chained into ``Curve``s and the tagged
@@ -34,7 +35,7 @@ vertices where the tagged interior edges do not continue as one chain (a vertex
 with other than two of them, or two with different σ) and at the boundary;
 chains without such a vertex are closed loops.
 
-Every value read is checked (interchange.read_medit, interchange.read_ovm,
+Every value read is checked (medit.read_medit, ovm.read_ovm,
 ``check_tets``): a refusal names the file, the line and the value.
 """
 
@@ -51,7 +52,7 @@ from ..errors import NetworkError, SurfaceError, TopologyError
 from ..mesh.tetmesh import TetMesh
 from ..network.network import Curve, Network
 from ..network.topology import check_topology
-from ..surface.trisurface import validate_surface
+from ..surface.validation import validate_surface
 
 # the conventions (module docs): name -> how sigma follows from a tag t
 CONVENTIONS = {"index": "sigma = t/4", "negated": "sigma = -t/4", "valence": "sigma = (4 - t)/4"}
@@ -109,9 +110,10 @@ def read_tagged_tet_mesh(path: str, edge_property: str | None = None) -> TaggedT
         untagged).
 
     Raises NetworkError naming the file, the line and the value of anything
-    it cannot read (interchange.read_ovm / read_medit, ``check_tets``).
+    it cannot read (ovm.read_ovm / medit.read_medit, ``check_tets``).
     """
-    from .interchange import read_medit, read_ovm
+    from .medit import read_medit
+    from .ovm import read_ovm
 
     if not isinstance(path, (str, os.PathLike)):
         raise NetworkError(f"tet mesh path {path!r}: must be a file path (a string)")

@@ -1,4 +1,4 @@
-"""Reading text input files: the encoding, and numbers with their line.
+"""Text files: reading them (the encoding, numbers with their line), and writing rows of numbers.
 
 ``read_text`` decodes a file as a user's tools may have saved it: UTF-8
 (with or without a byte-order mark), UTF-16 or UTF-32 with a byte-order
@@ -9,6 +9,10 @@ bytes).  A file that is none of these is refused as not text, naming it.
 came from, so a reader can name the line of any value it refuses, and
 converts runs of them to numbers in one numpy call (a Python loop runs only
 to find the culprit once a conversion has failed).
+
+``format_rows`` writes the rows of a numeric array as text lines, one
+printf format per value, in one C-level formatting call: the writers of
+every text format here use it.
 """
 
 from __future__ import annotations
@@ -90,6 +94,12 @@ class Tokens:
         self.error = error
         self.pos = 0
 
+    @classmethod
+    def of_file(cls, path, error, what: str) -> Tokens:
+        """The words of a text file (``read_text``: ``error`` and ``what`` as
+        there), with their lines."""
+        return cls(read_text(path, error, what), path, error)
+
     def __len__(self) -> int:
         return len(self.words)
 
@@ -110,6 +120,12 @@ class Tokens:
 
     def fail(self, message: str, i: int | None = None):
         raise self.error(f"{self.path}:{self.line(i)}: {message}")
+
+    def end(self, what: str) -> None:
+        """Refuse words left after ``what`` (the last entry a header announced)."""
+        if not self.done:
+            self.fail(f"{self.words[self.pos]!r} after {what}: the count in the header is smaller than the data (or "
+                      "the file has extra data)")
 
     def next(self, what: str) -> str:
         if self.done:
@@ -178,3 +194,13 @@ def numbers(words: list, lines: np.ndarray, kind: str, what: str, path: str, err
         if kind == "int" and abs(v) >= 2.0**63:
             raise error(f"{path}:{lines[k]}: {w} in the {what}: out of range (a whole number below 2**63 in size)")
     raise error(f"{path}: the {what} hold values that are not numbers")
+
+
+def format_rows(a: np.ndarray, fmt: str) -> str:
+    """Rows of a 2D array as text lines (C-level formatting, no Python loop per row)."""
+    a = np.asarray(a)
+    if len(a) == 0:
+        return ""
+    a = a.reshape(len(a), -1)
+    line = " ".join([fmt] * a.shape[1]) + "\n"
+    return (line * len(a)) % tuple(a.reshape(-1).tolist())

@@ -1,14 +1,14 @@
 """Preconditioned conjugate gradients for the Levenberg-Marquardt systems.
 
 Sparse LU of the ~3|E| x 3|E| normal equations does not scale on these
-meshes (design notes §3: 312 s and 428 M nonzeros at 71k edges), so every LM
+meshes (docs/performance.md, *Against a sparse-LU LM*: 312 s and 428 M nonzeros at 71k edges), so every LM
 step is solved by PCG with a two-part preconditioner:
 
 * a block-Jacobi smoother: the exact 3x3 diagonal block of each free edge
   and the diagonal of the adaptation parameters;
 * a gradient-space correction.  The penalty a |d omega|^2 vanishes on
   omega = d phi, where only the small smoothness term acts, so those modes
-  are what Jacobi-PCG is slow on (design notes: ~1,100 iterations).  We add
+  are what Jacobi-PCG is slow on (~1,100 iterations: docs/performance.md, *Against a sparse-LU LM*).  We add
   G A_g^-1 G^T with G = d0 (per so(3) component, interior vertices) and A_g
   the vertex Laplacian of the smoothness weights, inverted by one V-cycle of
   a smoothed-aggregation AMG (amg.py).  This is the gradient half of the

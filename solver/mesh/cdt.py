@@ -6,7 +6,7 @@ and cylinder at the default budget, most of end to end.  TetGen (the mesher
 the paper used, §5.1) takes a surface that does not intersect itself and
 keeps it exactly (its triangles split, never moved): 0.1-0.6 s for the same
 surfaces.  The network needs no tubes in the mesh: embed.py traces every
-curve through whatever tets it crosses (dual paths, design notes §3), and
+curve through whatever tets it crosses (dual paths: docs/how-it-works.md, *Embedding the network*), and
 the solves with and without tubes agree (ball: 0 omega-matched spurious or
 missing faces, tangent adaptation 0.05 degrees, penalty 0.14).
 

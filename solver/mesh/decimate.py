@@ -54,25 +54,12 @@ MIN_DENSE_TRIANGLES = 2_000
 # cut deeper than the mesher's envelope (simplify_for_meshing): fTetWild on
 # the input itself would take minutes (an 81,920-triangle sphere: over 600 s)
 ALWAYS_TRIANGLES = 10_000
-# grid cell of the clustering, as a fraction of the mesh's edge length h.
-# fTetWild's time grows with the input's triangles and falls with their
-# quality, and the field suffers from a boundary of coarse chords: the
-# ball's network on the 81,920-triangle sphere at h = 0.161 (2 cores),
-#   cell 0.5 h, 5,256 triangles: meshing 28-46 s, penalty 0.18-1.67
-#                (clusters only smoothed); 14 s, penalty 0.28 (flipped)
-#   cell 0.6 h, 3,738 triangles, flipped: meshing 6.4 s, penalty 0.26
-#                (327,680 triangles: 3,912, 7.5 s, penalty 0.26)
-#   cell 0.7 h, 2,746 triangles, flipped: meshing 3.8-5.3 s, penalty 2.2
-#   cell h,     1,350 triangles, flipped: meshing 9 s, penalty 4.2,
-#                10 LM iterations (smoothed only: penalty 5.4-25)
-# against 0.23 for the 1,280-triangle example (its facets ~0.8 h)
+# grid cell of the clustering, as a fraction of the mesh's edge length h:
+# coarser meshes faster, finer keeps the field (docs/performance.md, *Clustering a dense surface*)
 CELL_FRACTION = 0.6
 # rounds of (Delaunay edge flips, one pass of smoothing of the smooth
 # clusters projected onto the input): fTetWild takes poorly shaped input
-# triangles slowly.  The 81,920-triangle sphere clustered at 0.7 h into
-# 2,746 triangles: minimum / mean triangle quality 0.28 / 0.78 raw, 0.35 /
-# 0.86 smoothed, 0.78 / 0.96 flipped and smoothed; fTetWild (no curve
-# tubes) 11.7 s smoothed, 3.1 s flipped and smoothed
+# triangles slowly (docs/performance.md, *Clustering a dense surface*)
 SMOOTH_PASSES = 5
 RANK_RATIO = 0.03
 

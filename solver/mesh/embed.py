@@ -1,6 +1,6 @@
 """Embedding the curve network in an arbitrary tet mesh ("dual paths").
 
-Design choice (design notes §3).  The paper sweeps a prism tube along each
+Design choice (docs/how-it-works.md, *Embedding the network*).  The paper sweeps a prism tube along each
 curve and asks TetGen to conform to it; that sweeping self-intersects on
 complicated networks (§6).  fTetWild does not keep a prescribed tet structure
 anyway, so we never build tubes.  Instead each curve is traced through the

@@ -1,6 +1,6 @@
 """Uniform red refinement of a tet mesh (each tet into eight; Bey 1995).
 
-Why: fTetWild's time grows much faster than its output (design notes,
+Why: fTetWild's time grows much faster than its output (docs/how-it-works.md, *Tubes and tet mesh*;
 bench/RESULTS.md: 8 s at 19k tets, 91 s at 48k, 171 s at 133k), while
 splitting every tet into eight is a few numpy passes.  So a large mesh is
 made by meshing at twice (or four times) the target edge length and refining.

@@ -1,4 +1,4 @@
-"""fTetWild, the tet mesher (§5.1; design notes §3): the solid bounded by a
+"""fTetWild, the tet mesher (§5.1; docs/how-it-works.md, *Tubes and tet mesh*): the solid bounded by a
 triangle surface, with internal constraint triangles (the curve tubes of
 tubes.py), as a TetMesh.
 
@@ -90,27 +90,19 @@ def _normalisation(surface: TriSurface) -> tuple[np.ndarray, float]:
 # fTetWild's optimisation passes (its default is 80).  Where a mesh reaches
 # fTetWild's quality target it does so within a few passes; where it does not
 # (inputs with curve tubes, the smooth torus) every further pass refined
-# more: the ball at h = 0.1076 gave 63k-141k tets in 125-267 s with 80
-# passes against 35k in 21 s with 10 (same LM iterations, minimum dihedral
-# angles no worse), the torus at h = 0.1 33k tets in 141 s against 31k in 21 s.
+# more (docs/performance.md, *fTetWild's optimisation passes*).
 TETWILD_PASSES = 10
 
 # fTetWild first simplifies its input inside the envelope.  On inputs no
-# denser than the mesh that costs more than it saves: CPU seconds of the
-# fTetWild child on the default-resolution soups (surface + tube triangles),
-# simplifying -> not: L prism 3.5-8.8 -> 2.0-2.5, ball 16.7-17.3 -> 10.3-11.1,
-# cylinder 13.1-17.2 -> 5.0 (4,480 input triangles at h = 0.18), with the
-# same LM iterations and metrics.  An input denser than the mesh still
-# needs it to come down to the target edge length, or fTetWild keeps its
-# small triangles and the tet count grows past the budget (the ball's 1,280
-# triangles meshed at h = 0.27, 3.3x denser: 10.2k tets for a 6,000 budget
-# against 8.7k simplified): simplify when the surface has over
-# SIMPLIFY_DENSITY times the triangles an h-mesh of it has (the cylinder at
-# the default h = 0.18 is 3.5x denser, and still simplified).
-# Only where the surface has sharp features (CAD parts, where meshing
-# dominated): the smooth solid torus at h = 0.15 meshed unsimplified ended
-# LM at its cap (penalty 7.7e4) on 2 of 3 meshes, against 3 of 3 converged in
-# 14-15 iterations simplified.
+# denser than the mesh that costs more than it saves, with the same LM
+# iterations and metrics.  An input denser than the mesh still needs it to
+# come down to the target edge length, or fTetWild keeps its small
+# triangles and the tet count grows past the budget: simplify when the
+# surface has over SIMPLIFY_DENSITY times the triangles an h-mesh of it has
+# (the cylinder at the default h = 0.18 is 3.5x denser, and still
+# simplified).  Only where the surface has sharp features (CAD parts, where
+# meshing dominated): the smooth torus meshed unsimplified left LM at its
+# cap on 2 of 3 meshes (docs/performance.md, *Meshing*: fTetWild's input simplification).
 SIMPLIFY_DENSITY = 3.0
 
 

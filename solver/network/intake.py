@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..surface.trisurface import TriSurface, segments_distance
+from ..surface.intersect import segments_distance
+from ..surface.trisurface import TriSurface
 from .curve_ends import (
     BEND_FRACTION,
     BEND_FRACTION_ONE_END,

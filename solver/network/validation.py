@@ -21,8 +21,10 @@ from ..surface.features import (
     sharp_edges_by_angle,
     sharp_edges_from_pairs,
 )
+from ..surface.intersect import segment_crosses_triangle, segments_distance
 from ..surface.thickness import check_edge_length
-from ..surface.trisurface import TriSurface, segment_crosses_triangle, segments_distance, validate_surface
+from ..surface.trisurface import TriSurface
+from ..surface.validation import validate_surface
 from .curve_ends import END_GAP, join_loose_ends
 from .fairing import MAX_KINK
 from .intake import IntakeScales, repair_network, solid_scale

@@ -8,6 +8,10 @@ three of them meet, radial curves from there out to the surface.  It
 returns the network, which ``check_input`` accepts, and a report of what it
 chose; where no network can be suggested it raises ``NetworkError`` saying
 why and where.
+
+The steps: the frame and the per-triangle labels (labels.py), the charts,
+their boundaries and corners (charts.py), and the curves and nodes built
+from them (build.py).
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import NetworkError, TopologyError
 from ..network.network import Network
 from ..surface.features import sharp_edges_by_angle
-from ..surface.trisurface import validate_surface
+from ..surface.validation import validate_surface
 from .build import SuggestedCurve, padding_network
 from .charts import chart_graph
 from .labels import LABEL_NAMES, align_frame, label_faces, merge_small_charts

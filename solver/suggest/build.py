@@ -23,7 +23,8 @@ from scipy.spatial import cKDTree
 
 from ..errors import NetworkError
 from ..network.network import Curve
-from ..surface.trisurface import TriSurface, _fmt
+from ..surface.trisurface import TriSurface
+from ..surface.validation import _fmt
 from .charts import ChartGraph, label_direction
 from .labels import LABEL_NAMES
 

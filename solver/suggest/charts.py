@@ -10,7 +10,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import NetworkError
-from ..surface.trisurface import TriSurface, _fmt
+from ..surface.trisurface import TriSurface
+from ..surface.validation import _fmt
 from .labels import DIRECTIONS, LABEL_NAMES, charts_of
 
 

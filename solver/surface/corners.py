@@ -8,7 +8,8 @@ degrees) and the vertex gets the index ``1 - sum(k) / 4``.  We call
 vertex (an outline going straight on, or a 130-degree corner meant as
 smooth), 1 for a cube-like convex corner (index +1/4), -1 for a concave one.
 
-A CAD outline's 130-degree corner is ambiguous (design notes §5): rounding
+A CAD outline's 130-degree corner is ambiguous (docs/limitations.md, *Sharp
+corners that are not multiples of 90°*): rounding
 takes it to 90 degrees (a corner), another tool to 180 (smooth).  Here
 
 * a sector is *ambiguous* when its angle is more than ``AMBIGUOUS`` (22.5

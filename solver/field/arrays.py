@@ -1,7 +1,7 @@
-"""The arrays a stored field keeps for hex meshing (``hex_source_arrays``)
+"""A stored field's arrays (``SolvedField.to_arrays``, field/solved.py)
 read back and checked, whatever holds them: a result ``.npz``
-(io.load_hex_input), the add-on's .blend, a caller's dict
-(``input_from_arrays``).
+(io.load_field), the add-on's .blend, a caller's dict
+(``SolvedField.from_arrays``).
 
 Each array's dtype and shape are checked before its data are used (a
 ``.npz`` member's header before its data are read, so an unused member is
@@ -9,7 +9,7 @@ never read), then its values: finite coordinates, whole-number indices
 within their mesh, offsets that split their array, frames that are
 rotations, an omega per tet edge that carries them (``field_fault``).
 Whatever is wrong is a ``ReadError`` naming the source, the array and the
-value; nothing reaches the hex stages unchecked.
+value; nothing reaches the stages after the solve unchecked.
 """
 
 from __future__ import annotations
@@ -17,8 +17,11 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
-from ..errors import NetworkError, OptionsError, ReadError
+from ..errors import NetworkError, ReadError
+from ..linalg.rotations import CUBE_GROUP, closest_symmetry, exp_so3, rotation_angle
 
 
 def _split(flat, off) -> list:
@@ -51,8 +54,7 @@ class ArraySource:
         if head is None:
             if optional:
                 return None
-            raise self.fail(f"the array '{key}' is missing (not a SymFrames result, or one written before hex "
-                            "meshing could read it back)")
+            raise self.fail(f"the array '{key}' is missing (not a SymFrames result)")
         got, dtype, size = head
         empty = int(np.prod(got)) == 0 and len(shape) > 0 and shape[0] in (None, 0) and \
             all(s is not None for s in shape[1:])
@@ -102,23 +104,23 @@ class ArraySource:
 
     def parts(self, key: str, count: int, kinds: str, tail: tuple, n: int | None = None, what: str = ""):
         """A flat array and its offsets, split into ``count`` parts."""
-        flat = self.indices(f"hex_{key}", n, what, (None, *tail)) if n is not None else \
-            self.array(f"hex_{key}", kinds, (None, *tail))
-        off = self.indices(f"hex_{key}_offsets", len(flat) + 1, "offsets", (count + 1,))
+        flat = self.indices(key, n, what, (None, *tail)) if n is not None else \
+            self.array(key, kinds, (None, *tail))
+        off = self.indices(f"{key}_offsets", len(flat) + 1, "offsets", (count + 1,))
         if off[0] != 0 or off[-1] != len(flat) or np.any(np.diff(off) < 0):
-            raise self.fail(f"the array 'hex_{key}_offsets' = {off.tolist()[:8]} does not split 'hex_{key}' "
+            raise self.fail(f"the array '{key}_offsets' = {off.tolist()[:8]} does not split '{key}' "
                             f"({len(flat)} rows): offsets must rise from 0 to {len(flat)}")
         return flat, off
 
 
 
-_PER_CURVE = ("tets", "faces", "points", "tangents", "polyline", "curve_points")
+_PER_CURVE = ("curve_tets", "curve_faces", "curve_points", "curve_tangents", "curve_polyline", "network_points")
 
 
 class DictSource(ArraySource):
-    """Arrays given as a mapping (``input_from_arrays``, the add-on's .blend)."""
+    """Arrays given as a mapping (``SolvedField.from_arrays``, the add-on's .blend)."""
 
-    def __init__(self, label: str, arrays, fix: str = "give the arrays hex_source_arrays(HexInput) returned for "
+    def __init__(self, label: str, arrays, fix: str = "give the arrays SolvedField.to_arrays() returned for "
                  "this field"):
         super().__init__(label, fix)
         if not hasattr(arrays, "keys") or not hasattr(arrays, "__getitem__"):
@@ -140,12 +142,15 @@ class DictSource(ArraySource):
         return np.asarray(self.arrays[key])
 
 
-def read_hex_input(z: ArraySource):
-    """The HexInput of a source's arrays, every one checked (module docs)."""
+def read_field(z: ArraySource) -> dict:
+    """The parts of the SolvedField of a source's arrays (its keyword
+    arguments), every one checked (module docs)."""
     from ..mesh.tetmesh import TetMesh
     from ..surface.trisurface import TriSurface
-    from .source import HexInput, field_fault
 
+    legacy = z._header("hex_meta") is not None and z._header("meta") is None
+    if legacy:
+        raise z.fail("it was written by an earlier SymFrames, which kept the field in another layout")
     V = z.array("vertices", "f", (None, 3))
     T = z.indices("tets", len(V), "vertex ids", (None, 4))
     rep = np.nonzero((np.sort(T, axis=1)[:, 1:] == np.sort(T, axis=1)[:, :-1]).any(axis=1))[0]
@@ -154,47 +159,52 @@ def read_hex_input(z: ArraySource):
     if len(T) == 0:
         raise z.fail("the array 'tets' is empty: a field needs a tet mesh")
     mesh = TetMesh(V, T)
-    stored_edges = z.array("edges", "iuf", (None, 2), optional=True)
-    if stored_edges is not None and (stored_edges.shape != mesh.edges.shape or np.any(stored_edges != mesh.edges)):
-        raise z.fail(f"the array 'edges' ({len(stored_edges)} rows) is not the edge list of 'tets' "
-                     f"({mesh.n_edges} edges): omega would be read on the wrong edges")
     frames = z.array("frames", "f", (len(V), 3, 3))
     omega = z.array("omega", "f", (mesh.n_edges, 3))
     fault = field_fault(mesh, frames, omega)
     if fault:
         raise z.fail(f"the stored field is damaged: {fault}")
+    root = z.array("root", "iuf", ())
+    if root != np.round(root) or not 0 <= root < len(V):
+        raise z.fail(f"the array 'root' is {root}: the root is a vertex id from 0 to {len(V) - 1}")
+    root = int(root)
     meta = _meta(z)
     net, emb = _network(z, mesh, meta)
-    SV = z.array("hex_surface_vertices", "f", (None, 3))
-    SF = z.indices("hex_surface_faces", len(SV), "surface vertex ids", (None, 3))
+    SV = z.array("surface_vertices", "f", (None, 3))
+    SF = z.indices("surface_faces", len(SV), "surface vertex ids", (None, 3))
     S = TriSurface(SV, SF)
-    sharp = z.array("hex_surface_sharp", "b", (len(S.edges),))
+    sharp = z.array("surface_sharp", "b", (len(S.edges),))
+    feature = z.array("feature_vertices", "b", (len(V),))
+    tube_edges = z.indices("tube_edges", mesh.n_edges, "edge ids", (None,))
+    tube_curve = z.indices("tube_curve", max(len(net.curves), 1), "curve ids", (len(tube_edges),))
     given = _given(z, meta)
-    return HexInput(mesh, omega, frames, emb, net, S, sharp, _status(z, meta), given)
+    return dict(mesh=mesh, frames=frames, omega=omega, embedding=emb, network=net, surface=S, sharp=sharp,
+                feature_vertices=feature, tube_edges=tube_edges, tube_curve=tube_curve, root=root,
+                status=_status(z, meta), given=given)
 
 
 def _meta(z: ArraySource) -> dict:
-    m = z.array("hex_meta", "U", ())
+    m = z.array("meta", "U", ())
     try:
         meta = json.loads(str(m))
     except ValueError as e:
-        raise z.fail(f"the array 'hex_meta' is not JSON ({e})") from None
+        raise z.fail(f"the array 'meta' is not JSON ({e})") from None
     if not isinstance(meta, dict) or not isinstance(meta.get("curves"), list) or \
             not isinstance(meta.get("nodes"), list):
-        raise z.fail("the array 'hex_meta' lacks its 'curves' and 'nodes' lists")
+        raise z.fail("the array 'meta' lacks its 'curves' and 'nodes' lists")
     return meta
 
 
 def _entry(z: ArraySource, what: str, d, keys: dict):
     """Fields of one meta entry, each checked against its type."""
     if not isinstance(d, dict):
-        raise z.fail(f"'hex_meta' {what} is {str(d)[:60]!r}, not an object")
+        raise z.fail(f"'meta' {what} is {str(d)[:60]!r}, not an object")
     out = []
     for key, types in keys.items():
         v = d.get(key)
         if not isinstance(v, types) or isinstance(v, bool) and bool not in types:
             kind = {float: "a number", int: "a whole number", str: "text", bool: "true or false", list: "a list"}
-            raise z.fail(f"'hex_meta' {what}: '{key}' = {str(v)[:60]!r} is not {kind[types[0]]}")
+            raise z.fail(f"'meta' {what}: '{key}' = {str(v)[:60]!r} is not {kind[types[0]]}")
         out.append(v)
     return out
 
@@ -209,56 +219,102 @@ def _network(z: ArraySource, mesh, meta: dict):
     nodes = _nodes(z, meta, ends)
     nn = len(nodes)
     region, roff = z.parts("node_region", nn, "iuf", (), mesh.n_tets, "tet ids")
-    node_tets = z.indices("hex_node_tets", mesh.n_tets, "tet ids", (nn,))
+    node_tets = z.indices("node_tets", mesh.n_tets, "tet ids", (nn,))
     net = PreparedNetwork(curves, [c["source"] for c in meta["curves"]], [c["start"] for c in meta["curves"]],
-                          [c["end"] for c in meta["curves"]], nodes)
-    emb = Embedding(traces, node_tets, _split(region, roff), np.zeros((mesh.n_faces, 3)),
-                    np.zeros(mesh.n_faces, bool), np.zeros(mesh.n_faces, np.int64))
+                          [c["end"] for c in meta["curves"]], nodes, _pieces(z, meta))
+    nf = mesh.n_faces
+    face_omega = np.zeros((nf, 3))
+    faces = z.indices("omega_faces", nf, "face ids", (None,))
+    face_omega[faces] = z.array("omega_values", "f", (len(faces), 3))
+    excluded = np.zeros(nf, bool)
+    excluded[z.indices("excluded_faces", nf, "face ids", (None,))] = True
+    pierce = np.zeros(nf, np.int64)
+    pierced = z.indices("pierced_faces", nf, "face ids", (None,))
+    pierce[pierced] = z.indices("pierce_counts", 2**62, "pierce counts", (len(pierced),))
+    end_faces = z.indices("end_faces", nf, "face ids", (None,))
+    end_sigma = z.array("end_sigma", "fi", (len(end_faces),))
+    emb = Embedding(traces, node_tets, _split(region, roff), face_omega, excluded, pierce,
+                    [(int(f), float(s)) for f, s in zip(end_faces, end_sigma)])
     return net, emb
+
+
+def _pieces(z: ArraySource, meta: dict) -> dict:
+    p = meta.get("pieces", {})
+    if not isinstance(p, dict) or not all(isinstance(v, list) and all(isinstance(x, int) for x in v)
+                                          for v in p.values()) or not all(k.isdigit() for k in p):
+        raise z.fail("'meta' pieces is not a map of curve ids to lists of curve ids")
+    return {int(k): v for k, v in p.items()}
 
 
 _KINDS = ("boundary", "node", "loop")
 
 
 def _curves(z: ArraySource, mesh, meta: dict):
-    """(curves, traces, the kind of each curve end) of the hex data."""
+    """(curves, traces, the kind of each curve end) of the stored field."""
     from ..mesh.embed import CurveTrace
     from ..network.network import Curve
 
     nc = len(meta["curves"])
     parts = {}
     for key in _PER_CURVE:
-        n, what = {"tets": (mesh.n_tets, "tet ids"), "faces": (mesh.n_faces, "face ids")}.get(key, (None, ""))
+        n, what = {"curve_tets": (mesh.n_tets, "tet ids"),
+                   "curve_faces": (mesh.n_faces, "face ids")}.get(key, (None, ""))
         flat, off = z.parts(key, nc, "f", () if n is not None else (3,), n, what)
         parts[key] = _split(flat, off)
-    ends = z.indices("hex_ends", mesh.n_faces, "boundary face ids (or -1)", (nc, 2), low=-1)
+    ends = z.indices("curve_ends", mesh.n_faces, "boundary face ids (or -1)", (nc, 2), low=-1)
     curves, traces, kinds = [], [], []
     for i, c in enumerate(meta["curves"]):
         sigma, role, name, _, k0, k1, closed = _entry(z, f"curve {i}", c, {
             "sigma": (float, int), "role": (str,), "name": (str, type(None)), "source": (int,), "start": (str,),
             "end": (str,), "closed": (bool,)})
         if k0 not in _KINDS or k1 not in _KINDS:
-            raise z.fail(f"'hex_meta' curve {i}: its ends are {k0!r}, {k1!r}, not of {_KINDS}")
+            raise z.fail(f"'meta' curve {i}: its ends are {k0!r}, {k1!r}, not of {_KINDS}")
         for end, kind in ((0, k0), (1, k1)):
             if (kind == "boundary") != (ends[i, end] >= 0):
-                raise z.fail(f"curve {i}: its {('start', 'end')[end]} is a {kind} end, but 'hex_ends' gives it the "
+                raise z.fail(f"curve {i}: its {('start', 'end')[end]} is a {kind} end, but 'curve_ends' gives it the "
                              f"boundary face {ends[i, end]} (-1: none)")
-        n_faces = len(parts["faces"][i])
-        if len(parts["tangents"][i]) != n_faces or len(parts["points"][i]) != n_faces:
-            raise z.fail(f"curve {i}: {n_faces} pierced faces but {len(parts['points'][i])} pierce points and "
-                         f"{len(parts['tangents'][i])} tangents in 'hex_faces' / 'hex_points' / 'hex_tangents'")
+        n_faces = len(parts["curve_faces"][i])
+        if len(parts["curve_tangents"][i]) != n_faces or len(parts["curve_points"][i]) != n_faces:
+            raise z.fail(f"curve {i}: {n_faces} pierced faces but {len(parts['curve_points'][i])} pierce points and "
+                         f"{len(parts['curve_tangents'][i])} tangents in 'curve_faces' / 'curve_points' / "
+                         "'curve_tangents'")
         try:
-            curves.append(Curve(parts["curve_points"][i], sigma, role, name=name, closed=closed))
+            curves.append(Curve(parts["network_points"][i], sigma, role, name=name, closed=closed))
         except NetworkError as e:
-            raise z.fail(f"'hex_meta' curve {i}: {e}") from None
-        traces.append(CurveTrace(parts["tets"][i], parts["faces"][i], parts["tangents"][i], parts["points"][i],
-                                 int(ends[i, 0]), int(ends[i, 1]), parts["polyline"][i]))
+            raise z.fail(f"'meta' curve {i}: {e}") from None
+        traces.append(CurveTrace(parts["curve_tets"][i], parts["curve_faces"][i], parts["curve_tangents"][i],
+                                 parts["curve_points"][i], int(ends[i, 0]), int(ends[i, 1]),
+                                 parts["curve_polyline"][i]))
         kinds.append((k0, k1))
+    _check_walks(z, mesh, traces)
     return curves, traces, kinds
 
 
+def _check_walks(z: ArraySource, mesh, traces) -> None:
+    """Each trace a walk through the mesh: its k-th pierced face lies
+    between its k-th and (k+1)-th tets, and a boundary end's face is a
+    boundary face of the tet at that end."""
+    ft = mesh.face_tets
+    for i, t in enumerate(traces):
+        T, Fc = np.asarray(t.tets), np.asarray(t.faces)
+        n = len(T) - 1
+        if len(T) == 0 or len(Fc) < n:
+            raise z.fail(f"curve {i} crosses {len(T)} tets but pierces {len(Fc)} faces in 'curve_tets' / "
+                         "'curve_faces': a curve's walk pierces a face between each two tets it crosses")
+        pair = np.sort(np.c_[T[:-1], T[1:]], axis=1)
+        bad = np.nonzero(np.any(np.sort(ft[Fc[:n]], axis=1) != pair, axis=1))[0]
+        if len(bad):
+            k = bad[0]
+            raise z.fail(f"curve {i}: its face {Fc[k]} (step {k} of 'curve_faces') does not lie between the tets "
+                         f"{T[k]} and {T[k + 1]} it crosses there: the stored walk is not one through this mesh")
+        for end, f, tet in (("start", t.start_face, T[0]), ("end", t.end_face, T[-1])):
+            if f >= 0 and not (tet in ft[f] and -1 in ft[f]):
+                raise z.fail(f"curve {i}: its {end} face {f} ('curve_ends') is not a boundary face of its {end} "
+                             f"tet {tet}")
+
+
 def _nodes(z: ArraySource, meta: dict, kinds: list) -> list:
-    """The nodes of the hex data; every curve end of kind 'node' at exactly
+    """The nodes of the stored field; every curve end of kind 'node' at exactly
     one node, and no other end."""
     from ..network.network import Node
 
@@ -270,18 +326,18 @@ def _nodes(z: ArraySource, meta: dict, kinds: list) -> list:
                 E.ndim != 2 or E.shape[1:] != (2,) or not all(isinstance(x, int) for x in E.ravel()) or \
                 np.any(E[:, 0].astype(np.int64) >= nc) or np.any(E.astype(np.int64) < 0) or \
                 np.any(E[:, 1].astype(np.int64) > 1):
-            raise z.fail(f"'hex_meta' node {j} is {str(nd)[:80]}: a node has a position [x, y, z] and ends "
+            raise z.fail(f"'meta' node {j} is {str(nd)[:80]}: a node has a position [x, y, z] and ends "
                          f"[[curve 0..{nc - 1}, 0 or 1], ...]")
         for a, b in e:
             if kinds[a][b] != "node" or (a, b) in seen:
                 why = f"also at node {seen[(a, b)]}" if (a, b) in seen else f"a {kinds[a][b]} end"
-                raise z.fail(f"'hex_meta' node {j} holds the {('start', 'end')[b]} of curve {a}, which is {why}")
+                raise z.fail(f"'meta' node {j} holds the {('start', 'end')[b]} of curve {a}, which is {why}")
             seen[(a, b)] = j
         nodes.append(Node(np.asarray(pos, float), [(int(a), int(b)) for a, b in e]))
     loose = [(a, b) for a in range(nc) for b in (0, 1) if kinds[a][b] == "node" and (a, b) not in seen]
     if loose:
         a, b = loose[0]
-        raise z.fail(f"'hex_meta' curve {a}: its {('start', 'end')[b]} is a node end, but no node holds it")
+        raise z.fail(f"'meta' curve {a}: its {('start', 'end')[b]} is a node end, but no node holds it")
     return nodes
 
 
@@ -290,7 +346,7 @@ def _given(z: ArraySource, meta: dict):
         return None
     g = meta["given"]
     if not isinstance(g, list):
-        raise z.fail("'hex_meta' given is not a list")
+        raise z.fail("'meta' given is not a list")
     flat, off = z.parts("given_points", len(g), "f", (3,))
     out = []
     for k, (P, d) in enumerate(zip(_split(flat, off), g)):
@@ -301,11 +357,11 @@ def _given(z: ArraySource, meta: dict):
 
 
 def _status(z: ArraySource, meta: dict) -> str:
-    """The field's status: 'not converged' if the hex data or the solve's
-    report says so."""
+    """The field's status: 'not converged' if the field's meta or the
+    solve's report says so."""
     status = meta.get("status", "converged")
     if status not in ("converged", "not converged"):
-        raise z.fail(f"'hex_meta' status is {str(status)[:40]!r}, not 'converged' or 'not converged'")
+        raise z.fail(f"'meta' status is {str(status)[:40]!r}, not 'converged' or 'not converged'")
     rep = z.array("report", "U", (), optional=True)
     if rep is not None:
         try:
@@ -317,38 +373,55 @@ def _status(z: ArraySource, meta: dict) -> str:
     return status
 
 
-def _shown(x) -> str:
-    from ..checks import describe
+ROTATION_TOL = 1e-6
+"""Largest |R^T R - I| entry and |det R - 1| of a field's frame (a solve
+gives rotations to about 1e-12)."""
+EXACT_DEG = 1e-4
+"""A solve develops its frames from omega along a spanning tree of edges
+(Eq. 8, §4.3), where omega carries the frame at one end to the other's
+exactly (to about 1e-12 degrees; 1e-4 leaves room for float32 storage).
+So the edges omega carries within EXACT_DEG connect every vertex, converged
+or not, whatever the rest of the field does; a zeroed, scaled or shuffled
+omega leaves the mesh in pieces (2,373 of the cylinder's 2,375 vertices
+alone, zeroed)."""
 
-    return describe(x) if not hasattr(x, "__dict__") else f"a {type(x).__name__}"
 
+def field_fault(mesh, frames, omega) -> str:
+    """What is wrong with a field's frames and omega on its mesh, or ''.
 
-def input_from_arrays(mesh, frames: np.ndarray, omega: np.ndarray, arrays: dict):
-    """The HexInput of a stored field, every array checked (arrays.py).
-
-    Parameters
-    ----------
-    mesh : TetMesh
-        the field's tet mesh, with the solve's exact vertex positions
-    frames : (#V, 3, 3) float array
-    omega : (#E, 3) float array
-    arrays : dict
-        what ``hex_source_arrays`` returned for this field
-
-    Returns
-    -------
-    HexInput
-
-    Raises
-    ------
-    ReadError
-        an array missing, of the wrong type, shape or range, frames that are
-        not rotations or an omega that does not carry them (named)
-    """
-    from ..mesh.tetmesh import TetMesh
-
-    if not isinstance(mesh, TetMesh):
-        raise OptionsError(f"input_from_arrays: mesh = {_shown(mesh)}: must be a TetMesh (the field's tet mesh)")
-    src = DictSource("input_from_arrays", arrays)
-    src.arrays = {**arrays, "vertices": mesh.vertices, "tets": mesh.tets, "frames": frames, "omega": omega}
-    return read_hex_input(src)
+    Checks the shapes ((#V, 3, 3) and (#E, 3)), that every value is
+    finite, that the frames are rotations (orthonormal, determinant +1,
+    within ROTATION_TOL) and that omega carries them exactly along edges
+    that connect every vertex (EXACT_DEG)."""
+    R, w = np.asarray(frames), np.asarray(omega)
+    if R.shape != (mesh.n_vertices, 3, 3) or R.dtype.kind not in "fi":
+        return f"frames have shape {R.shape} ({R.dtype}), not ({mesh.n_vertices}, 3, 3) floats: one per vertex"
+    if w.shape != (mesh.n_edges, 3) or w.dtype.kind not in "fi":
+        return f"omega has shape {w.shape} ({w.dtype}), not ({mesh.n_edges}, 3) floats: one per tet edge"
+    for name, a in (("frames", R), ("omega", w)):
+        bad = np.argwhere(~np.isfinite(a))
+        if len(bad):
+            return f"{name} hold {a[tuple(bad[0])]} at {tuple(int(x) for x in bad[0])}: values must be finite"
+    off = np.abs(np.einsum("nki,nkj->nij", R, R) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(R)
+    bad = np.nonzero((off > ROTATION_TOL) | (np.abs(det - 1) > ROTATION_TOL))[0]
+    if len(bad):
+        k = bad[0]
+        return (f"{len(bad):,} of the {len(R):,} frames are not rotations, e.g. frame {k} (|R^T R - I| = "
+                f"{off[k]:.3g}, det {det[k]:.4g}); a frame has orthonormal columns and determinant +1")
+    E = mesh.edges
+    miss = np.empty(len(E))
+    for a in range(0, len(E), 100_000):  # in chunks: closest_symmetry holds 24 traces per edge
+        e = E[a:a + 100_000]
+        carried = exp_so3(w[a:a + 100_000]) @ R[e[:, 0]]
+        M = np.einsum("nji,njk->nik", carried, R[e[:, 1]])
+        miss[a:a + len(e)] = np.degrees(rotation_angle(M @ CUBE_GROUP[closest_symmetry(M)]))
+    exact = miss < EXACT_DEG
+    graph = sp.coo_matrix((np.ones(int(exact.sum())), (E[exact, 0], E[exact, 1])), shape=(len(R), len(R)))
+    pieces = connected_components(graph, directed=False)[0]
+    if pieces > 1:
+        return (f"omega does not carry the frames across their edges: a solve develops the frames from omega along "
+                f"a spanning tree, where omega carries them exactly, but here the edges it carries (within "
+                f"{EXACT_DEG:g} degrees) leave the mesh in {pieces:,} pieces (median miss {np.median(miss):.3g} "
+                "degrees); omega and the frames are not one field (Eq. 8)")
+    return ""
