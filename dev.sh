@@ -37,7 +37,9 @@ case "$cmd" in
     demo)   exec "$VENV/bin/python" scripts/symframes_run.py "$@" ;;
     test)   "$VENV/bin/ruff" check --quiet "$ROOT"
             ensure_calculix
-            exec "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile "$@" ;;
+            # one BLAS thread per worker: two workers on two cores, not four threads fighting (-15%)
+            OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}" OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}" \
+                exec "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile "$@" ;;
     lint)   exec "$VENV/bin/ruff" check "$ROOT" "$@" ;;
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
     docs)   exec "$VENV/bin/python" scripts/build_docs.py "$@" ;;

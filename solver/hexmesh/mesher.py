@@ -58,7 +58,7 @@ class _Retry(HexMeshError):
     """A failure of the map at this cell size that a smaller cell may undo."""
 
 
-def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, progress=None, cancel=None,
+def hexmesh(field, cell_size: float | None = None, *, smooth: bool = True, progress=None, cancel=None,
             target_hexes: int = DEFAULT_HEXES, allow_unconverged: bool = False,
             options: HexOptions | None = None) -> HexMesh:
     """A pure hexahedral mesh of a solved field whose irregular edges are the
@@ -66,8 +66,9 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
 
     Parameters
     ----------
-    result : SolvedField, or a solver Result
-        the solved field (``solve(...)``); it must have converged
+    field : SolvedField, or a solver Result
+        the solved field (``solve(...).field``, ``io.load_field(path)``);
+        it must have converged
     cell_size : float, optional
         hex edge length in the units of the surface; default
         (``default_cell_size``): about target_hexes cells, at least 1.5
@@ -113,7 +114,7 @@ def hexmesh(result, cell_size: float | None = None, *, smooth: bool = True, prog
     for name, fn in (("progress", progress), ("cancel", cancel)):
         if fn is not None and not callable(fn):
             raise OptionsError(f"{name} = {checks.describe(fn)}: must be a function or None")
-    inp = hex_input(result, "hexmesh")
+    inp = hex_input(field, "hexmesh")
     note = check_converged(inp, allow_unconverged)
     report = HexReport()
     if note:

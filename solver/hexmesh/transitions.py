@@ -390,12 +390,13 @@ class EdgeField:
     chains: list
 
 
-def field_on_edges(result) -> EdgeField:
-    """The field of a solved field (or a Result) with its curves on tet edges.
+def field_on_edges(field) -> EdgeField:
+    """A solved field on its tet mesh split so that its curves run along tet
+    edges.
 
     Parameters
     ----------
-    result : SolvedField, or a solver Result
+    field : SolvedField, or a solver Result
 
     Returns
     -------
@@ -408,7 +409,7 @@ def field_on_edges(result) -> EdgeField:
         transitions do not close as the network prescribes (then no hex
         mesher can use it either)
     """
-    inp = hex_input(result, "field_on_edges")
+    inp = hex_input(field, "field_on_edges")
     try:
         cem = curves_on_edges(inp.mesh, inp.embedding, inp.network)
     except CurveEdgeError as e:
