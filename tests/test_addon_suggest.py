@@ -1,5 +1,6 @@
-"""Suggest Network in the add-on: a bare domain gets editable curves, which
-Compute Field and Hex Mesh then use as any drawn network."""
+"""Suggest Network in the add-on: a bare domain gets editable curves, the
+solver's suggestion, which Compute Field and Hex Mesh then use as any drawn
+network."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ import pytest
 from tests import addon_package
 from tests.test_addon import scene, scene_state
 
-from symframes.solver import check  # noqa: E402
+from symframes.solver import check, suggest_network  # noqa: E402
 from symframes.solver.examples import icosphere  # noqa: E402
-from symframes.symframes_addon import examples, scene_io, storage  # noqa: E402
+from symframes.symframes_addon import examples, scene_io  # noqa: E402
 
 # isort: on
 
@@ -22,17 +23,24 @@ registered = addon_package.registered
 empty_scene = addon_package.empty_scene
 
 
+def _bare_ball_arrays():
+    return icosphere(3)
+
+
 def _bare_ball():
-    V, F = icosphere(3)
+    V, F = _bare_ball_arrays()
     obj = bpy.data.objects.new("Ball", examples.mesh_from_arrays("Ball", V, F))
     scene().collection.objects.link(obj)
     scene().symframes.domain = obj
     return obj
 
 
-@pytest.mark.slow
-@pytest.mark.mesher
 def test_suggest_network_writes_editable_curves_that_solve_and_mesh():
+    """The curves written are editable curve objects, and read back they are
+    the solver's suggestion itself: the network test_suggest solves and hex
+    meshes (test_sphere_suggestion_solves_and_meshes), so Compute Field and
+    Hex Mesh take them as that test does."""
+    V, F = _bare_ball_arrays()
     _bare_ball()
     assert bpy.ops.symframes.suggest_network() == {"FINISHED"}
     s = scene().symframes
@@ -41,9 +49,22 @@ def test_suggest_network_writes_editable_curves_that_solve_and_mesh():
     assert sum(o.name.startswith("radial") for o in objs) == 8
     inp = scene_io.read_inputs(bpy.context)
     assert check(inp.V, inp.F, inp.network).nodes == 8
-    # the curves as written solve (their hex mesh is test_suggest's, on the same network)
-    assert bpy.ops.symframes.compute() == {"FINISHED"}
-    assert storage.stored_report(scene()).converged
+    want, _ = suggest_network(V, F)
+    got = sorted(inp.network.curves, key=lambda c: c.name)
+    assert [c.name for c in got] == sorted(c.name for c in want.curves)
+    for c, w in zip(got, sorted(want.curves, key=lambda c: c.name)):
+        # the same polyline, read back with points between its own (Blender keeps them in float32)
+        assert c.sigma == w.sigma and c.role == w.role
+        np.testing.assert_allclose(c.points[[0, -1]], w.points[[0, -1]], atol=1e-6)
+        assert _off_polyline(c.points, w.points).max() < 1e-6 and _off_polyline(w.points, c.points).max() < 1e-6
+
+
+def _off_polyline(P, Q):
+    """Distance of each point of P from the polyline Q."""
+    A, B = Q[:-1], Q[1:]
+    AB = B - A
+    t = np.clip(np.einsum("pkj,kj->pk", P[:, None] - A, AB) / np.einsum("kj,kj->k", AB, AB), 0.0, 1.0)
+    return np.linalg.norm(P[:, None] - (A + t[..., None] * AB), axis=2).min(axis=1)
 
 
 def test_suggest_network_is_undone_and_a_refusal_changes_nothing():
