@@ -112,8 +112,8 @@ def main(argv=None) -> int:
     text += f"\n\nMachine: {machine()}, Python {platform.python_version()}."
     print(text)
     if args.write:
-        write_results_block("hex-bench", "Ball at ~50k tets (`./dev.sh python bench/bench_hex.py --runs 2 "
-                            f"--write`):\n\n{text}", "Hex meshing")
+        write_results_block("hex-bench", "Ball at ~50k tets (`./dev.sh python bench/bench_hex.py --runs "
+                            f"{args.runs} --write`):\n\n{text}", "Hex meshing")
     return 0
 
 
