@@ -72,8 +72,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="also write the field as FILE: .vtu (ParaView), .mesh (MEDIT + .fra + .perm, CubeCover), "
                    ".ovm (OpenVolumeMesh) or .qtn (AlgoHex); may be repeated")
     p.add_argument("--hex", action="append", default=[], metavar="FILE",
-                   help="also make a hex mesh and write it as FILE: .vtu, .vtk, .mesh (MEDIT) or .hexex (the "
-                   "integer-grid map, for HexEx / HexHex); may be repeated")
+                   help="also make a hex mesh and write it as FILE: .vtu, .vtk, .mesh (MEDIT), .msh (Gmsh), .inp "
+                   "(Abaqus/CalculiX), .exo (Exodus II), .bdf/.nas (Nastran), .med (MED), .ovm (OpenVolumeMesh) or "
+                   ".hexex (the integer-grid map, for HexEx / HexHex); may be repeated")
     p.add_argument("--cell-size", type=float, metavar="LENGTH", help="with --hex: the hex edge length (default: "
                    "about --hex-cells cells, finer where the network needs it)")
     p.add_argument("--hex-cells", type=int, metavar="N", help="with --hex and no --cell-size: the number of "
@@ -138,10 +139,10 @@ def _check_hex_outputs(args) -> None:
     """Refuse hex-mesh settings and outputs the run could not use, before
     any work."""
     from .hexmesh import DEFAULT_HEXES, MAX_HEXES
-    from .io.hexformats import HEX_FORMATS
+    from .io.hexformats import check_hex_path
 
     for path in args.hex:
-        check_output_path(path, "--hex", HEX_FORMATS)
+        check_hex_path(path, "--hex")
     hexing = args.cell_size is not None or args.hex_cells is not None or args.no_smooth or args.mesh_unconverged
     if hexing and not args.hex:
         raise OptionsError("--cell-size, --hex-cells, --no-smooth and --mesh-unconverged go with --hex FILE (the hex "

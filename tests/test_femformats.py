@@ -1,6 +1,9 @@
-"""Hex meshes for simulation codes (issue 51): boundary patches, Gmsh MSH 4.1
-and Abaqus/CalculiX .inp, each read back by its consumer: Gmsh (the gmsh
-package) and CalculiX (Debian's calculix-ccx, which ./dev.sh installs)."""
+"""Hex meshes for simulation codes (issue 51): boundary patches, Gmsh MSH 4.1,
+Abaqus/CalculiX .inp, Exodus II, Nastran bulk data, MED and hex .ovm, each
+read back by its consumer: Gmsh (the gmsh package, built with MED) for .msh,
+Nastran and MED, CalculiX (Debian's calculix-ccx, which ./dev.sh installs)
+for .inp, VTK's Exodus reader, meshio's Nastran reader, and SymFrames' own
+OpenVolumeMesh reader (OpenVolumeMesh itself: bench/crosscheck_ovm.py)."""
 
 import os
 import re
@@ -201,3 +204,145 @@ def test_vtk_reads_the_exodus_side_sets(plate, tmp_path):
     for i, name in enumerate(hm.patches.names, start=1):
         want = {tuple(sorted(q)) for q in hm.patches.quads[hm.patches.patch == i].tolist()}
         assert {tuple(sorted(q)) for q in got[name].tolist()} == want, name
+
+
+def _gmsh_counts(path):
+    """What Gmsh reads from path: {(dim, entity tag): elements}, {physical
+    name: elements}, its minSJ per hexahedron, node tags and coordinates."""
+    import gmsh
+
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(path)
+        entities = {(d, t): sum(len(x) for x in gmsh.model.mesh.getElements(d, t)[1])
+                    for d, t in gmsh.model.getEntities() if d > 0}
+        groups = {gmsh.model.getPhysicalName(d, t): sum(entities[(d, e)] for e in
+                                                        gmsh.model.getEntitiesForPhysicalGroup(d, t))
+                  for d, t in gmsh.model.getPhysicalGroups()}
+        _, tags, _ = gmsh.model.mesh.getElements(3)
+        q = gmsh.model.mesh.getElementQualities(tags[0], "minSJ")
+        nodes, xyz, _ = gmsh.model.mesh.getNodes()
+        return entities, groups, q, nodes, xyz.reshape(-1, 3)
+    finally:
+        gmsh.finalize()
+
+
+def test_gmsh_and_meshio_read_the_nastran_bulk_data(plate, tmp_path):
+    """Gmsh reads the .bdf with every hexahedron positive (its own minSJ), in
+    the volume of PSOLID 1, and each patch's boundary quads in the surface of
+    its PSHELL (100 + k; Gmsh's Nastran reader makes entities of property
+    ids, not physical groups); meshio reads the same cells back in the same
+    corner order, and the coordinates keep 10 significant digits."""
+    import meshio
+
+    from solver.io.femformats import NASTRAN_PATCH_PID, NASTRAN_SOLID_PID
+
+    hm, _, _ = plate
+    P = hm.patches
+    path = str(tmp_path / "plate.bdf")
+    assert export_hexmesh(hm, path) == [path]
+    entities, groups, q, nodes, xyz = _gmsh_counts(path)
+    per_patch = np.bincount(P.patch)[1:].tolist()
+    assert entities == {(3, NASTRAN_SOLID_PID): len(hm.hexes),
+                        **{(2, NASTRAN_PATCH_PID + i): n for i, n in enumerate(per_patch, start=1)}}
+    assert len(q) == len(hm.hexes) and q.min() > 0.3
+    scale = np.abs(hm.vertices).max()
+    assert len(nodes) == len(hm.vertices)
+    assert np.abs(xyz[np.argsort(nodes)] - hm.vertices).max() <= 1e-9 * scale
+    m = meshio.read(path)
+    blocks = {c.type: (c.data, ref) for c, ref in zip(m.cells, m.cell_data["nastran:ref"])}
+    assert set(blocks) == {"hexahedron", "quad"} and len(m.cells) == 2  # each kind written in one run
+    assert np.array_equal(blocks["hexahedron"][0], hm.hexes) and set(blocks["hexahedron"][1]) == {1}
+    quads, refs = blocks["quad"]
+    order = np.argsort(P.patch, kind="stable")
+    assert np.array_equal(quads, P.quads[order]) and np.array_equal(refs, NASTRAN_PATCH_PID + P.patch[order])
+    assert np.abs(m.points - hm.vertices).max() <= 1e-9 * scale
+    text = open(path).read()
+    assert text.count("PLOTEL") == len(hm.irregular_edges) + len(np.unique(hm.irregular_valence))  # and comments
+    assert max(len(line) for line in text.splitlines()) <= 80
+
+
+def test_gmsh_reads_the_med_with_its_groups(plate, tmp_path):
+    """Gmsh (built with MED) reads the .med with every hexahedron positive
+    (MED's corner order is not VTK's: meshio's MED writer gets this wrong,
+    and Gmsh reads its cells inverted), the patches and the irregular edges
+    as named groups of the right sizes, and the coordinates exactly."""
+    import gmsh
+
+    gmsh.initialize()
+    assert "Med" in gmsh.option.getString("General.BuildOptions").split()
+    gmsh.finalize()
+    hm, _, _ = plate
+    path = str(tmp_path / "plate.med")
+    assert export_hexmesh(hm, path) == [path]
+    _, groups, q, nodes, xyz = _gmsh_counts(path)
+    assert groups == {"volume": len(hm.hexes), "irregular_valence_5": int(np.sum(hm.irregular_valence == 5)),
+                      **{f"patch_{i}": n for i, n in enumerate(np.bincount(hm.patches.patch)[1:].tolist(), start=1)}}
+    assert len(q) == len(hm.hexes) and q.min() > 0.3
+    assert np.array_equal(xyz[np.argsort(nodes)], hm.vertices)
+
+
+def test_med_without_h5py_is_refused_before_any_work(monkeypatch, tmp_path):
+    import sys
+
+    from solver.errors import OutputError
+    from solver.io.hexformats import check_hex_path
+
+    monkeypatch.setitem(sys.modules, "h5py", None)  # import h5py raises ImportError
+    with pytest.raises(OutputError, match="h5py"):
+        check_hex_path(str(tmp_path / "x.med"), "--hex")
+    assert check_hex_path(str(tmp_path / "x.bdf")) == str(tmp_path / "x.bdf")
+
+
+def _oriented_faces(H):
+    """Per hexahedron, the set of its faces as loops out of it, each from its smallest corner."""
+    from solver.hexmesh.quality import HEX_FACES
+
+    F = H[:, HEX_FACES]
+    r = np.argmin(F, axis=2)[..., None]
+    F = np.take_along_axis(F, (r + np.arange(4)) % 4, axis=2)
+    return [frozenset(map(tuple, f)) for f in F.tolist()]
+
+
+def test_hex_ovm_reads_back_with_its_properties(plate, tmp_path):
+    """The hex .ovm read back (read_hex_ovm, which checks that each cell's six
+    halffaces are one hexahedron's faces, all into the cell): the same
+    vertices, the same hexahedra with the same orientation, the patch of every
+    boundary face, the hexahedra around each edge (valence 5 exactly at the
+    irregular edges inside), the scaled Jacobian; a flipped halfface and a tet
+    file are refused."""
+    from solver.errors import ReadError
+    from solver.hexmesh.quality import HEX_EDGES
+    from solver.io import read_hex_ovm
+    from solver.io.ovm import OVM_HEX_FACES, read_ovm
+
+    hm, _, _ = plate
+    P = hm.patches
+    path = str(tmp_path / "plate.ovm")
+    assert export_hexmesh(hm, path) == [path]
+    d = read_hex_ovm(path)
+    assert np.array_equal(d.vertices, hm.vertices) and d.tets.shape == (0, 4)
+    assert _oriented_faces(d.hexes) == _oriented_faces(hm.hexes)
+    patch = d.props["face"]["patch"]
+    assert np.array_equal(np.bincount(patch, minlength=len(P.names) + 1)[1:], np.bincount(P.patch)[1:])
+    assert np.sum(patch > 0) == len(P.quads)
+    E = np.sort(hm.hexes[:, HEX_EDGES].reshape(-1, 2), axis=1)
+    e, n = np.unique(E, axis=0, return_counts=True)
+    assert np.array_equal(d.edges, e) and np.array_equal(d.props["edge"]["valence"], n)
+    irregular = {tuple(x) for x in np.sort(hm.irregular_edges[hm.irregular_valence == 5], axis=1).tolist()}
+    assert {tuple(x) for x in e[n == 5].tolist()} == irregular
+    assert np.allclose(d.props["cell"]["scaled_jacobian"], hm.scaled_jacobian, rtol=0, atol=1e-15)
+    assert OVM_HEX_FACES.tolist() == [0, 1, 4, 2, 5, 3]
+    lines = open(path).read().split("\n")
+    first = lines.index("Polyhedra") + 2
+    cell = lines[first].split()
+    cell[1] = str(int(cell[1]) ^ 1)  # the cell's first halfface turned out of it
+    lines[first] = " ".join(cell)
+    bad = str(tmp_path / "flipped.ovm")
+    open(bad, "w").write("\n".join(lines))
+    with pytest.raises(ReadError, match=rf"flipped.ovm:{first + 1}: cell 0: .* not the six faces of one hexahedron"):
+        read_hex_ovm(bad)
+    with pytest.raises(ReadError, match="face 0 has 4 halfedges; only tetrahedral meshes are supported"):
+        read_ovm(path, ReadError)
+

@@ -22,11 +22,20 @@
                    (``patch_1``, ...; Exodus' side numbers) and the
                    irregular edges' nodes as the node set
                    ``irregular_edges``
+``write_hex_nastran``  Nastran bulk data: ``GRID*``, ``CHEXA`` in a
+                   ``PSOLID``, per patch its boundary ``CQUAD4`` in a
+                   ``PSHELL`` of its own (no stiffness), the irregular
+                   edges as ``PLOTEL``
+``write_hex_med``  MED (HDF5, written with h5py): ``HE8`` cells in the
+                   group ``volume``, per patch its boundary ``QU4`` in a
+                   family and group named as the patch, the irregular
+                   edges as ``SE2`` in a group per valence
 
-Corner order: Gmsh's 8-node hexahedron, Exodus' HEX8 and Abaqus' C3D8 all number the
-corners as VTK does (one face, then the opposite one, counter-clockwise
-seen from outside the first), so cells are written as SymFrames holds them.
-Both files are written whole or not at all (atomic.py).
+Corner order: Gmsh's 8-node hexahedron, Exodus' HEX8, Abaqus' C3D8 and Nastran's
+CHEXA all number the corners as VTK does (one face, then the opposite one,
+counter-clockwise seen from outside the first), so cells are written as
+SymFrames holds them; MED's HEXA8 runs the other way round both faces
+(``MED_HEXA8``).  Every file is written whole or not at all (atomic.py).
 """
 
 from __future__ import annotations
@@ -246,5 +255,171 @@ def write_hex_exodus(path: str, vertices: np.ndarray, hexes: np.ndarray, patches
         nc.flush()
         out.write(fh.getvalue())
         nc.close()
+
+    write_files({path: write})
+
+
+def _nastran_reals(x: np.ndarray, path: str) -> np.ndarray:
+    """Coordinates as Nastran large-field reals: 16 characters, 10
+    significant digits ('%.9E'); a value below 1e-99 in size is 0 and one of
+    1e100 or more is refused (it would not fit)."""
+    from ..errors import OutputError
+
+    x = np.where(np.abs(x) < 1e-99, 0.0, x)
+    if np.any(np.abs(x) >= 1e100):
+        raise OutputError(f"{path}: a coordinate of {np.abs(x).max():.3g} does not fit a Nastran field of 16 "
+                          "characters; scale the mesh")
+    return x
+
+
+NASTRAN_SOLID_PID = 1
+"""The PSOLID of the hexahedra."""
+NASTRAN_PATCH_PID = 100
+"""Patch k's boundary quads have the PSHELL ``NASTRAN_PATCH_PID + k``."""
+
+
+def write_hex_nastran(path: str, vertices: np.ndarray, hexes: np.ndarray, patches=None, irregular_edges=None,
+                      irregular_valence=None, title: str = "SymFrames hex mesh") -> None:
+    """Nastran bulk data (``.bdf``, ``.nas``) between ``BEGIN BULK`` and
+    ``ENDDATA``: the nodes as large-field ``GRID*`` (16 columns, 10
+    significant digits), the hexahedra as ``CHEXA`` (small fields, one
+    continuation; VTK's corner order, which CHEXA shares) with ``PSOLID``
+    ``NASTRAN_SOLID_PID`` and a placeholder ``MAT1`` 1 (E = 1, nu = 0.3:
+    set the material), and per patch k its boundary quads as ``CQUAD4``
+    (outward) with their own ``PSHELL`` ``NASTRAN_PATCH_PID + k`` (T = 1)
+    and no material: MID1 and MID2 blank give no membrane and no bending
+    stiffness (a comment names each patch);
+    Gmsh reads each property id as an entity, meshio as ``nastran:ref``.
+    The irregular edges are ``PLOTEL`` (plot elements, no stiffness), a
+    comment naming the element ids of each valence.  Element ids: hexahedra
+    1..m, then the quads, then the edges.  Ids past 99,999,999 (8
+    columns) are refused."""
+    from ..errors import OutputError
+
+    V = _nastran_reals(np.asarray(vertices, float), path)
+    H = np.asarray(hexes, np.int64)
+    quads, names, edges = _groups(patches, irregular_edges, irregular_valence)
+    n_el = len(H) + sum(len(q) for q in quads.values()) + sum(len(e) for e in edges.values())
+    if max(len(V), n_el) > 99_999_999:
+        raise OutputError(f"{path}: {max(len(V), n_el):,} nodes or elements: Nastran's 8-column ids stop at "
+                          "99,999,999; write .msh or .exo")
+    head = [f"$ {title.replace(chr(10), ' ')[:70]}\n", f"$ {len(V):,} GRID*, {len(H):,} CHEXA"
+            + (f", {sum(len(q) for q in quads.values()):,} boundary CQUAD4" if quads else "") + "\n",
+            "$ Nastran bulk data: add the executive and case control decks\n",
+            f"$ PSOLID {NASTRAN_SOLID_PID}: the hexahedra; MAT1 1: a placeholder (set E, nu)\n",
+            "$ PSHELL: the boundary quads of a patch (outward; no material, no stiffness)\n"]
+    head += [f"$ PSHELL {NASTRAN_PATCH_PID + i}: {n[:60]}\n" for i, n in names.items()]
+    out = head + ["BEGIN BULK\n", f"MAT1    {1:>8d}{'1.0':>8s}{'':8s}{'0.3':>8s}\n",
+                  f"PSOLID  {NASTRAN_SOLID_PID:>8d}{1:>8d}\n"]
+    out += [f"PSHELL  {NASTRAN_PATCH_PID + i:>8d}{'':8s}{'1.0':>8s}\n" for i in names]  # MID1, MID2 blank
+    ids = np.arange(1, len(V) + 1)
+    out.append(("GRID*   %16d%16s%16.9E%16.9E\n*       %16.9E\n" * len(V))
+               % tuple(x for row in zip(ids.tolist(), [""] * len(V), *V.T.tolist()) for x in row))
+    eid = 1
+    out.append(("CHEXA   " + "%8d" * 8 + "+\n+       %8d%8d\n") * len(H)
+               % tuple(np.c_[np.arange(eid, eid + len(H)), np.full(len(H), NASTRAN_SOLID_PID), H + 1]
+                       .reshape(-1).tolist()))
+    eid += len(H)
+    for i, q in quads.items():
+        out.append(("CQUAD4  " + "%8d" * 6 + "\n") * len(q)
+                   % tuple(np.c_[np.arange(eid, eid + len(q)), np.full(len(q), NASTRAN_PATCH_PID + i), q + 1]
+                           .reshape(-1).tolist()))
+        eid += len(q)
+    for v, e in edges.items():
+        out.append(f"$ irregular edges of valence {v}: PLOTEL {eid} to {eid + len(e) - 1}\n")
+        out.append(("PLOTEL  %8d%8d%8d\n" * len(e)) % tuple(np.c_[np.arange(eid, eid + len(e)), e + 1]
+                                                           .reshape(-1).tolist()))
+        eid += len(e)
+    out.append("ENDDATA\n")
+    write_text(path, "".join(out))
+
+
+MED_HEXA8 = np.array([0, 3, 2, 1, 4, 7, 6, 5])
+"""MED's HEXA8 corners as VTK corners: MED corner k is VTK corner
+``MED_HEXA8[k]`` (and back: the map is its own inverse).  MED numbers the
+first face 1-2-3-4 with its normal out of the cell, VTK the other way
+(Gmsh's GModelIO_MED.cpp, ``med2mshNodeIndex``; Gmsh numbers hexahedra as
+VTK does).  QUAD4 and SEG2 corners are the same in both."""
+
+
+def write_hex_med(path: str, vertices: np.ndarray, hexes: np.ndarray, patches=None, irregular_edges=None,
+                  irregular_valence=None, mesh_name: str = "symframes") -> None:
+    """MED (``.med``, HDF5: Salome, Code_Aster), MED 3.0 layout: one
+    unstructured 3D mesh of ``HE8`` cells (MED's corner order,
+    ``MED_HEXA8``) in family -1 with the group ``volume``, per patch k its
+    boundary quads as ``QU4`` (outward) in family -(k + 1) with a group
+    named as the patch (``patch_1``, ...), and the irregular edges as
+    ``SE2`` in a family and group per valence (``irregular_valence_3``,
+    ...), as Gmsh's .msh has them.  Written with h5py (HDF5 1.8 file format,
+    which older MED libraries read); raises OutputError when h5py is not
+    installed."""
+    from ..errors import OutputError
+
+    try:
+        import h5py
+    except ImportError:
+        raise OutputError(f"{path}: MED files are HDF5, written with h5py, which is not installed (pip install "
+                          "h5py); write .msh or .exo instead, or convert one with Gmsh") from None
+    V = np.asarray(vertices, float)
+    H = np.asarray(hexes, np.int64)
+    quads, names, edges = _groups(patches, irregular_edges, irregular_valence)
+    families = [(-1, "volume", "HE8", H[:, MED_HEXA8])]
+    families += [(-1 - i, names[i], "QU4", q) for i, q in quads.items()]
+    families += [(-1 - len(names) - k, f"irregular_valence_{v}", "SE2", e)
+                 for k, (v, e) in enumerate(edges.items(), start=1)]
+
+    def name80(s: str, size: int) -> np.ndarray:
+        b = s.encode()[:size]
+        return np.frombuffer(b + b"\0" * (size - len(b)), np.int8)
+
+    def write(out):
+        fh = io.BytesIO()
+        with h5py.File(fh, "w", libver=("earliest", "v108")) as f:
+            info = f.create_group("INFOS_GENERALES")
+            for k, v in (("MAJ", 3), ("MIN", 0), ("REL", 0)):
+                info.attrs.create(k, v, dtype=np.int32)
+            mesh = f.create_group("ENS_MAA").create_group(mesh_name)
+            for k, v in (("DIM", 3), ("ESP", 3), ("REP", 0), ("SRT", 1), ("TYP", 0)):
+                mesh.attrs.create(k, v, dtype=np.int32)
+            mesh.attrs.create("UNT", np.bytes_(""))
+            mesh.attrs.create("UNI", np.bytes_(""))
+            mesh.attrs.create("NOM", np.bytes_("".join(f"{c:<16}" for c in "XYZ")))
+            mesh.attrs.create("DES", np.bytes_("SymFrames hex mesh"))
+            step = mesh.create_group("-0000000000000000001-0000000000000000001")  # no time step, no iteration
+            for k, v in (("CGT", 1), ("NDT", -1), ("NOR", -1)):
+                step.attrs.create(k, v, dtype=np.int32)
+            step.attrs.create("PDT", -1.0)
+
+            def entity(group, data, fam, key):
+                group.attrs.create("CGT", 1, dtype=np.int32)
+                group.attrs.create("CGS", 1, dtype=np.int32)
+                group.attrs.create("PFL", np.bytes_("MED_NO_PROFILE_INTERNAL"))
+                for name, a in ((key, data), ("FAM", fam)):
+                    d = group.create_dataset(name, data=a)
+                    d.attrs.create("CGT", 1, dtype=np.int32)
+                    d.attrs.create("NBR", len(fam), dtype=np.int32)
+
+            # MED stores component by component (no interlace)
+            entity(step.create_group("NOE"), V.reshape(-1, order="F"), np.zeros(len(V), np.int32), "COO")
+            cells = step.create_group("MAI")
+            cells.attrs.create("CGT", 1, dtype=np.int32)
+            by_type: dict = {}
+            for num, _, typ, conn in families:
+                by_type.setdefault(typ, []).append((num, conn))
+            for typ, blocks in by_type.items():
+                conn = np.concatenate([c for _, c in blocks])
+                fam = np.concatenate([np.full(len(c), num, np.int32) for num, c in blocks])
+                entity(cells.create_group(typ), (conn + 1).astype(np.int32).reshape(-1, order="F"), fam, "NOD")
+            fas = f.create_group("FAS").create_group(mesh_name)
+            fas.create_group("FAMILLE_ZERO").attrs.create("NUM", 0, dtype=np.int32)
+            eleme = fas.create_group("ELEME")
+            for num, group, _, _ in families:
+                fam = eleme.create_group(f"FAM_{num}_{group}"[:64])
+                fam.attrs.create("NUM", num, dtype=np.int32)
+                gro = fam.create_group("GRO")
+                gro.attrs.create("NBR", 1, dtype=np.int32)
+                nom = gro.create_dataset("NOM", (1,), dtype="80int8")  # an array of 80 characters per group
+                nom[0] = name80(group, 80)
+        out.write(fh.getvalue())
 
     write_files({path: write})

@@ -15,6 +15,16 @@
             and a surface per boundary patch (femformats.py)
 ``.exo``    Exodus II, a HEX8 block and a side set per boundary patch
             (femformats.py)
+``.bdf``    Nastran bulk data (also ``.nas``): GRID*, CHEXA, and per patch
+            its boundary CQUAD4 with a property id of its own
+            (femformats.py)
+``.med``    MED (Salome, Code_Aster; HDF5, needs h5py): HE8 cells, and per
+            patch its boundary QU4 in a family and group of its own
+            (femformats.py)
+``.ovm``    OpenVolumeMesh ASCII (HexHex, AlgoHex, the OVM tools): quad
+            faces, six halffaces per cell in OpenVolumeMesh's hexahedron
+            order, the patch per face and the hexahedra per edge as
+            properties (ovm.py)
 ``.hexex``  the integer-grid map per tet corner (HexEx / libHexHex / QGP3D
             input): vertex count, ``x y z`` lines, tet count, then per tet
             its four vertex ids (positively oriented) and the 4 x 3
@@ -34,13 +44,47 @@ import numpy as np
 
 from ..errors import OutputError, ReadError
 from .atomic import check_output_path, write_text
-from .femformats import write_hex_exodus, write_hex_inp, write_hex_msh
+from .femformats import write_hex_exodus, write_hex_inp, write_hex_med, write_hex_msh, write_hex_nastran
 from .medit import write_medit
+from .ovm import write_hex_ovm
 from .text import Tokens, format_rows
 from .vtu import VTK_HEXAHEDRON, write_vtu
 
 HEX_FORMATS = {".vtu": "VTK XML", ".vtk": "legacy VTK", ".mesh": "MEDIT", ".msh": "Gmsh MSH 4.1",
-               ".inp": "Abaqus/CalculiX input", ".exo": "Exodus II", ".hexex": "HexEx integer-grid map"}
+               ".inp": "Abaqus/CalculiX input", ".exo": "Exodus II", ".bdf": "Nastran bulk data",
+               ".nas": "Nastran bulk data", ".med": "MED (Salome, Code_Aster)", ".ovm": "OpenVolumeMesh",
+               ".hexex": "HexEx integer-grid map"}
+
+
+def check_hex_path(path: str, what: str = "hex mesh") -> str:
+    """Refuse, before any work, a hex-mesh output path that could not be
+    written: ``atomic.check_output_path`` against ``HEX_FORMATS``, and a
+    ``.med`` without h5py.
+
+    Parameters
+    ----------
+    path : str
+    what : str
+        how the message names the path (a flag such as ``--hex``)
+
+    Returns
+    -------
+    str
+        the path
+
+    Raises
+    ------
+    OutputError
+        naming the path and the cause
+    """
+    check_output_path(path, what, HEX_FORMATS)
+    if os.path.splitext(path)[1].lower() == ".med":
+        try:
+            import h5py  # noqa: F401
+        except ImportError:
+            raise OutputError(f"{what} {path}: MED files are HDF5, written with h5py, which is not installed (pip "
+                              "install h5py); write .msh or .exo instead") from None
+    return path
 
 
 def write_hex_vtk(path: str, vertices: np.ndarray, hexes: np.ndarray, cell_data: dict | None = None) -> None:
@@ -136,7 +180,8 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     ----------
     hex_mesh : hexmesh.HexMesh
     path : str
-        ``.vtu``, ``.vtk``, ``.mesh``, ``.msh``, ``.inp``, ``.exo`` or ``.hexex``
+        ``.vtu``, ``.vtk``, ``.mesh``, ``.msh``, ``.inp``, ``.exo``, ``.bdf`` / ``.nas``, ``.med``,
+        ``.ovm`` or ``.hexex``
 
     Returns
     -------
@@ -148,7 +193,8 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     OutputError
         hex_mesh not a HexMesh, an unknown extension, a path that cannot be written (checked before
         anything is made: atomic.check_output_path), ``.hexex`` for a mesh
-        without its map, or a write that fails (the old file, or none, is left)
+        without its map, ``.med`` without h5py, Nastran ids past 99,999,999, or a
+        write that fails (the old file, or none, is left)
     """
     from ..hexmesh import HexMesh
 
@@ -157,7 +203,7 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
 
         shown = describe(hex_mesh) if not hasattr(hex_mesh, "__dict__") else f"a {type(hex_mesh).__name__}"
         raise OutputError(f"export_hexmesh: hex_mesh = {shown}: must be a HexMesh (hexmesh(result))")
-    check_output_path(path, "hex mesh", HEX_FORMATS)
+    check_hex_path(path)
     ext = os.path.splitext(path)[1].lower()
     V, H = hex_mesh.vertices, hex_mesh.hexes
     sj = np.asarray(hex_mesh.scaled_jacobian, float)
@@ -175,6 +221,12 @@ def export_hexmesh(hex_mesh, path: str) -> list[str]:
     elif ext == ".inp":
         write_hex_inp(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges,
                       heading=f"SymFrames hex mesh: {len(H)} C3D8 hexahedra")
+    elif ext in (".bdf", ".nas"):
+        write_hex_nastran(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges, hex_mesh.irregular_valence)
+    elif ext == ".med":
+        write_hex_med(path, V, H, hex_mesh.patches, hex_mesh.irregular_edges, hex_mesh.irregular_valence)
+    elif ext == ".ovm":
+        write_hex_ovm(path, V, H, hex_mesh.patches, sj)
     elif ext == ".hexex":
         gm = hex_mesh.grid_map
         if gm is None:
