@@ -104,6 +104,9 @@ class Report:
             lines.append(f"  boundary snapped onto the input's sharp features: {self.sizes['snapped_vertices']:,} "
                          f"vertices moved" + (f", {kept:,} left where fTetWild put them (the move was too "
                                               f"long or would have flattened a tet)" if kept else ""))
+        if self.sizes.get("cleared_vertices"):
+            lines.append(f"  {self.sizes['cleared_vertices']:,} interior vertices moved off the curves (no tet "
+                         "vertex or edge on a curve, mesh/clearance.py)")
         rep = repairs_text(self.repairs, self.repair_scale)
         if rep:
             lines.append(rep)

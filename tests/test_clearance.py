@@ -58,3 +58,84 @@ def test_sharp_vertices_never_move():
     k = np.argmin(np.linalg.norm(V - corner, axis=1))
     assert np.allclose(out.V[k], corner)
     assert np.linalg.norm(out.V - mid_face, axis=1).min() > 0.05 and moved >= 1
+
+
+# ---------------------------------------------------------------------------
+# inside the solid: the tet mesh's vertices and edges off the curves
+
+
+def _box_mesh(n: int = 6):
+    """A structured tet mesh of the unit cube (6 tets per cell), deterministic."""
+    from solver.mesh.tetmesh import TetMesh
+
+    g = np.linspace(0.0, 1.0, n + 1)
+    X = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
+    c = np.stack([idx[:-1, :-1, :-1], idx[1:, :-1, :-1], idx[1:, 1:, :-1], idx[:-1, 1:, :-1],
+                  idx[:-1, :-1, 1:], idx[1:, :-1, 1:], idx[1:, 1:, 1:], idx[:-1, 1:, 1:]], -1).reshape(-1, 8)
+    kuhn = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
+    T = np.vstack([c[:, list(k)] for k in kuhn])
+    vol = np.einsum("ij,ij->i", np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]), X[T[:, 3]] - X[T[:, 0]])
+    T[vol < 0] = T[vol < 0][:, [0, 2, 1, 3]]
+    return TetMesh(X, T)
+
+
+def _segment_distances(P, Q, curve):
+    from solver.mesh.clearance import _segments_distance
+
+    return _segments_distance(P, Q, curve[:-1], curve[1:]).min(axis=1)
+
+
+def test_interior_vertices_and_edges_move_off_a_curve():
+    """A curve through interior mesh vertices and along a tet edge (the
+    configuration where a quarter turn is packed into slivers and LM ends
+    above the discretisation level): afterwards no interior vertex lies
+    within INNER_CLEAR local edges of it and no edge between vertices clear
+    of it within INNER_EDGE_CLEAR (an edge from a boundary vertex on the
+    curve, at its ends, cannot be), every tet keeps its orientation, the boundary
+    stays where it was, and the input mesh is not touched."""
+    from solver.mesh.clearance import INNER_CLEAR, INNER_EDGE_CLEAR, clear_curves
+
+    mesh = _box_mesh(6)
+    X0 = mesh.vertices.copy()
+    # through the grid vertices at x = y = 1/2 (along the cells' edges), then
+    # across the cube diagonally through more vertices
+    curve = np.vstack([np.linspace([0.5, 0.5, 0.0], [0.5, 0.5, 0.5], 4),
+                       np.linspace([0.5, 0.5, 0.5], [1.0, 1.0, 1.0], 4)[1:]])
+    out, moved = clear_curves(mesh, [curve])
+    assert moved > 0 and out is not mesh
+    assert np.array_equal(mesh.vertices, X0)
+    b = mesh.is_boundary_vertex
+    assert np.array_equal(out.vertices[b], X0[b])
+    assert out.tet_volumes.min() > 0
+    E, L = mesh.edges, mesh.edge_lengths  # the local edge lengths as the clearing measures them
+    h_loc = np.bincount(E.reshape(-1), np.repeat(L, 2), len(X0)) / np.bincount(E.reshape(-1))
+    inner = ~b
+    dv = _segment_distances(out.vertices[inner], out.vertices[inner], curve)
+    assert np.all(dv >= 0.99 * INNER_CLEAR * h_loc[inner]), dv.min()
+    dall = _segment_distances(out.vertices, out.vertices, curve)
+    clear = dall >= INNER_CLEAR * h_loc
+    movable = (inner[E[:, 0]] | inner[E[:, 1]]) & clear[E[:, 0]] & clear[E[:, 1]]
+    assert movable.sum() > 0.9 * (inner[E[:, 0]] | inner[E[:, 1]]).sum()
+    de = _segment_distances(out.vertices[E[movable, 0]], out.vertices[E[movable, 1]], curve)
+    he = 0.5 * (h_loc[E[movable, 0]] + h_loc[E[movable, 1]])
+    assert np.all(de >= 0.99 * INNER_EDGE_CLEAR * he), (de / he).min()
+    # before: vertices and edges on the curve
+    assert _segment_distances(X0[inner], X0[inner], curve).min() < 1e-12
+
+
+def test_a_mesh_clear_of_the_curves_and_the_skipped_balls_stay_as_they_are():
+    """Nothing near a curve: the mesh itself comes back; a vertex within a
+    skipped ball (a node region) never moves."""
+    from solver.mesh.clearance import clear_curves
+
+    mesh = _box_mesh(4)
+    # inside the cells, off their diagonal planes
+    clear = np.linspace([0.4, 0.3, 0.1], [0.4, 0.3, 0.9], 5)
+    out, moved = clear_curves(mesh, [clear])
+    assert out is mesh and moved == 0
+    through = np.linspace([0.5, 0.5, 0.0], [0.5, 0.5, 1.0], 5)
+    out, moved = clear_curves(mesh, [through], skip=[(np.array([0.5, 0.5, 0.5]), 0.1)])
+    assert moved > 0
+    near = np.linalg.norm(mesh.vertices - 0.5, axis=1) <= 0.1
+    assert np.array_equal(out.vertices[near], mesh.vertices[near])

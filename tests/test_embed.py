@@ -203,7 +203,7 @@ def test_bent_tubes_carry_no_structure_error():
     res[vp.faces] = vp.se.residual(r.omega)
     faces = _all_tube_faces(r.problem)
     changed = np.linalg.norm(r.structure_omega - r.embedding.face_omega, axis=1)[faces]
-    assert len(faces) > 50 and changed.max() > 1e-3
+    assert len(faces) > 30 and changed.max() > 1e-3  # (the tubes' ends on the sphere are free: END_FREE)
     assert vp.a * np.sum(res[faces] ** 2) < 1.0
     assert r.report.converged, r.report.status_reason
 
@@ -219,6 +219,8 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     stretched into a 2 x 1 x 0.6 ellipsoid, its ends bent onto the normal:
     50 of 851 tube faces, penalty 275).  Settled against the winding seen
     from the curve (constraints._settle_windings): 6."""
+    import solver.field.constraints as constraints
+    import solver.mesh.meshing as meshing
     import solver.mesh.resolution as resolution
     from solver import Curve, FieldProblem, Network, Options
     from solver.examples import ball_example
@@ -238,6 +240,12 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
         return P, need
 
     monkeypatch.setattr(resolution, "network_needs", needs_and_bends)
+    # as the meshes this was seen on: the tube edges at the curves' ends
+    # constrained (now left free: constraints.END_FREE) and the vertices near
+    # the curves where the mesher put them (now moved off: clearance.py, which
+    # leaves the per-vertex measure nothing to get wrong here)
+    monkeypatch.setattr(constraints, "END_FREE", 0.0)
+    monkeypatch.setattr(meshing, "clear_curves", lambda mesh, curves, skip=None: (mesh, 0))
     V, F, net = ball_example()
     S = np.array([2.0, 1.0, 0.6])
     net = Network(curves=[Curve(c.points * S, sigma=c.sigma, name=c.name) for c in net.curves])

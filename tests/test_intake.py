@@ -759,3 +759,31 @@ def test_an_end_near_a_sharp_edge_never_slides_across_it():
     assert abs((q - c1) @ normal) < 1e-6, q  # on its own face
     to_edge = float(np.linalg.norm(q[:2] - c1[:2]))
     assert to_edge >= SHARP_CLEAR * checked.scale - 1e-9, (to_edge, checked.scale)
+
+
+def test_a_loop_routed_along_tet_edges_is_no_corner():
+    """A closed singular loop of radius 4.5 edges, as a chain of tet edges
+    that detours by an edge to either side in places (the O-grid torus's
+    loops routed through an independent tet mesh, bench/hexnet_tetedge.json,
+    were refused as 'a corner of the curve as given'): on so tight an arc a
+    detour turns by over 45 degrees between chords of two edges and of four,
+    like a corner, but its arms are as rough as the chain, where a corner's
+    are straight.  It is faired into a smooth loop (the held corners'
+    rule alone: 3 corners kept, and the loop refused)."""
+    from solver.network.fairing import MAX_KINK, fair_curve
+
+    n = 28
+    t = 2 * np.pi * np.arange(n) / n
+    P = np.c_[0.9 * np.cos(t), 0.9 * np.sin(t), np.zeros(n)]
+    P[5] *= 1.22
+    P[17] *= 0.78
+    P[9, 2] += 0.12
+    P[22, 2] -= 0.1
+    P = np.vstack([P, P[:1]])
+    h = 0.15
+    Q, _, ell, corners, _ = fair_curve(P, h, True)
+    assert corners == 0
+    assert turning(Q, 0.5 * h, True).max() < MAX_KINK / 2
+    # it stays the loop it was: within an edge of the chain
+    d = np.linalg.norm(Q[:, None] - P[None], axis=2).min(axis=1)
+    assert d.max() < ell

@@ -273,7 +273,7 @@ def read_ovm(path: str, error=NetworkError) -> OVMData:
     return _read_ovm(path, error, "tet")
 
 
-def read_hex_ovm(path: str, error=ReadError) -> OVMData:
+def read_hex_ovm(path: str, *, error=ReadError) -> OVMData:
     """Read an OpenVolumeMesh ASCII hex mesh with its properties (format in
     ``write_hex_ovm``), checking everything it reads, as ``read_ovm`` does a
     tet mesh: faces are quads of halfedges that close a loop, and each cell

@@ -176,3 +176,227 @@ def _close_edges(V: np.ndarray, faces: np.ndarray, x: np.ndarray, tol: float) ->
     inner = (t > 1e-6) & (t < 1 - 1e-6)
     return [tuple(e) for e in E[(d < tol) & inner].tolist()]
 
+
+
+# ---------------------------------------------------------------------------
+# inside the solid: the tet mesh's vertices and edges off the curves
+
+INNER_CLEAR = 0.2  # no interior vertex within this many local edge lengths of a curve ...
+INNER_EDGE_CLEAR = 0.05  # ... and no tet edge within this many (the lightest touch that clears the cases measured)
+INNER_MOVE = 0.35  # a vertex moves at most this fraction of its shortest edge
+KEEP_QUALITY = 0.8  # ... and its tets keep at least this fraction of their least mean-ratio quality
+_DIRECTIONS = 16  # candidate directions in the plane across the curve (and as many tilted by 45 degrees)
+
+
+def clear_curves(mesh, curves: list, skip: list | None = None, rounds: int = 2):
+    """The tet mesh with no interior vertex within ``INNER_CLEAR`` of a
+    local edge length of a curve and no edge within ``INNER_EDGE_CLEAR``.
+
+    A curve that passes by a tet vertex or along a tet edge pierces the
+    faces around it at their corners: their quarter turn is packed into a
+    sliver and the edges there turn by 60-85 degrees, where the
+    second-order structure equation (Eq. 17) no longer holds, so LM ends at
+    a penalty above the discretisation level in a handful of faces.  Where
+    a curve meets a curved surface (no tube cap, tubes.py) this is the rule
+    rather than chance: the last tet sits on the end's boundary triangle
+    with its apex above it, close to the curve coming in along the normal.
+    (A radial curve of a cube-sphere ellipsoid passing 0.007 h from such an
+    apex's edge: 95 % of the penalty 11.2 in 4 faces, above the level 8.4.)
+
+    Each offending interior vertex moves to the best of a few candidate
+    places across the curve (at most ``INNER_MOVE`` of its shortest edge):
+    of those where its own clearance and its edges' are largest, the one
+    where its tets are best, provided they keep their orientation and
+    ``KEEP_QUALITY`` of their least quality.
+    Boundary vertices never move, nor vertices within a ball of ``skip``
+    (node regions: their faces carry no structure equation).
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    curves : list of (n, 3) float arrays
+        The curves' polylines.
+    skip : list of (centre (3,), radius) pairs, optional
+    rounds : int
+        Passes (a move can bring a neighbour's edge closer).
+
+    Returns
+    -------
+    mesh : TetMesh
+        ``mesh`` itself where nothing moved, else a new mesh.
+    moved : int
+        The vertices moved.
+    """
+    from .tetmesh import TetMesh
+
+    curves = [np.asarray(c, float) for c in curves if len(c) >= 2]
+    if not curves:
+        return mesh, 0
+    A = np.vstack([c[:-1] for c in curves])
+    B = np.vstack([c[1:] for c in curves])
+    seg = np.linalg.norm(B - A, axis=1)
+    keep = seg > 0
+    A, B = A[keep], B[keep]
+    seg_tree = cKDTree(0.5 * (A + B))
+    half = 0.5 * float(seg[keep].max()) if keep.any() else 0.0
+    X = mesh.vertices.copy()
+    T = mesh.tets
+    E = mesh.edges
+    L = mesh.edge_lengths
+    nv = len(X)
+    h_loc = np.bincount(E.reshape(-1), np.repeat(L, 2), nv) / np.maximum(np.bincount(E.reshape(-1), minlength=nv), 1)
+    shortest = np.full(nv, np.inf)
+    np.minimum.at(shortest, E[:, 0], L)
+    np.minimum.at(shortest, E[:, 1], L)
+    movable = ~mesh.is_boundary_vertex
+    for c, r in skip or []:
+        movable &= np.linalg.norm(X - np.asarray(c, float), axis=1) > r
+    vt = _incidence(T, nv)
+    ve = _incidence(E, nv)
+    moved = np.zeros(nv, bool)
+    for _ in range(rounds):
+        bad, near = _offenders(X, E, h_loc, movable, A, B, seg_tree, half)
+        if not len(bad):
+            break
+        changed = False
+        for v in bad:
+            changed |= _move_vertex(X, T, E, v, vt[v], ve[v], h_loc, shortest[v], A, B, seg_tree, half, moved, near)
+        if not changed:
+            break
+    if not moved.any():
+        return mesh, 0
+    return TetMesh(X, T.copy()), int(moved.sum())
+
+
+def _incidence(C: np.ndarray, n: int) -> list:
+    """For each of n vertices, the rows of C holding it."""
+    flat = C.reshape(-1)
+    order = np.argsort(flat, kind="stable")
+    rows = (order // C.shape[1]).astype(np.int64)
+    return np.split(rows, np.cumsum(np.bincount(flat, minlength=n))[:-1])
+
+
+def _mean_ratio(X: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Signed mean-ratio quality of tets: 1 regular, 0 flat, < 0 inverted."""
+    P = X[T]
+    vol = np.einsum("ij,ij->i", np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), P[:, 3] - P[:, 0]) / 6.0
+    pairs = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
+    l2 = sum(np.einsum("ij,ij->i", P[:, a] - P[:, b], P[:, a] - P[:, b]) for a, b in pairs)
+    return 12.0 * (3.0 * np.abs(vol)) ** (2.0 / 3.0) / np.maximum(l2, 1e-300) * np.sign(vol)
+
+
+def _near_segments(x: np.ndarray, reach: float, seg_tree, half: float) -> np.ndarray:
+    return np.asarray(seg_tree.query_ball_point(x, reach + half), dtype=np.int64)
+
+
+def _segments_distance(P: np.ndarray, Q: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Distance between segments P->Q (k, 3) and A->B (s, 3), all pairs: (k, s)."""
+    d1 = (Q - P)[:, None, :]
+    d2 = (B - A)[None, :, :]
+    r = P[:, None, :] - A[None, :, :]
+    a = np.einsum("kij,kij->ki", d1, d1)
+    e = np.einsum("kij,kij->ki", d2, d2)
+    f = np.einsum("kij,kij->ki", d2, r)
+    c = np.einsum("kij,kij->ki", d1, r)
+    b = np.einsum("kij,kij->ki", d1, d2)
+    den = a * e - b * b
+    s = np.where(den > 1e-12 * a * e, np.clip((b * f - c * e) / np.where(den > 0, den, 1.0), 0.0, 1.0), 0.0)
+    t = (b * s + f) / np.maximum(e, 1e-300)
+    a_ = np.maximum(a, 1e-300)
+    s = np.where(t < 0.0, np.clip(-c / a_, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a_, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    return np.linalg.norm(P[:, None, :] + s[..., None] * d1 - A[None] - t[..., None] * d2, axis=2)
+
+
+def _offenders(X, E, h_loc, movable, A, B, seg_tree, half) -> tuple[np.ndarray, np.ndarray]:
+    """Movable vertices too close to a curve, or ends of an edge that is,
+    the closest first; and which vertices (any) lie too close."""
+    near_curve = np.zeros(len(X), bool)
+    segs_of = seg_tree.query_ball_point(X, INNER_CLEAR * h_loc + half)
+    score = {}
+    for v, segs in enumerate(segs_of):
+        if segs:
+            d = _segments_distance(X[v][None], X[v][None], A[segs], B[segs]).min()
+            if d < INNER_CLEAR * h_loc[v]:
+                near_curve[v] = True
+                if movable[v]:
+                    score[int(v)] = d / (INNER_CLEAR * h_loc[v])
+    mid = 0.5 * (X[E[:, 0]] + X[E[:, 1]])
+    le = np.linalg.norm(X[E[:, 0]] - X[E[:, 1]], axis=1)
+    he = 0.5 * (h_loc[E[:, 0]] + h_loc[E[:, 1]])
+    ecand = np.nonzero(movable[E[:, 0]] | movable[E[:, 1]])[0]
+    near = seg_tree.query_ball_point(mid[ecand], 0.5 * le[ecand] + INNER_EDGE_CLEAR * he[ecand] + half)
+    for k, segs in zip(ecand, near):
+        if not segs:
+            continue
+        if near_curve[E[k, 0]] or near_curve[E[k, 1]]:
+            continue  # its end's business
+        d = _segments_distance(X[E[k, 0]][None], X[E[k, 1]][None], A[segs], B[segs]).min()
+        if d < INNER_EDGE_CLEAR * he[k]:
+            for v in E[k]:
+                if movable[v]:
+                    s = d / (INNER_EDGE_CLEAR * he[k])
+                    score[int(v)] = min(score.get(int(v), np.inf), s)
+    return np.array(sorted(score, key=score.get), dtype=np.int64), near_curve
+
+
+def _clearance(X, E, v, edges, h_loc, A, B, seg_tree, half, points: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """For candidate positions ``points`` (c, 3) of vertex v: the least of its
+    clearance from the curves and its edges', each over its bar (1 = clear);
+    an edge whose other end lies near a curve is that end's business."""
+    other = np.where(E[edges, 0] == v, E[edges, 1], E[edges, 0])
+    reach = float(np.max(np.linalg.norm(X[other] - X[v], axis=1))) + INNER_MOVE * h_loc[v]
+    other = other[~near[other]]
+    segs = _near_segments(X[v], reach, seg_tree, half)
+    if not len(segs):
+        return np.full(len(points), np.inf)
+    a, b = A[segs], B[segs]
+    dv = _segments_distance(points, points, a, b).min(axis=1) / (INNER_CLEAR * h_loc[v])
+    he = 0.5 * (h_loc[v] + h_loc[other])
+    P = np.repeat(points, len(other), axis=0)
+    Q = np.tile(X[other], (len(points), 1))
+    if not len(other):
+        return dv
+    de = (_segments_distance(P, Q, a, b).min(axis=1) / (INNER_EDGE_CLEAR * np.tile(he, len(points))))
+    return np.minimum(dv, de.reshape(len(points), len(other)).min(axis=1))
+
+
+def _move_vertex(X, T, E, v, tets, edges, h_loc, shortest, A, B, seg_tree, half, moved, near) -> bool:
+    """Move v to the candidate place with the best clearance (``clear_curves``)."""
+    segs = _near_segments(X[v], INNER_CLEAR * h_loc[v] + 1.5 * h_loc[v], seg_tree, half)
+    if not len(segs):
+        return False
+    # the curve's direction near v: the nearest segment's
+    d = _segments_distance(X[v][None], X[v][None], A[segs], B[segs])[0]
+    s = segs[int(np.argmin(d))]
+    t = B[s] - A[s]
+    t /= np.linalg.norm(t)
+    u = np.cross(t, [1.0, 0.0, 0.0] if abs(t[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(t, u)
+    ang = 2 * np.pi * np.arange(_DIRECTIONS) / _DIRECTIONS
+    across = np.cos(ang)[:, None] * u + np.sin(ang)[:, None] * w
+    dirs = np.vstack([across, (across + t) / np.sqrt(2), (across - t) / np.sqrt(2)])
+    step = INNER_MOVE * shortest
+    pts = np.vstack([X[v][None]] + [X[v] + f * step * dirs for f in (1 / 3, 2 / 3, 1.0)])
+    score = _clearance(X, E, v, edges, h_loc, A, B, seg_tree, half, pts, near)
+    # each candidate's tets: oriented and keeping KEEP_QUALITY of their least
+    # quality; of the clearest, the one whose tets are best
+    P = X[T[tets]]
+    at = (T[tets] == v)[None, :, :, None]
+    Pc = np.where(at, pts[:, None, None, :], P[None])
+    q = _mean_ratio(Pc.reshape(-1, 3), np.arange(4 * len(pts) * len(tets)).reshape(-1, 4)).reshape(len(pts), -1)
+    qmin = q.min(axis=1)
+    floor = KEEP_QUALITY * max(float(qmin[0]), 0.0)
+    capped = np.minimum(score, 1.0)
+    ok = (qmin > floor) & (capped > capped[0] + 1e-9)
+    if not ok.any():
+        return False
+    cand = np.nonzero(ok)[0]
+    best = int(cand[np.lexsort((-qmin[cand], -capped[cand]))[0]])
+    X[v] = pts[best]
+    moved[v] = True
+    segs = _near_segments(X[v], INNER_CLEAR * h_loc[v], seg_tree, half)
+    near[v] = bool(len(segs)) and _segments_distance(X[v][None], X[v][None], A[segs], B[segs]).min() < \
+        INNER_CLEAR * h_loc[v]
+    return True

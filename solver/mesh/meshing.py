@@ -40,7 +40,7 @@ from ..network.validation import CheckedInput
 from ..surface.trisurface import TriSurface
 from . import cdt
 from .bisection import bisect
-from .clearance import clear_curve_ends
+from .clearance import clear_curve_ends, clear_curves
 from .decimate import Simplified, simplify_for_meshing
 from .refine import red_refine
 from .resolution import TETS_PER_H3, Plan, solid_volume
@@ -111,6 +111,9 @@ class MeshStats:
     cleared : int
         Surface vertices moved off the curve ends for the mesher
         (clearance.py).
+    cleared_inside : int
+        Interior vertices moved off the curves after meshing
+        (clearance.clear_curves).
     """
 
     mesher: str = ""
@@ -119,6 +122,7 @@ class MeshStats:
     budget_retries: int = 0
     graded_tets: int = 0
     cleared: int = 0
+    cleared_inside: int = 0
     flat: FlatRepair | None = None
     snap: SnapStats | None = field(default=None, compare=False)
     simplified: tuple | None = None
@@ -179,6 +183,8 @@ class MeshOutcome:
         if st.snap is not None:
             out["snapped_vertices"] = st.snap.moved
             out["snap_kept_vertices"] = int(len(st.snap.kept))
+        if st.cleared_inside:
+            out["cleared_vertices"] = st.cleared_inside
         return out
 
 
@@ -303,10 +309,15 @@ def _finish(checked: CheckedInput, plan: Plan, settings: MeshSettings, m: _Made,
     graded = 0
     if plan.graded:
         mesh, graded = grade(mesh, plan, settings.budget, checked.surface)
+    # no tet vertex or edge on a curve: the last step, on the final vertices
+    net = checked.network
+    r_node = node_radius(net, node_edge_length(plan, net, m.h), settings.node_radius)
+    mesh, inside = clear_curves(mesh, [c.points for c in net.curves],
+                                [(nd.position, 0.5 * r_node) for nd in net.nodes])
     stats = MeshStats(mesher=m.mesher, mesher_tets=mesher_tets, refine_levels=m.k, budget_retries=retries,
                       graded_tets=graded, flat=m.flat, snap=snap,
                       simplified=None if simplified is None else (simplified.faces_in, simplified.faces_out),
-                      cleared=cleared)
+                      cleared=cleared, cleared_inside=inside)
     return MeshOutcome(mesh, m.h, stats)
 
 

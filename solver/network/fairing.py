@@ -69,7 +69,8 @@ from .polyline import arclength, merge_close, resample, turning
 
 MAX_KINK = 45.0  # degrees a singular curve may turn over a length h (chords of h/2 each side)
 MERGE = 0.05  # points closer than MERGE * h are merged
-CORNER_WINDOW = 2.0  # chords of CORNER_WINDOW * l on each side detect real corners
+CORNER_WINDOW = 2.0  # chords of CORNER_WINDOW * l on each side detect real corners ...
+ARM_STRAIGHT = 0.25  # ... between arms within this many l of their chords
 SMOOTH_ITERATIONS = 72  # Laplacian steps of 1/2 at spacing l / 2: a Gaussian of width 3 l
 BAND = 1.0  # least bending keeps every point within BAND * l of the input, at most ...
 ROUGH = 3.0  # ... and within ROUGH times the input's own roughness (roughness())
@@ -105,6 +106,13 @@ def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
     big = (ang > MAX_KINK) & (wide > MAX_KINK) & (wide < 1.5 * ang)
     if not closed:
         big &= (sf >= 2.0 * w) & (sf <= sf[-1] - 2.0 * w)
+    # ... and its arms are straight: a tet-edge chain that detours by an
+    # edge on a tight arc turns like a corner at both chords (a loop of
+    # radius 5 l: 66-78 degrees between chords of w, 67-87 between chords
+    # of 2 w), but its arms are as rough as the chain, where a corner the
+    # user drew has straight ones
+    if np.any(big):
+        big &= _straight_arms(fine, sf, w, ell, closed, big)
     knots = []
     i = 0
     while i < len(ang):
@@ -120,6 +128,30 @@ def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
             knots.append(v)
         i = j + 1
     return np.unique(np.array(knots, int))
+
+
+def _straight_arms(fine: np.ndarray, sf: np.ndarray, w: float, ell: float, closed: bool,
+                   where: np.ndarray) -> np.ndarray:
+    """At each sample of ``where``: whether the curve's stretches from w / 4
+    to 2 w on either side each lie within ``ARM_STRAIGHT * ell`` of their
+    chord (elsewhere True)."""
+    out = np.ones(len(fine), bool)
+    n, L = len(fine), sf[-1]
+    step = L / max(n - 1, 1)
+    for m in np.nonzero(where)[0]:
+        for lo, hi in ((-2.0 * w, -0.25 * w), (0.25 * w, 2.0 * w)):
+            k = np.arange(int(np.floor(lo / step)), int(np.ceil(hi / step)) + 1) + m
+            k = np.mod(k, n - 1) if closed else k[(k >= 0) & (k < n)]
+            if len(k) < 3:
+                continue
+            A = fine[k]
+            c = A[-1] - A[0]
+            c = c / max(np.linalg.norm(c), 1e-300)
+            r = A - A[0]
+            dev = np.linalg.norm(r - (r @ c)[:, None] * c, axis=1).max()
+            if dev > ARM_STRAIGHT * ell:
+                out[m] = False
+    return out
 
 
 def roughness(P: np.ndarray, reach: int = 2) -> np.ndarray:
