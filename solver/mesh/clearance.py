@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..surface.intersect import segments_distance
 from ..surface.trisurface import TriSurface
 
 CLEAR = 0.3  # no mesher vertex within this many h of a curve end ...
@@ -291,21 +292,9 @@ def _near_segments(x: np.ndarray, reach: float, seg_tree, half: float) -> np.nda
 
 def _segments_distance(P: np.ndarray, Q: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Distance between segments P->Q (k, 3) and A->B (s, 3), all pairs: (k, s)."""
-    d1 = (Q - P)[:, None, :]
-    d2 = (B - A)[None, :, :]
-    r = P[:, None, :] - A[None, :, :]
-    a = np.einsum("kij,kij->ki", d1, d1)
-    e = np.einsum("kij,kij->ki", d2, d2)
-    f = np.einsum("kij,kij->ki", d2, r)
-    c = np.einsum("kij,kij->ki", d1, r)
-    b = np.einsum("kij,kij->ki", d1, d2)
-    den = a * e - b * b
-    s = np.where(den > 1e-12 * a * e, np.clip((b * f - c * e) / np.where(den > 0, den, 1.0), 0.0, 1.0), 0.0)
-    t = (b * s + f) / np.maximum(e, 1e-300)
-    a_ = np.maximum(a, 1e-300)
-    s = np.where(t < 0.0, np.clip(-c / a_, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a_, 0.0, 1.0), s))
-    t = np.clip(t, 0.0, 1.0)
-    return np.linalg.norm(P[:, None, :] + s[..., None] * d1 - A[None] - t[..., None] * d2, axis=2)
+    k, n = len(P), len(A)
+    d, _ = segments_distance(np.repeat(P, n, axis=0), np.repeat(Q, n, axis=0), np.tile(A, (k, 1)), np.tile(B, (k, 1)))
+    return d.reshape(k, n)
 
 
 def _offenders(X, E, h_loc, movable, A, B, seg_tree, half) -> tuple[np.ndarray, np.ndarray]:
