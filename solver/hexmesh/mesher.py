@@ -311,11 +311,11 @@ def _refuse_folded(inp: SolvedField, cem: CurveEdgeMesh, sm, gm, cell: float, re
     rounding; only a smooth handle without singular curves, where the
     seamless map folds in half its tets at any size, is a HexMeshError at
     once.  (The genus-2 plates of testkit/hexnet.py: their seamless maps
-    fold around every singular curve, 80-107 tets of ~9k, ~1 %, at every
-    size; rounding and untangling left 2-4 tets folded at the automatic cell
-    size in each of three meshes and none at the next smaller one.  Taken
-    as "no cell size helps" above 1 %, one mesh in three or four was
-    refused.)"""
+    fold around every singular curve, 80-152 tets of 9-11k, ~1 %, on each
+    of 6 meshes looked at; rounding and untangling left 1-5 of them folded
+    at the automatic cell size, often none at a smaller one.  Taken as "no
+    cell size helps" above 1 %, 3 runs in 13 were refused; going on down
+    the ladder, 1 in 10 fails.)"""
     bad = np.nonzero(gm.det <= 0)[0]
     if not len(bad):
         bad = np.argsort(gm.det)[:1]

@@ -297,36 +297,42 @@ def _segments_distance(P: np.ndarray, Q: np.ndarray, A: np.ndarray, B: np.ndarra
     return d.reshape(k, n)
 
 
+def _pair_distances(P, Q, A, B, lists) -> np.ndarray:
+    """For each segment P[i]->Q[i], its least distance to the segments
+    A->B listed in lists[i] (cKDTree.query_ball_point's), inf where none:
+    one vectorised call over all the pairs."""
+    n = np.fromiter((len(x) for x in lists), np.int64, len(lists))
+    out = np.full(len(lists), np.inf)
+    if not n.sum():
+        return out
+    i = np.repeat(np.arange(len(lists)), n)
+    j = np.fromiter((s for x in lists for s in x), np.int64, int(n.sum()))
+    d, _ = segments_distance(P[i], Q[i], A[j], B[j])
+    np.minimum.at(out, i, d)
+    return out
+
+
 def _offenders(X, E, h_loc, movable, A, B, seg_tree, half) -> tuple[np.ndarray, np.ndarray]:
     """Movable vertices too close to a curve, or ends of an edge that is,
     the closest first; and which vertices (any) lie too close."""
-    near_curve = np.zeros(len(X), bool)
-    segs_of = seg_tree.query_ball_point(X, INNER_CLEAR * h_loc + half)
-    score = {}
-    for v, segs in enumerate(segs_of):
-        if segs:
-            d = _segments_distance(X[v][None], X[v][None], A[segs], B[segs]).min()
-            if d < INNER_CLEAR * h_loc[v]:
-                near_curve[v] = True
-                if movable[v]:
-                    score[int(v)] = d / (INNER_CLEAR * h_loc[v])
-    mid = 0.5 * (X[E[:, 0]] + X[E[:, 1]])
-    le = np.linalg.norm(X[E[:, 0]] - X[E[:, 1]], axis=1)
-    he = 0.5 * (h_loc[E[:, 0]] + h_loc[E[:, 1]])
-    ecand = np.nonzero(movable[E[:, 0]] | movable[E[:, 1]])[0]
-    near = seg_tree.query_ball_point(mid[ecand], 0.5 * le[ecand] + INNER_EDGE_CLEAR * he[ecand] + half)
-    for k, segs in zip(ecand, near):
-        if not segs:
-            continue
-        if near_curve[E[k, 0]] or near_curve[E[k, 1]]:
-            continue  # its end's business
-        d = _segments_distance(X[E[k, 0]][None], X[E[k, 1]][None], A[segs], B[segs]).min()
-        if d < INNER_EDGE_CLEAR * he[k]:
-            for v in E[k]:
-                if movable[v]:
-                    s = d / (INNER_EDGE_CLEAR * he[k])
-                    score[int(v)] = min(score.get(int(v), np.inf), s)
-    return np.array(sorted(score, key=score.get), dtype=np.int64), near_curve
+    dv = _pair_distances(X, X, A, B, seg_tree.query_ball_point(X, INNER_CLEAR * h_loc + half))
+    near_curve = dv < INNER_CLEAR * h_loc
+    score = np.full(len(X), np.inf)
+    score[near_curve & movable] = (dv / (INNER_CLEAR * h_loc))[near_curve & movable]
+    # edges with a movable end and neither end near a curve (an edge ending
+    # near one is that end's business)
+    ecand = np.nonzero((movable[E[:, 0]] | movable[E[:, 1]]) & ~near_curve[E[:, 0]] & ~near_curve[E[:, 1]])[0]
+    a, b = X[E[ecand, 0]], X[E[ecand, 1]]
+    he = 0.5 * (h_loc[E[ecand, 0]] + h_loc[E[ecand, 1]])
+    reach = 0.5 * np.linalg.norm(b - a, axis=1) + INNER_EDGE_CLEAR * he + half
+    de = _pair_distances(a, b, A, B, seg_tree.query_ball_point(0.5 * (a + b), reach)) / (INNER_EDGE_CLEAR * he)
+    close = de < 1.0
+    for end in (0, 1):
+        v = E[ecand[close], end]
+        m = movable[v]
+        np.minimum.at(score, v[m], de[close][m])
+    bad = np.nonzero(np.isfinite(score))[0]
+    return bad[np.argsort(score[bad], kind="stable")], near_curve
 
 
 def _clearance(X, E, v, edges, h_loc, A, B, seg_tree, half, points: np.ndarray, near: np.ndarray) -> np.ndarray:
@@ -341,11 +347,11 @@ def _clearance(X, E, v, edges, h_loc, A, B, seg_tree, half, points: np.ndarray, 
         return np.full(len(points), np.inf)
     a, b = A[segs], B[segs]
     dv = _segments_distance(points, points, a, b).min(axis=1) / (INNER_CLEAR * h_loc[v])
+    if not len(other):
+        return dv
     he = 0.5 * (h_loc[v] + h_loc[other])
     P = np.repeat(points, len(other), axis=0)
     Q = np.tile(X[other], (len(points), 1))
-    if not len(other):
-        return dv
     de = (_segments_distance(P, Q, a, b).min(axis=1) / (INNER_EDGE_CLEAR * np.tile(he, len(points))))
     return np.minimum(dv, de.reshape(len(points), len(other)).min(axis=1))
 
