@@ -247,3 +247,18 @@ def test_the_verdict_has_a_level_for_a_boundary_slightly_off(solved, monkeypatch
     sizes.clear()
     hm = hexmesh(res, 0.3)  # a size given: tried alone, kept with its warning
     assert sizes == [0.3] and hm.report.valid and hm.report.warnings
+
+    def warned(report, inp, V, H, cell):  # every size off, the second closest
+        real(report, inp, V, H, cell)
+        sizes.append(cell)
+        report.hausdorff_relative = (0.015, 0.012, 0.018)[min(len(sizes), 3) - 1]
+        verdict(report)
+
+    monkeypatch.setattr(mesher, "assess", warned)
+    sizes.clear()
+    hm = hexmesh(res)
+    assert len(sizes) == len(mesher.AUTO_STEPS) == 3
+    # the closest of the sizes tried is kept, and its notes tell every size
+    assert hm.report.valid and hm.report.cell_size == sizes[1] and "1.20%" in hm.report.warnings[0]
+    notes = " | ".join(hm.report.notes)
+    assert "1.50%" in notes and "1.80%" in notes and "kept the mesh at cell size" in hm.report.notes[-1], notes
