@@ -53,6 +53,7 @@ def run_one() -> dict:
                      "hexes": r.hexes, "status": r.status, "sj_min": r.sj_min, "sj_mean": r.sj_mean,
                      "sj_min_raw": r.sj_min_raw, "sj_mean_raw": r.sj_mean_raw, "sj_irregular": r.sj_mean_irregular,
                      "irregular": r.irregular, "exact": r.structure_exact, "hausdorff": r.hausdorff_relative,
+                     "size_within": r.size_within, "size_p5": r.size_p5, "size_p95": r.size_p95,
                      "split_tets": r.sizes.get("tets", 0), "peak_mb": _rss_mb()})
     return {"tets": res.mesh.n_tets, "field_s": field_s, "field_status": res.report.status, "field_mb": field_mb,
             "rows": rows}

@@ -359,6 +359,8 @@ def test_panel_shows_the_verdict_and_figures(cyl):
     assert f"Irregular edges: {r.irregular[3]} of valence 3" in drawn.texts
     assert "   exactly the prescribed curves" in drawn.texts
     assert f"Hausdorff distance {100 * r.hausdorff_relative:.2f}% of the diagonal" in drawn.texts
+    assert (f"   {100 * r.size_within:.0f}% of cells within 20% of it; 5-95%: {r.size_p5:.2f}-{r.size_p95:.2f} of it"
+            in drawn.texts)
 
 
 def test_panel_before_a_field_and_the_operators_polls():

@@ -11,6 +11,7 @@ from solver.hexmesh.curve_edges import _prism_tets
 from solver.hexmesh.extract import extract_hexes
 from solver.hexmesh.quality import (
     boundary_quads,
+    cell_sizes,
     edge_valences,
     euler_characteristic,
     hausdorff_distance,
@@ -56,6 +57,14 @@ def test_scaled_jacobian_is_one_for_a_cube_and_negative_when_inverted():
     flipped = CUBE.copy()
     flipped[4:, 2] = -1.0
     assert scaled_jacobian(flipped, H)[0] < 0
+
+
+def test_cell_sizes_are_the_mean_edge_lengths():
+    H = np.arange(8)[None]
+    assert cell_sizes(CUBE, H) == pytest.approx([1.0])
+    # stretched by 2 along x: four edges of 2, eight of 1
+    assert cell_sizes(CUBE * [2.0, 1.0, 1.0], H) == pytest.approx([16.0 / 12.0])
+    assert cell_sizes(CUBE * 0.25, H) == pytest.approx([0.25])
 
 
 def test_boundary_quads_valences_and_euler_characteristic_of_a_block():

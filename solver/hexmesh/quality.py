@@ -40,6 +40,13 @@ def scaled_jacobian(V: np.ndarray, H: np.ndarray) -> np.ndarray:
     return corner_jacobians(V, H).min(axis=1)
 
 
+def cell_sizes(V: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """(m,) the mean length of each cell's 12 edges: a cell's size, to set
+    against the cell size asked for (HexReport.size_within)."""
+    E = V[H[:, HEX_EDGES[:, 1]]] - V[H[:, HEX_EDGES[:, 0]]]
+    return np.linalg.norm(E, axis=2).mean(axis=1)
+
+
 def boundary_faces(H: np.ndarray) -> tuple[np.ndarray, int]:
     """(the faces held by one hex only, as indices 6 cell + local face into
     the cells' HEX_FACES; how many faces more than two hexes hold)."""

@@ -12,6 +12,7 @@ import numpy as np
 
 from .quality import (
     boundary_quads,
+    cell_sizes,
     edge_valences,
     euler_per_component,
     hausdorff_distance,
@@ -28,6 +29,9 @@ diagonal of the input surface."""
 HAUSDORFF_WARNED = 0.02
 """Past HAUSDORFF_BAR and up to this, the mesh is valid with a warning
 (a secondary measure slightly over its bar); past it, defective."""
+SIZE_SPREAD = 0.2
+"""A cell counts as even (HexReport.size_within) when its size is within
+this fraction of the cell size."""
 
 
 @dataclass
@@ -94,6 +98,13 @@ class HexReport:
         cell from every given curve of their valence, the largest distance
         of a matched one, and the least fraction of a given curve within a
         cell of its edges
+    size_within : float
+        the share of cells whose size (the mean length of their 12 edges)
+        is within ``SIZE_SPREAD`` (20 %) of ``cell_size``; ``size_p5`` and
+        ``size_p95``: the 5th and 95th percentiles of the cells' sizes, as
+        fractions of ``cell_size``.  The network's layout may force grading
+        (a cube-sphere's shell cells grow outward by the ratio of the
+        surface to the inner cube), so this is reported, not a verdict
     cell_reason : str
         why the cell size is what it is ('given', or what the automatic
         size resolves: the target's cells, the shortest singular curve, two
@@ -142,6 +153,9 @@ class HexReport:
     given_extra: int = 0
     given_distance: float = 0.0
     given_covered: float = 1.0
+    size_within: float = 0.0
+    size_p5: float = 0.0
+    size_p95: float = 0.0
 
     @property
     def valid(self) -> bool:
@@ -175,6 +189,9 @@ class HexReport:
                                                             sorted(self.irregular.items())) or "none")
                  + f"; {'exactly the prescribed curves' if self.structure_exact else 'NOT the prescribed curves'}"
                  + (f" ({self.extra_irregular} elsewhere)" if self.extra_irregular else ""),
+                 f"  cell sizes (mean edge length): {100 * self.size_within:.0f}% of the cells within "
+                 f"{100 * SIZE_SPREAD:.0f}% of the cell size; 5-95th percentile {self.size_p5:.2f}-"
+                 f"{self.size_p95:.2f} of it",
                  f"  boundary: Euler characteristic {self.euler} (surface {self.euler_expected}); faces in more "
                  f"than two cells {self.faces_over_two}; Hausdorff distance {self.hausdorff:.3g} "
                  f"({100 * self.hausdorff_relative:.2f}% of the diagonal)",
@@ -233,6 +250,9 @@ def assess(report: HexReport, inp, V: np.ndarray, H: np.ndarray, cell: float) ->
     else:
         report.sj_mean_irregular = 1.0
     match_curves(report, inp, V, e[irr], val[irr], cell)
+    size = cell_sizes(V, H) / cell
+    report.size_within = float(np.mean(np.abs(size - 1.0) <= SIZE_SPREAD))
+    report.size_p5, report.size_p95 = (float(x) for x in np.percentile(size, [5, 95]))
     report.hausdorff = hausdorff_distance(inp.surface, V, q)
     report.hausdorff_relative = report.hausdorff / inp.surface.bbox_diagonal
     verdict(report)
