@@ -61,17 +61,22 @@ def _chi_d(D, eps):
 
 
 def foldover_free(J: np.ndarray, eps: float, lam: float = LAMBDA):
-    """f(J) of the module docs per (n, 3, 3) matrix, and df/dJ (n, 3, 3)."""
-    D = det3(J)
-    # cofactor matrix: dD/dJ
-    C = np.stack([np.cross(J[:, 1], J[:, 2]), np.cross(J[:, 2], J[:, 0]), np.cross(J[:, 0], J[:, 1])], axis=1)
-    tr = np.einsum("nij,nij->n", J, J)
-    chi = _chi(D, eps)
-    c23 = chi ** (-2.0 / 3.0)
-    f = tr * c23 + lam * (D * D + 1.0) / chi
-    dchi = _chi_d(D, eps)
-    dfdD = -(2.0 / 3.0) * tr * c23 / chi * dchi + lam * (2.0 * D * chi - (D * D + 1.0) * dchi) / chi**2
-    return f, 2.0 * J * c23[:, None, None] + dfdD[:, None, None] * C
+    """f(J) of the module docs per (n, 3, 3) matrix, and df/dJ (n, 3, 3).
+
+    A line search's trial step far out (J huge, chi near 0) overflows to
+    inf or nan: the step is then rejected (lbfgs takes only finite
+    energies), so numpy is not let to warn about it."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        D = det3(J)
+        # cofactor matrix: dD/dJ
+        C = np.stack([np.cross(J[:, 1], J[:, 2]), np.cross(J[:, 2], J[:, 0]), np.cross(J[:, 0], J[:, 1])], axis=1)
+        tr = np.einsum("nij,nij->n", J, J)
+        chi = _chi(D, eps)
+        c23 = chi ** (-2.0 / 3.0)
+        f = tr * c23 + lam * (D * D + 1.0) / chi
+        dchi = _chi_d(D, eps)
+        dfdD = -(2.0 / 3.0) * tr * c23 / chi * dchi + lam * (2.0 * D * chi - (D * D + 1.0) * dchi) / chi**2
+        return f, 2.0 * J * c23[:, None, None] + dfdD[:, None, None] * C
 
 
 def corner_energy(V: np.ndarray, H: np.ndarray, cell: float, eps: float, with_grad: bool = True):
