@@ -385,7 +385,7 @@ def o_grid_torus(n: int = 4, m: int | None = None, segments: int = 32, major: fl
 
 
 def plate_with_holes(nx: int = 3, ny: int = 3, holes=((1, 1),), n: int = 4, thickness: float = 0.5, layers: int = 2,
-                     hole_radius: float = 0.3, ring: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     hole_radius: float = 0.3, ring: int | None = None, missing=()) -> tuple[np.ndarray, np.ndarray]:
     """A plate of nx x ny unit squares, some with a round hole, extruded.
 
     Parameters
@@ -402,6 +402,9 @@ def plate_with_holes(nx: int = 3, ny: int = 3, holes=((1, 1),), n: int = 4, thic
         Quads along every cell side.
     layers : int
         Hex layers through the thickness.
+    missing : sequence of (i, j)
+        Cells left out: an L-shaped plate is a square one without a corner
+        block of cells.
 
     Returns
     -------
@@ -413,6 +416,9 @@ def plate_with_holes(nx: int = 3, ny: int = 3, holes=((1, 1),), n: int = 4, thic
         through the thickness, ending on the flat faces.
     """
     holes = {tuple(int(x) for x in h) for h in holes}
+    missing = {tuple(int(x) for x in h) for h in missing}
+    if holes & missing:
+        raise ValueError(f"cells both with a hole and missing: {sorted(holes & missing)}")
     if ring is None:
         ring = max(2, int(round((0.6 - hole_radius) * n)))
     g = np.linspace(0.0, 1.0, n + 1)
@@ -421,6 +427,8 @@ def plate_with_holes(nx: int = 3, ny: int = 3, holes=((1, 1),), n: int = 4, thic
     corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     for i in range(nx):
         for j in range(ny):
+            if (i, j) in missing:
+                continue
             if (i, j) not in holes:
                 blocks.append(np.stack(np.meshgrid(i + g, j + g, indexing="ij"), axis=-1))
                 continue
@@ -434,6 +442,21 @@ def plate_with_holes(nx: int = 3, ny: int = 3, holes=((1, 1),), n: int = 4, thic
     V2, Q = _assemble(blocks)
     V, H = extrude(V2, Q, np.linspace(-thickness / 2, thickness / 2, layers + 1))
     return V, _orient(V, H)
+
+
+def l_prism_with_hole(n: int = 4) -> tuple[np.ndarray, np.ndarray, Network]:
+    """An L-shaped prism with a round hole through it (issue 51's second
+    part to simulate on): 2 x 2 with a 1 x 1 corner block cut out, 0.5
+    thick, the hole (radius 0.1) in an O-grid ring whose four corners are
+    curves of -1/4 through the thickness.  Read off its block hex mesh
+    (``plate_with_holes`` on 6 x 6 cells of 1/3 without the 3 x 3 corner,
+    ``network_from_hexmesh``): the closed surface (V, F) and the network;
+    the 16-gon hole keeps its wall one patch at the 30 degree sharp angle.
+    """
+    missing = [(i, j) for i in range(3, 6) for j in range(3, 6)]
+    V, H = plate_with_holes(6, 6, ((1, 1),), n=n, thickness=1.5, layers=max(2, n - 1), hole_radius=0.3,
+                            missing=missing)
+    return network_from_hexmesh(V / 3.0, H, name="L-prism with a hole")
 
 
 # ---------------------------------------------------------------------------

@@ -19,7 +19,8 @@ The mesh is keyed by the example and every field but the solver's own
 meshed() problem carries the options asked for, and solved() solves such a
 problem.  A result is keyed by the example and every field.  ``example`` is
 a name of solver.examples.EXAMPLES, ``l_prism``
-(solver.examples.l_prism_example), or either followed by ``:tet-edge``: its
+(solver.examples.l_prism_example), ``l_prism_hole``
+(testkit.hexnet.l_prism_with_hole), or one followed by ``:tet-edge``: its
 interior curves routed along the edges of an independent fTetWild mesh, as
 other tools export networks (testkit/tetedge.py; drawn once per session).
 
@@ -64,7 +65,12 @@ def _load(example: str):
     from solver.examples import l_prism_example, load_example
 
     base, _, variant = example.partition(":")
-    V, F, net = l_prism_example() if base == "l_prism" else load_example(base)
+    if base == "l_prism_hole":
+        from testkit.hexnet import l_prism_with_hole
+
+        V, F, net = l_prism_with_hole()
+    else:
+        V, F, net = l_prism_example() if base == "l_prism" else load_example(base)
     if not variant:
         return V, F, net
     if ":" + variant != TET_EDGE:

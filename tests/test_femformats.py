@@ -21,17 +21,33 @@ from solver.io.femformats import write_hex_msh
 pytestmark = [pytest.mark.slow, pytest.mark.mesher]
 
 
-@pytest.fixture(scope="module")
-def plate(solved):
-    """The plate example's hex mesh and its patches' outward normals and
-    areas (per patch id)."""
-    hm = hexmesh(solved("plate"))
+def _with_patches(hm):
+    """A hex mesh and its patches' outward normals and areas (per patch id)."""
     P, V = hm.patches, hm.vertices
     Q = V[P.quads]
     vec = 0.5 * np.cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])  # a bilinear quad's vector area
     normal = {i: vec[P.patch == i].sum(axis=0) for i in range(1, len(P.names) + 1)}
     area = {i: np.linalg.norm(vec[P.patch == i], axis=1).sum() for i in normal}
     return hm, normal, area
+
+
+@pytest.fixture(scope="module")
+def plate(solved):
+    """The plate example's hex mesh, with its patches' normals and areas."""
+    return _with_patches(hexmesh(solved("plate")))
+
+
+@pytest.fixture(scope="module")
+def l_prism_hole(solved):
+    """An L-prism with a hole (testkit.hexnet.l_prism_with_hole: its network
+    read off a block hex mesh), with its patches' normals and areas."""
+    return _with_patches(hexmesh(solved("l_prism_hole")))
+
+
+@pytest.fixture(scope="module", params=["plate", "l_prism_hole"])
+def part(request):
+    """Each part a format is proven on."""
+    return request.getfixturevalue(request.param)
 
 
 def test_patches_are_the_surfaces_faces(plate):
@@ -48,10 +64,26 @@ def test_patches_are_the_surfaces_faces(plate):
     assert np.isclose(sum(area[i] for i in sides if abs(normal[i][2]) > 0.9), 2 * (4 - np.pi * 0.45**2), rtol=0.02)
 
 
+def test_the_l_prism_with_a_hole_meshes_with_its_nine_patches(l_prism_hole):
+    """The L-prism with a hole: a valid hex mesh whose irregular edges are
+    its four curves, and nine patches: six flat sides, the top, the bottom
+    and the hole's wall."""
+    hm, normal, area = l_prism_hole
+    r = hm.report
+    assert r.valid and r.structure_exact and set(r.irregular) == {5}, r.summary()
+    assert len(hm.patches.names) == 9 and len(hm.patches.quads) == len(hm.boundary_quads())
+    flat = [i for i in normal if np.linalg.norm(normal[i]) > 0.99 * area[i]]
+    assert len(flat) == 8
+    caps = [i for i in flat if abs(normal[i][2]) > 0.99 * area[i]]
+    assert len(caps) == 2 and np.isclose(area[caps[0]], 3.0 - np.pi * 0.1**2, rtol=0.02)
+    wall = [i for i in normal if i not in flat]
+    assert len(wall) == 1 and np.isclose(area[wall[0]], 2 * np.pi * 0.1 * 0.5, rtol=0.03)
+
+
 @pytest.mark.parametrize("binary", [False, True])
-def test_gmsh_reads_the_msh_with_its_groups(plate, tmp_path, binary):
+def test_gmsh_reads_the_msh_with_its_groups(part, tmp_path, binary):
     import gmsh
-    hm, _, _ = plate
+    hm, _, _ = part
     path = str(tmp_path / "plate.msh")
     if binary:
         write_hex_msh(path, hm.vertices, hm.hexes, hm.patches, hm.irregular_edges, hm.irregular_valence, binary=True)
@@ -62,7 +94,8 @@ def test_gmsh_reads_the_msh_with_its_groups(plate, tmp_path, binary):
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.open(path)
         names = {gmsh.model.getPhysicalName(d, t): (d, t) for d, t in gmsh.model.getPhysicalGroups()}
-        assert set(names) == {"volume", "irregular_valence_5"} | {f"patch_{i}" for i in range(1, 8)}
+        npatch = len(hm.patches.names)
+        assert set(names) == {"volume", "irregular_valence_5"} | {f"patch_{i}" for i in range(1, npatch + 1)}
         counts = {}
         for name, (d, t) in names.items():
             n = 0
@@ -71,7 +104,7 @@ def test_gmsh_reads_the_msh_with_its_groups(plate, tmp_path, binary):
             counts[name] = n
         assert counts["volume"] == len(hm.hexes)
         assert counts["irregular_valence_5"] == int(np.sum(hm.irregular_valence == 5)) > 0
-        assert [counts[f"patch_{i}"] for i in range(1, 8)] == np.bincount(hm.patches.patch)[1:].tolist()
+        assert [counts[f"patch_{i}"] for i in range(1, npatch + 1)] == np.bincount(hm.patches.patch)[1:].tolist()
         _, tags, _ = gmsh.model.mesh.getElements(3)
         q = gmsh.model.mesh.getElementQualities(tags[0], "minSJ")  # Gmsh's own measure: every cell positive
         assert len(q) == len(hm.hexes) and q.min() > 0.3
@@ -79,8 +112,8 @@ def test_gmsh_reads_the_msh_with_its_groups(plate, tmp_path, binary):
         gmsh.finalize()
 
 
-def test_medit_carries_the_boundary_quads_with_their_patch(plate, tmp_path):
-    hm, _, _ = plate
+def test_medit_carries_the_boundary_quads_with_their_patch(part, tmp_path):
+    hm, _, _ = part
     path = str(tmp_path / "plate.mesh")
     export_hexmesh(hm, path)
     text = open(path).read()
@@ -97,13 +130,13 @@ def _ccx():
     return exe
 
 
-def test_calculix_runs_a_static_case_on_the_patches(plate, tmp_path):
+def test_calculix_runs_a_static_case_on_the_patches(part, tmp_path):
     """The plate held at its -y side (the node set of that patch), a pressure
     of 1 on its +y side (the element-face surface S_PATCH_k, *DSLOAD) and a
     force of 1 per node in x on the hole (its node set, *CLOAD): CalculiX
     solves it and the reaction at the held side balances the loads within
     1 %."""
-    hm, normal, area = plate
+    hm, normal, area = part
     held = min(normal, key=lambda i: normal[i][1] / area[i])
     pushed = max(normal, key=lambda i: normal[i][1] / area[i])
     hole = min(normal, key=lambda i: np.linalg.norm(normal[i]) / area[i])
@@ -172,20 +205,20 @@ def test_poisson_converges_at_second_order_on_the_ball(solved):
 
 
 
-def test_vtk_reads_the_exodus_side_sets(plate, tmp_path):
+def test_vtk_reads_the_exodus_side_sets(part, tmp_path):
     """VTK's Exodus II reader (ParaView's) sees the hexahedra and one side set
     per patch, each with exactly the patch's boundary quads."""
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOExodus import vtkExodusIIReader
 
-    hm, _, _ = plate
+    hm, _, _ = part
     path = str(tmp_path / "plate.exo")
     assert export_hexmesh(hm, path) == [path]
     r = vtkExodusIIReader()
     r.SetFileName(path)
     r.UpdateInformation()
     n = r.GetNumberOfObjects(vtkExodusIIReader.SIDE_SET)
-    assert n == 7 and r.GetNumberOfObjects(vtkExodusIIReader.NODE_SET) == 1
+    assert n == len(hm.patches.names) and r.GetNumberOfObjects(vtkExodusIIReader.NODE_SET) == 1
     for i in range(n):
         r.SetObjectStatus(vtkExodusIIReader.SIDE_SET, i, 1)
     r.GenerateGlobalNodeIdArrayOn()
@@ -228,7 +261,7 @@ def _gmsh_counts(path):
         gmsh.finalize()
 
 
-def test_gmsh_and_meshio_read_the_nastran_bulk_data(plate, tmp_path):
+def test_gmsh_and_meshio_read_the_nastran_bulk_data(part, tmp_path):
     """Gmsh reads the .bdf with every hexahedron positive (its own minSJ), in
     the volume of PSOLID 1, and each patch's boundary quads in the surface of
     its PSHELL (100 + k; Gmsh's Nastran reader makes entities of property
@@ -238,7 +271,7 @@ def test_gmsh_and_meshio_read_the_nastran_bulk_data(plate, tmp_path):
 
     from solver.io.femformats import NASTRAN_PATCH_PID, NASTRAN_SOLID_PID
 
-    hm, _, _ = plate
+    hm, _, _ = part
     P = hm.patches
     path = str(tmp_path / "plate.bdf")
     assert export_hexmesh(hm, path) == [path]
@@ -263,7 +296,7 @@ def test_gmsh_and_meshio_read_the_nastran_bulk_data(plate, tmp_path):
     assert max(len(line) for line in text.splitlines()) <= 80
 
 
-def test_gmsh_reads_the_med_with_its_groups(plate, tmp_path):
+def test_gmsh_reads_the_med_with_its_groups(part, tmp_path):
     """Gmsh (built with MED) reads the .med with every hexahedron positive
     (MED's corner order is not VTK's: meshio's MED writer gets this wrong,
     and Gmsh reads its cells inverted), the patches and the irregular edges
@@ -273,7 +306,7 @@ def test_gmsh_reads_the_med_with_its_groups(plate, tmp_path):
     gmsh.initialize()
     assert "Med" in gmsh.option.getString("General.BuildOptions").split()
     gmsh.finalize()
-    hm, _, _ = plate
+    hm, _, _ = part
     path = str(tmp_path / "plate.med")
     assert export_hexmesh(hm, path) == [path]
     _, groups, q, nodes, xyz = _gmsh_counts(path)
@@ -305,7 +338,7 @@ def _oriented_faces(H):
     return [frozenset(map(tuple, f)) for f in F.tolist()]
 
 
-def test_hex_ovm_reads_back_with_its_properties(plate, tmp_path):
+def test_hex_ovm_reads_back_with_its_properties(part, tmp_path):
     """The hex .ovm read back (read_hex_ovm, which checks that each cell's six
     halffaces are one hexahedron's faces, all into the cell): the same
     vertices, the same hexahedra with the same orientation, the patch of every
@@ -317,7 +350,7 @@ def test_hex_ovm_reads_back_with_its_properties(plate, tmp_path):
     from solver.io import read_hex_ovm
     from solver.io.ovm import OVM_HEX_FACES, read_ovm
 
-    hm, _, _ = plate
+    hm, _, _ = part
     P = hm.patches
     path = str(tmp_path / "plate.ovm")
     assert export_hexmesh(hm, path) == [path]
