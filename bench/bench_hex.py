@@ -6,8 +6,8 @@ the ball's field at ~50k tets, each run in a fresh process.
 
 Each run solves the ball example at an edge length that gives ~50k tets,
 then meshes the field at the default cell size (about 3,000 cells) and at
-one for about 12,000. Target: the hex stages within 60 s at 50k tets on the
-2-core bench machine (issue 40).
+one for about 12,000 (--cells: others, e.g. 100000). Target: the hex stages
+within 60 s at 50k tets on the 2-core bench machine (issue 40).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ def _rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def run_one() -> dict:
+def run_one(cells_aimed=CELLS) -> dict:
     from solver import default_cell_size, hexmesh, solve
     from solver.examples import load_example
 
@@ -44,7 +44,7 @@ def run_one() -> dict:
     field_mb = _rss_mb()
     inp = res.field
     rows = []
-    for cells in CELLS:
+    for cells in cells_aimed:
         cell = default_cell_size(inp, cells)
         t = time.perf_counter()
         hm = hexmesh(inp, cell)
@@ -88,16 +88,19 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=1, help="fresh field meshes (fTetWild is not deterministic)")
     p.add_argument("--write", action="store_true", help="write the table into bench/RESULTS.md")
+    p.add_argument("--cells", type=int, nargs="+", default=list(CELLS),
+                   help="cell counts aimed at (default: %(default)s)")
     p.add_argument("--one", action="store_true", help=argparse.SUPPRESS)  # internal: one run, print JSON
     args = p.parse_args(argv)
     if args.one:
-        print("RESULT " + json.dumps(run_one(), default=float))
+        print("RESULT " + json.dumps(run_one(tuple(args.cells)), default=float))
         return 0
     runs = []
     for k in range(args.runs):
         print(f"[bench_hex] run {k + 1} of {args.runs}: ball at edge length {EDGE_LENGTH} ...", file=sys.stderr,
               flush=True)
-        out = subprocess.run([sys.executable, os.path.abspath(__file__), "--one"], capture_output=True, text=True)
+        out = subprocess.run([sys.executable, os.path.abspath(__file__), "--one", "--cells", *map(str, args.cells)],
+                             capture_output=True, text=True)
         line = [x for x in out.stdout.splitlines() if x.startswith("RESULT ")]
         if out.returncode != 0 or not line:
             print(out.stderr[-3000:], file=sys.stderr)
@@ -113,8 +116,9 @@ def main(argv=None) -> int:
     text += f"\n\nMachine: {machine()}, Python {platform.python_version()}."
     print(text)
     if args.write:
+        cells = "" if tuple(args.cells) == CELLS else " --cells " + " ".join(map(str, args.cells))
         write_results_block("hex-bench", "Ball at ~50k tets (`./dev.sh python bench/bench_hex.py --runs "
-                            f"{args.runs} --write`):\n\n{text}", "Hex meshing")
+                            f"{args.runs}{cells} --write`):\n\n{text}", "Hex meshing")
     return 0
 
 

@@ -61,39 +61,69 @@ def _chi_d(D, eps):
 
 
 def foldover_free(J: np.ndarray, eps: float, lam: float = LAMBDA):
-    """f(J) of the module docs per (n, 3, 3) matrix, and df/dJ (n, 3, 3).
+    """f(J) of the module docs per (n, 3, 3) matrix, and df/dJ (n, 3, 3)."""
+    rows = np.ascontiguousarray(J.transpose(1, 2, 0))
+    f, G = _foldover_rows(rows, eps, lam)
+    return f, G.transpose(2, 0, 1)
 
-    A line search's trial step far out (J huge, chi near 0) overflows to
-    inf or nan: the step is then rejected (lbfgs takes only finite
-    energies), so numpy is not let to warn about it."""
+
+def _foldover_rows(R: np.ndarray, eps: float, lam: float = LAMBDA):
+    """``foldover_free`` on the nine components of J as contiguous vectors:
+    R (3, 3, n), R[i, k] the k-th coordinate of J's row i; returns f (n,)
+    and df/dJ in the same layout.  The rows' cross products (the cofactors,
+    dD/dJ) are written out: on the 725k corners of a 90k-cell mesh several
+    times faster than np.cross on (n, 3, 3) arrays.  A line search's trial
+    step far out (J huge, chi near 0) overflows to inf or nan: the step is
+    then rejected (lbfgs takes only finite energies), so numpy is not let
+    to warn about it."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        D = det3(J)
-        # cofactor matrix: dD/dJ
-        C = np.stack([np.cross(J[:, 1], J[:, 2]), np.cross(J[:, 2], J[:, 0]), np.cross(J[:, 0], J[:, 1])], axis=1)
-        tr = np.einsum("nij,nij->n", J, J)
-        chi = _chi(D, eps)
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = R
+        # cofactor rows, dD/dJ: b x c, c x a, a x b
+        C = np.empty_like(R)
+        np.subtract(b1 * c2, b2 * c1, out=C[0, 0])
+        np.subtract(b2 * c0, b0 * c2, out=C[0, 1])
+        np.subtract(b0 * c1, b1 * c0, out=C[0, 2])
+        np.subtract(c1 * a2, c2 * a1, out=C[1, 0])
+        np.subtract(c2 * a0, c0 * a2, out=C[1, 1])
+        np.subtract(c0 * a1, c1 * a0, out=C[1, 2])
+        np.subtract(a1 * b2, a2 * b1, out=C[2, 0])
+        np.subtract(a2 * b0, a0 * b2, out=C[2, 1])
+        np.subtract(a0 * b1, a1 * b0, out=C[2, 2])
+        D = a0 * C[0, 0] + a1 * C[0, 1] + a2 * C[0, 2]
+        tr = np.einsum("ijn,ijn->n", R, R)
+        root = np.sqrt(eps * eps + D * D)
+        chi = 0.5 * (D + root)  # _chi
+        dchi = 0.5 * (1.0 + D / root)  # _chi_d
         c23 = chi ** (-2.0 / 3.0)
         f = tr * c23 + lam * (D * D + 1.0) / chi
-        dchi = _chi_d(D, eps)
         dfdD = -(2.0 / 3.0) * tr * c23 / chi * dchi + lam * (2.0 * D * chi - (D * D + 1.0) * dchi) / chi**2
-        return f, 2.0 * J * c23[:, None, None] + dfdD[:, None, None] * C
+        C *= dfdD
+        C += (2.0 * c23) * R
+        return f, C
 
 
 def corner_energy(V: np.ndarray, H: np.ndarray, cell: float, eps: float, with_grad: bool = True):
     """Sum of f over every hex corner (J's rows: the corner's three edges
-    over the cell size), and its gradient (n, 3) in V."""
-    P = V[H]  # (m, 8, 3)
-    E = (P[:, HEX_CORNER_NEIGHBOURS] - P[:, :, None, :]) / cell  # (m, 8, 3, 3) rows: edge vectors
-    f, dE = foldover_free(E.reshape(-1, 3, 3), eps)
+    over the cell size), and its gradient (n, 3) in V.  Each coordinate is a
+    contiguous vector throughout (``_foldover_rows``)."""
+    X = np.ascontiguousarray(V.T)  # (3, n)
+    corner = H.reshape(-1)
+    nb = H[:, HEX_CORNER_NEIGHBOURS]  # (m, 8, 3): the corner's three neighbours
+    ends = [np.ascontiguousarray(nb[:, :, j]).reshape(-1) for j in range(3)]
+    base = X[:, corner]
+    R = np.empty((3, 3, len(corner)))
+    for j in range(3):
+        np.subtract(X[:, ends[j]], base, out=R[j])
+    R /= cell
+    f, G = _foldover_rows(R, eps)
     total = float(f.sum())
     if not with_grad:
         return total, None
-    dE = dE.reshape(E.shape) / cell
     n = len(V)
-    nbi = H[:, HEX_CORNER_NEIGHBOURS].reshape(-1)
-    ci = np.repeat(H.reshape(-1), 3)
-    flat = dE.reshape(-1, 3)
-    g = np.stack([np.bincount(nbi, flat[:, k], n) - np.bincount(ci, flat[:, k], n) for k in range(3)], axis=1)
+    g = np.empty((n, 3))
+    for k in range(3):
+        g[:, k] = (np.bincount(ends[0], G[0, k], n) + np.bincount(ends[1], G[1, k], n)
+                   + np.bincount(ends[2], G[2, k], n) - np.bincount(corner, G[0, k] + G[1, k] + G[2, k], n)) / cell
     return total, g
 
 
