@@ -303,7 +303,7 @@ def draw_hex_report(col, r: HexReport) -> None:
         col.label(text=f"   warning: {w}", icon="INFO")
     col.label(text=f"Hexahedra {r.hexes:,}   vertices {r.vertices:,}")
     col.label(text=f"Cell size {_number(r.cell_size):.3g}")
-    if getattr(r, "size_p95", 0.0):  # reports stored before the sizes were measured have none
+    if r.size_p95:  # 0 in reports stored before the sizes were measured
         col.label(text=f"   {100 * _number(r.size_within):.0f}% of cells within 20% of it; 5-95%: "
                        f"{_number(r.size_p5):.2f}-{_number(r.size_p95):.2f} of it")
     col.label(text=f"Scaled Jacobian min {_number(r.sj_min):.3f}   mean {_number(r.sj_mean):.3f}")

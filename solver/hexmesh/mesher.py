@@ -190,14 +190,13 @@ def _kept(hm: HexMesh, last: HexReport, outcome: str = "") -> HexMesh:
     rep = hm.report
     if last is rep:
         return hm
-    notes = list(last.notes) + ([outcome] if outcome else [])
-    if rep.notes == notes[:len(rep.notes)] and len(notes) > len(rep.notes):
-        rep.stage_seconds = dict(last.stage_seconds)
-        what = (f"valid with warnings, {100 * rep.hausdorff_relative:.2f}% off the surface" if rep.valid
-                else "defective")
-        notes.append(f"kept the mesh at cell size {rep.cell_size:.4g} ({what}): of the sizes tried, the "
-                     + ("closest to the surface" if rep.valid else "first one meshed"))
-        rep.notes = notes
+    # a later attempt's report starts from this one's notes (_fresh_report)
+    what = (f"valid with warnings, {100 * rep.hausdorff_relative:.2f}% off the surface" if rep.valid
+            else "defective")
+    rep.notes = list(last.notes) + ([outcome] if outcome else []) + [
+        f"kept the mesh at cell size {rep.cell_size:.4g} ({what}): of the sizes tried, the "
+        + ("closest to the surface" if rep.valid else "first one meshed")]
+    rep.stage_seconds = dict(last.stage_seconds)
     return hm
 
 

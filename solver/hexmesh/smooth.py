@@ -52,14 +52,6 @@ ball's cells at its nodes kept a minimum scaled Jacobian of 0.54, at 0.1
 0.72, with the irregular edges still within a cell of their curves."""
 
 
-def _chi(D, eps):
-    return 0.5 * (D + np.sqrt(eps * eps + D * D))
-
-
-def _chi_d(D, eps):
-    return 0.5 * (1.0 + D / np.sqrt(eps * eps + D * D))
-
-
 def foldover_free(J: np.ndarray, eps: float, lam: float = LAMBDA):
     """f(J) of the module docs per (n, 3, 3) matrix, and df/dJ (n, 3, 3)."""
     rows = np.ascontiguousarray(J.transpose(1, 2, 0))
@@ -92,8 +84,8 @@ def _foldover_rows(R: np.ndarray, eps: float, lam: float = LAMBDA):
         D = a0 * C[0, 0] + a1 * C[0, 1] + a2 * C[0, 2]
         tr = np.einsum("ijn,ijn->n", R, R)
         root = np.sqrt(eps * eps + D * D)
-        chi = 0.5 * (D + root)  # _chi
-        dchi = 0.5 * (1.0 + D / root)  # _chi_d
+        chi = 0.5 * (D + root)  # chi(D) of the module docs
+        dchi = 0.5 * (1.0 + D / root)  # its derivative
         c23 = chi ** (-2.0 / 3.0)
         f = tr * c23 + lam * (D * D + 1.0) / chi
         dfdD = -(2.0 / 3.0) * tr * c23 / chi * dchi + lam * (2.0 * D * chi - (D * D + 1.0) * dchi) / chi**2
