@@ -45,8 +45,8 @@ STAGE_WEIGHTS = {"curves onto edges": 0.03, "transitions": 0.07, "map system": 0
 """Share of a typical hex-meshing run each stage takes (the progress bar),
 in the order the stages run."""
 MAP_ROUNDS = 6
-"""The most times the transitions and the map system are built, an edge of
-each tet flat in every map split in between."""
+"""The most times the transitions and the map system are built, the tets
+flat in every map split in between (seamless.freeing_edges)."""
 AUTO_STEPS = (1.0, 0.85, 0.7)
 """Cell sizes tried, as fractions of the automatic one, when the map fails
 or the mesh is defective at it (greedy rounding can collapse curves, nodes
@@ -358,8 +358,12 @@ def _refuse_folded(inp: SolvedField, cem: CurveEdgeMesh, sm, gm, cell: float, re
             f"{cell:.4g} (around {at}); this is a limit of SymFrames' map (its cut, transitions and "
             "constraints), not a proof that the network admits no hex mesh; please report the input if a finer "
             "field folds too", report, kind="map")
+    before = int(np.sum(sm.det[bad] <= 0))
+    why = (f"{before} of them fold already in the seamless map, before rounding: a limit of SymFrames' map (its "
+           "constraints on this tet mesh) there, not of its rounding" if before else
+           "greedy rounding could not keep the curves, the surface or its thin parts apart there: a limit of "
+           "SymFrames' rounding")
     raise _Retry(
         f"no valid integer-grid map at cell size {cell:.4g}: {report.map_inverted} of {len(gm.det):,} tets stay "
-        f"inverted or flat after rounding, stiffening and untangling, around {at} (greedy rounding could not "
-        "keep the curves, the surface or its thin parts apart there: a limit of SymFrames' rounding)", report,
+        f"inverted or flat after rounding, stiffening and untangling, around {at} ({why})", report,
         kind="map")
