@@ -145,6 +145,7 @@ def solids() -> dict:
         "T_part": lambda: _voxels("T"),
         "U_part": lambda: _voxels("U"),
         "twisted_bar": lambda: _twisted(60.0),
+        "twisted_bar_120": lambda: _twisted(120.0),
         "bent_bar": lambda: _twisted(0.0, 1.2),
         "cylinder": lambda: cylinder_surface(1.0, 2.0),
         "cylinder_long": lambda: cylinder_surface(0.5, 3.0, n=48),

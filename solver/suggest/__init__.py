@@ -29,7 +29,7 @@ from ..surface.features import sharp_edges_by_angle
 from ..surface.validation import validate_surface
 from .build import SuggestedCurve, padding_network
 from .charts import chart_graph
-from .labels import LABEL_NAMES, align_frame, label_faces, merge_small_charts
+from .labels import LABEL_NAMES, align_frame, face_adjacency, label_faces, merge_small_charts
 
 __all__ = ["SuggestReport", "SuggestedCurve", "suggest_network"]
 
@@ -171,6 +171,29 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
     if dropped:
         notes.append(f"{dropped} sharp edges in short isolated groups (noise, not creases) left smooth")
     R = align_frame(S)
+    try:
+        net, rep = _padded_polycube(V, F, S, R, sharp, dropped, notes, sharp_angle, depth, smoothing, check,
+                                    target_tets, position, proportioned)
+    except NetworkError as refusal:
+        # the polycube route failed; where the creases alone make a valid
+        # network (a bar twisted by 90 degrees or more: its side faces' normals
+        # turn through a quarter turn, so no one label fits a side), take it
+        found = _crease_network(V, F, S, R, sharp, dropped, sharp_angle, target_tets) if check else None
+        if found is None:
+            raise
+        net, rep = found
+        rep.notes = notes + [f"the padded polycube failed ({str(refusal)[:200]}); every patch between the "
+                             "sharp creases is a disk and the creases' corners satisfy Poincare-Hopf, so the "
+                             "network needs no curve"] + rep.notes
+    rep.seconds = time.perf_counter() - t0
+    return net, rep
+
+
+def _padded_polycube(V, F, S, R, sharp, dropped, notes, sharp_angle, depth, smoothing, check, target_tets,
+                     position, proportioned) -> tuple[Network, SuggestReport]:
+    """The padded polycube network of suggest_network (docs/suggest.md, steps
+    2-6), or NetworkError."""
+    notes = list(notes)
     diag = S.bbox_diagonal
     if position is None:
         position = 1.0 if proportioned else 0.4
@@ -219,7 +242,44 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
                 continue
             raise NetworkError(f"the suggested network is not valid ({e}); this is a limit of the suggestion, not "
                                "of the input: draw the network by hand (docs/suggest.md)") from None
-    rep.seconds = time.perf_counter() - t0
+    return net, rep
+
+
+def _crease_network(V, F, S, R, sharp, dropped, sharp_angle, target_tets) -> tuple[Network, SuggestReport] | None:
+    """The network with no curve, where the sharp creases bound every patch
+    as a disk (Euler characteristic 1: one boundary loop, no handle) and
+    ``check_input`` accepts it (Poincare-Hopf with the creases' corners on
+    every patch): each patch then maps to one face of a grid, as a box's
+    faces do.  None where they do not.  A smooth patch that is not a disk
+    (a sphere, a torus, a cylinder's wall) needs curves: a cross field with
+    no singularity exists on a smooth torus, but its boundary has no corner
+    for an integer-grid map's planes."""
+    from ..network.validation import check_input
+
+    if not np.any(sharp):
+        return None
+    n, comp = connected_components(face_adjacency(S, ~sharp), directed=False)
+    f0, f1 = S.edge_faces.T
+    c0, c1 = comp[f0], comp[f1]
+    edges = np.bincount(c0, minlength=n) + np.bincount(c1[c1 != c0], minlength=n)
+    pv = np.unique(np.c_[np.repeat(comp, 3), S.F.ravel()], axis=0)
+    euler = np.bincount(pv[:, 0], minlength=n) - edges + np.bincount(comp, minlength=n)
+    if np.any(euler != 1):
+        return None
+    net = Network(curves=[], **(dict(sharp_edges=S.edges[sharp]) if dropped else dict(sharp_angle=sharp_angle)))
+    try:
+        ci = check_input(V, F, net, target_tets=target_tets)
+    except (NetworkError, TopologyError):
+        return None
+    # one label per patch, the one its area-weighted normal scores best (for the report and pictures)
+    D = S.face_normals @ R.T
+    score = np.zeros((n, 6))
+    np.add.at(score, comp, np.c_[D[:, 0], -D[:, 0], D[:, 1], -D[:, 1], D[:, 2], -D[:, 2]] * S.face_areas[:, None])
+    labels = np.argmax(score, axis=1)[comp]
+    pairs = len(np.unique(np.sort(np.c_[c0, c1][c0 != c1], axis=1), axis=0))
+    deg = np.bincount(S.edges[sharp].ravel(), minlength=len(S.V))
+    rep = SuggestReport(R, labels, n, pairs, pairs, int(np.sum(deg >= 3)), 0, 0.0, [], [])
+    rep.feature_size = float(ci.feature_size) if np.isfinite(ci.feature_size) else 0.0
     return net, rep
 
 
