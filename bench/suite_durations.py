@@ -5,8 +5,9 @@
     python bench/suite_durations.py --from out.txt  # a saved ``pytest --durations=0`` output
 
 It runs ``pytest -n 2 --dist loadfile --durations=0`` with one BLAS thread
-per worker (what ``./dev.sh test`` runs) and adds up each file's setup, call and teardown seconds.  The sum of
-a file's seconds is the work it costs; on two workers the wall time is about
+and one sparse-product thread per worker (what ``./dev.sh test`` runs) and
+adds up each file's setup, call and teardown seconds.  The sum of a file's
+seconds is the work it costs; on two workers the wall time is about
 half the total, as files are dealt to the two processes whole.  A session
 fixture's seconds (a shared solve, a meshed example) count for the first
 file that asks for it.
@@ -62,7 +63,8 @@ def main(argv=None) -> int:
         t = time.perf_counter()
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "2", "--dist", "loadfile",
                "--durations=0", "tests", *args.pytest_args]
-        env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **os.environ}  # as ./dev.sh test
+        # as ./dev.sh test: one BLAS and one sparse-product thread per worker
+        env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "SYMFRAMES_THREADS": "1", **os.environ}
         text = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env).stdout
         wall = time.perf_counter() - t
     m = SUMMARY.search(text)

@@ -101,14 +101,14 @@ def test_refine_option_is_checked():
 @pytest.mark.slow
 @pytest.mark.mesher
 def test_cylinder_on_a_refined_mesh_has_the_network_as_its_singular_set():
-    """The O-grid cylinder solved on a refined mesh (fTetWild at 0.23, one
+    """The O-grid cylinder solved on a refined mesh (fTetWild at 0.4, one
     level of red refinement): the same singular-structure and adaptation
     checks as on a direct mesh."""
     from solver.analysis.measures import tangent_adaptation
     from tests.test_examples import check_omega_singular_set, check_singular_structure
 
     V, F, net = load_example("cylinder")
-    problem = FieldProblem(V, F, net, Options(edge_length=0.115, refine=1))  # meshed here: refinement is the point
+    problem = FieldProblem(V, F, net, Options(edge_length=0.2, refine=1))  # meshed here: refinement is the point
     r = problem.solve()
     assert r.report.lm.converged
     check_singular_structure(r)
