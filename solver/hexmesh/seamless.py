@@ -62,7 +62,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import HexMeshError
 from ..linalg.lbfgs import lbfgs
 from ..linalg.rotations import CUBE_GROUP
-from ..mesh.tetmesh import TET_FACES, TetMesh
+from ..mesh.tetmesh import TET_EDGE_OPPOSITE, TET_FACES, TetMesh
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, split_edges
 from .extract import snap
 from .quality import det3
@@ -713,6 +713,77 @@ def degenerate_tets(ms: MapSystem, seed: int = 0) -> np.ndarray:
     return np.nonzero(flat)[0]
 
 
+def _kept_edges(cem: CurveEdgeMesh) -> np.ndarray:
+    """(#E,) bool: the edges never split, the chain edges of every curve
+    (singular or feature: its chain would lose the edge) and the sharp
+    boundary edges."""
+    mesh = cem.mesh
+    kept = np.zeros(mesh.n_edges, bool)
+    for ch in cem.chains:
+        e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
+        kept[e[e >= 0]] = True
+    B = mesh.boundary
+    sharp_local = B.edges[np.degrees(B.dihedral_angles) > SHARP_DIHEDRAL]
+    if len(sharp_local):
+        sv = mesh.boundary_vertices[sharp_local]
+        e = mesh.edge_index(sv[:, 0], sv[:, 1])
+        kept[e[e >= 0]] = True
+    return kept
+
+
+def ring_edges(cem: CurveEdgeMesh) -> np.ndarray:
+    """The edges whose midpoints widen the rings of tets around the
+    singular chain edges that hold fewer tets than the edge's valence (k, 2).
+
+    A piecewise-linear map images each tet of the ring around an interior
+    edge with a dihedral angle at the edge below 180 degrees; around a
+    chain edge of index sigma those angles sum to (1 - sigma) 360 degrees,
+    90 per hex of its valence 4 - 4 sigma.  A curve crossing a tet is made a
+    chain edge by the tet's split in five (curve_edges._split_crossed),
+    which leaves three tets around it: at a valence-5 edge their angles
+    average 150 degrees, and the frame-fitting map, whose unit frames cannot
+    be integrable next to the curve (they turn by sigma per radian around
+    it), pushes one of the three past 180 in most rings: the genus-2 plates
+    of testkit/hexnet.py folded in 80-200 of 9-15k tets, every one with a
+    singular vertex, 85 % of the valence-5 rings, whether or not the
+    boundary planes and the curves' lines are imposed; at a curve's end on
+    the surface the same three tets hold the three boundary triangles
+    around the end, 150 degrees each in its plane, and there (and next to
+    the end) rounding and untangling left 1-18 tets folded on 14 of 81
+    (mesh, cell size) pairs, two meshes at every size; one tet on one pair
+    once the rings are widened.  Splitting
+    the edge opposite the chain edge in each tet of such a ring (the ring's
+    link) doubles the ring, so the angles average 75 degrees; the link edges
+    of a curve's end ring lie in the surface, their midpoints on it.  Chain
+    edges of any curve and sharp boundary edges are never split.
+    """
+    mesh = cem.mesh
+    valence = np.zeros(mesh.n_edges)  # 0: not a singular chain edge
+    for ch in cem.chains:
+        if ch.sigma != 0:
+            e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
+            valence[e[e >= 0]] = 4.0 - 4.0 * ch.sigma
+    valence[mesh.is_boundary_edge] = 0.0  # an open fan, not a ring
+    te = mesh.tet_edges
+    count = np.bincount(te.ravel(), minlength=mesh.n_edges)
+    t, k = np.nonzero(count[te] < valence[te])
+    if not len(t):
+        return np.zeros((0, 2), dtype=np.int64)
+    link = mesh.tets[t[:, None], TET_EDGE_OPPOSITE[k]]
+    a, b = link.min(axis=1), link.max(axis=1)
+    e = mesh.edge_index(a, b)
+    ok = (e >= 0) & ~_kept_edges(cem)[e]
+    return np.unique(np.c_[a[ok], b[ok]], axis=0).astype(np.int64).reshape(-1, 2)
+
+
+def widen_rings(cem: CurveEdgeMesh) -> CurveEdgeMesh:
+    """cem with the rings around its singular chain edges widened
+    (``ring_edges``: their link edges split at their midpoints, every tet
+    around them in two; the children keep their parent's frame sources)."""
+    edges = ring_edges(cem)
+    return split_edges(cem, edges) if len(edges) else cem
+
+
 def freeing_edges(cem: CurveEdgeMesh, tets: np.ndarray) -> np.ndarray:
     """The edges whose midpoints free the structurally flat tets (k, 2).
 
@@ -742,17 +813,9 @@ def freeing_edges(cem: CurveEdgeMesh, tets: np.ndarray) -> np.ndarray:
     if not len(tets):
         return np.zeros((0, 2), dtype=np.int64)
     constrained = mesh.is_boundary_vertex.copy()
-    kept = np.zeros(mesh.n_edges, bool)  # curve and sharp edges: never split
     for ch in cem.chains:
         constrained[ch.vertices] = True
-        e = mesh.edge_index(ch.vertices[:-1], ch.vertices[1:])
-        kept[e[e >= 0]] = True
-    B = mesh.boundary
-    sharp_local = B.edges[np.degrees(B.dihedral_angles) > SHARP_DIHEDRAL]
-    if len(sharp_local):
-        sv = mesh.boundary_vertices[sharp_local]
-        e = mesh.edge_index(sv[:, 0], sv[:, 1])
-        kept[e[e >= 0]] = True
+    kept = _kept_edges(cem)
     loc = np.array([(i, j) for i in range(4) for j in range(i + 1, 4)])
     T = mesh.tets[tets]
     a, b = T[:, loc[:, 0]], T[:, loc[:, 1]]  # (k, 6)
