@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from solver.examples import icosphere
-from solver.hexmesh.curve_edges import _prism_tets
+from solver.hexmesh.curve_edges import CurveEdgeMesh, _prism_tets, split_edges
 from solver.hexmesh.extract import extract_hexes
 from solver.hexmesh.quality import (
     boundary_quads,
@@ -43,6 +43,41 @@ def grid_tets(nx, ny, nz, h=1.0):
                 path.append(cur)
             T.append([c[p] for p in path])
     return TetMesh(V.astype(float), np.array(T))
+
+
+def test_split_edges_together_is_splitting_them_one_after_another():
+    """split_edges splits the edges that share no tet in one vectorised round,
+    then the rest: the same tets as splitting each edge in the order given
+    (every tet around it in two at its midpoint), duplicates and edges that
+    share tets included, up to the numbering of the new vertices."""
+    mesh = grid_tets(3, 3, 2)
+    n = mesh.n_vertices
+    cem = CurveEdgeMesh(mesh, np.arange(n), np.arange(mesh.n_tets), [], np.zeros(0, np.int64),
+                        {}, np.c_[mesh.tets, np.full(mesh.n_tets, -1)])
+    rng = np.random.default_rng(3)
+    T = mesh.tets[rng.choice(mesh.n_tets, 40)]
+    E = np.r_[T[:, [0, 1]], T[:, [1, 2]], T[:, [0, 1]][:5]]  # neighbours in a tet, and repeats
+
+    X, tets, parent = mesh.vertices.copy(), mesh.tets.copy(), np.arange(mesh.n_tets)
+    for a, b in E.tolist():  # the reference: one edge after another
+        around = np.nonzero((tets == a).any(axis=1) & (tets == b).any(axis=1))[0]
+        if not len(around):
+            continue
+        m = len(X)
+        X = np.vstack([X, 0.5 * (X[a] + X[b])])
+        c1, c2 = tets[around].copy(), tets[around].copy()
+        c1[c1 == a], c2[c2 == b] = m, m
+        keep = np.ones(len(tets), bool)
+        keep[around] = False
+        tets, parent = np.vstack([tets[keep], c1, c2]), np.r_[parent[keep], parent[around], parent[around]]
+
+    def cells(V, Tt, P):
+        return sorted(tuple(sorted(map(tuple, np.round(V[t], 12).tolist()))) + (int(p),) for t, p in zip(Tt, P))
+
+    out = split_edges(cem, E)
+    assert out.mesh.n_vertices == len(X) > n and out.stats["split_edges"] == len(X) - n
+    assert cells(out.mesh.vertices, out.mesh.tets, out.parent) == cells(X, tets, parent)
+    assert np.all(TetMesh._signed_volumes(out.mesh.vertices, out.mesh.tets) > 0)
 
 
 # ------------------------------------------------------------------ quality

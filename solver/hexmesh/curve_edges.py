@@ -650,31 +650,61 @@ def _cone_balls(mesh: TetMesh, b: _Builder, balls, node_vertex, chains, P, new_t
 
 def split_edges(cem: CurveEdgeMesh, edges: np.ndarray) -> CurveEdgeMesh:
     """Split each edge (k, 2) of cem.mesh at its midpoint (every tet around it
-    in two), one after another.  The new vertices are inserted points
-    (source -1); chains and nodes keep their vertex ids."""
-    n = cem.mesh.n_vertices
+    in two).  The new vertices are inserted points (source -1); chains and
+    nodes keep their vertex ids.  Edges that share no tet are split together
+    (vectorised rounds: in each, an edge goes when it is the first remaining
+    edge of every tet around it): the same tets as splitting them one after
+    another in the order given, up to the numbering of the new vertices."""
+    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    V = cem.mesh.vertices
     parent = cem.parent.copy()
     Tcur = cem.mesh.tets.copy()
     fs = cem.frame_sources.copy()
-    extra: list[np.ndarray] = []
-    for a, b in np.asarray(edges, dtype=np.int64).reshape(-1, 2).tolist():
-        around = np.nonzero((Tcur == a).any(axis=1) & (Tcur == b).any(axis=1))[0]
-        if not len(around):
-            continue
-        m = n + len(extra)
-        extra.append(0.5 * (_vertex(cem, extra, a) + _vertex(cem, extra, b)))
-        c1 = Tcur[around].copy()
-        c2 = Tcur[around].copy()
-        c1[c1 == a] = m
-        c2[c2 == b] = m
+    new_points: list[np.ndarray] = []
+    pending = np.arange(len(E))
+    loc = np.array([(i, j) for i in range(4) for j in range(i + 1, 4)])
+    while len(pending):
+        lo, hi = np.minimum(E[pending, 0], E[pending, 1]), np.maximum(E[pending, 0], E[pending, 1])
+        base = int(max(Tcur.max(), hi.max())) + 1
+        want = lo * base + hi
+        order = np.argsort(want, kind="stable")  # of equal edges, the first given is the one split
+        a, b = Tcur[:, loc[:, 0]], Tcur[:, loc[:, 1]]
+        key = np.minimum(a, b) * base + np.maximum(a, b)  # (#T, 6)
+        pos = np.clip(np.searchsorted(want[order], key), 0, len(want) - 1)
+        hit = want[order][pos] == key
+        t, _ = np.nonzero(hit)
+        j = order[pos[hit]]  # index into pending of the edge tet t holds
+        if not len(t):
+            break  # no remaining edge has a tet around it
+        first = np.full(len(Tcur), len(pending))
+        np.minimum.at(first, t, j)
+        ok = np.ones(len(pending), bool)
+        ok[j[first[t] != j]] = False  # wait: a tet around it holds an earlier edge
+        held = np.zeros(len(pending), bool)
+        held[j] = True
+        go = ok & held
+        # new vertices in the order of the edges
+        m = np.full(len(pending), -1)
+        Vall = np.vstack([V] + new_points) if new_points else V
+        m[go] = len(Vall) + np.arange(int(go.sum()))
+        ea, eb = E[pending[go], 0], E[pending[go], 1]
+        new_points.append(0.5 * (Vall[ea] + Vall[eb]))
+        split = go[j] & (first[t] == j)
+        ts, js = t[split], j[split]
+        rows = Tcur[ts]
+        ga, gb, gm = E[pending[js], 0][:, None], E[pending[js], 1][:, None], m[js][:, None]
+        c1 = np.where(rows == ga, gm, rows)
+        c2 = np.where(rows == gb, gm, rows)
         keep = np.ones(len(Tcur), bool)
-        keep[around] = False
+        keep[ts] = False
         Tcur = np.vstack([Tcur[keep], c1, c2])
-        parent = np.r_[parent[keep], parent[around], parent[around]]
-        fs = np.vstack([fs[keep], fs[around], fs[around]])
-    if not extra:
+        parent = np.r_[parent[keep], parent[ts], parent[ts]]
+        fs = np.vstack([fs[keep], fs[ts], fs[ts]])
+        pending = pending[~go & held]
+    extra = np.vstack(new_points) if new_points else np.zeros((0, 3))
+    if not len(extra):
         return cem
-    V = np.vstack([cem.mesh.vertices, np.array(extra)])
+    V = np.vstack([V, extra])
     vol = TetMesh._signed_volumes(V, Tcur)
     if np.any(vol <= 0):
         raise CurveEdgeError("internal: an edge split made a tet that is not positive")
@@ -684,11 +714,6 @@ def split_edges(cem: CurveEdgeMesh, edges: np.ndarray) -> CurveEdgeMesh:
     stats["split_edges"] = stats.get("split_edges", 0) + len(extra)
     stats["tets"] = mesh.n_tets
     return CurveEdgeMesh(mesh, source, parent, cem.chains, cem.node_vertices, stats, fs)
-
-
-def _vertex(cem: CurveEdgeMesh, extra: list, v: int) -> np.ndarray:
-    n = cem.mesh.n_vertices
-    return cem.mesh.vertices[v] if v < n else extra[v - n]
 
 
 def _prism_tets(lo: list, hi: list) -> list:

@@ -29,7 +29,7 @@ from ..surface.features import sharp_edges_by_angle
 from ..surface.validation import validate_surface
 from .build import SuggestedCurve, padding_network
 from .charts import chart_graph
-from .labels import LABEL_NAMES, align_frame, face_adjacency, label_faces, merge_small_charts
+from .labels import LABEL_NAMES, align_frame, face_adjacency, label_faces, label_scores, merge_small_charts
 
 __all__ = ["SuggestReport", "SuggestedCurve", "suggest_network"]
 
@@ -274,7 +274,7 @@ def _crease_network(V, F, S, R, sharp, dropped, sharp_angle, target_tets) -> tup
     # one label per patch, the one its area-weighted normal scores best (for the report and pictures)
     D = S.face_normals @ R.T
     score = np.zeros((n, 6))
-    np.add.at(score, comp, np.c_[D[:, 0], -D[:, 0], D[:, 1], -D[:, 1], D[:, 2], -D[:, 2]] * S.face_areas[:, None])
+    np.add.at(score, comp, label_scores(D) * S.face_areas[:, None])
     labels = np.argmax(score, axis=1)[comp]
     pairs = len(np.unique(np.sort(np.c_[c0, c1][c0 != c1], axis=1), axis=0))
     deg = np.bincount(S.edges[sharp].ravel(), minlength=len(S.V))

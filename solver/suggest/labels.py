@@ -63,6 +63,12 @@ def face_adjacency(S: TriSurface, keep: np.ndarray | None = None) -> sp.csr_matr
     return sp.coo_matrix((np.r_[w, w], (np.r_[ef[:, 0], ef[:, 1]], np.r_[ef[:, 1], ef[:, 0]])), shape=(n, n)).tocsr()
 
 
+def label_scores(D: np.ndarray) -> np.ndarray:
+    """(n, 6): the components of n directions (in the polycube's frame) along
+    +X, -X, +Y, -Y, +Z, -Z, the labels' order."""
+    return np.c_[D[:, 0], -D[:, 0], D[:, 1], -D[:, 1], D[:, 2], -D[:, 2]]
+
+
 def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: float,
                 position: float = 0.0, blend: bool = False, gate: float = 0.25,
                 creased_position: float = 0.4) -> np.ndarray:
@@ -76,7 +82,8 @@ def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: floa
     for the directions within acos(gate) of the normal and only on smooth
     patches no sharp crease bounds."""
     D = S.face_normals @ R.T
-    score = np.maximum(np.c_[D[:, 0], -D[:, 0], D[:, 1], -D[:, 1], D[:, 2], -D[:, 2]], 0.0)
+    normal_score = np.maximum(label_scores(D), 0.0)
+    score = normal_score
     if position > 0:
         # the direction from the centre scaled to the bounding box (in R): a
         # box projection, which keeps the charts of elongated smooth solids
@@ -85,7 +92,7 @@ def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: floa
         lo, hi = X.min(axis=0), X.max(axis=0)
         Y = (X - 0.5 * (lo + hi)) / np.maximum(0.5 * (hi - lo), 1e-300)
         Y /= np.maximum(np.linalg.norm(Y, axis=1, keepdims=True), 1e-300)
-        B = np.maximum(np.c_[Y[:, 0], -Y[:, 0], Y[:, 1], -Y[:, 1], Y[:, 2], -Y[:, 2]], 0.0)
+        B = np.maximum(label_scores(Y), 0.0)
         # weighed by how much the face looks away from the centre (not in a
         # hole or a dent, where the direction from the centre is no guide)
         out = np.maximum(np.einsum("ij,ij->i", Y, D), 0.0)
@@ -118,8 +125,7 @@ def label_faces(S: TriSurface, R: np.ndarray, sharp: np.ndarray, smoothing: floa
         s = 0.5 * s + 0.5 * (P @ s)
     s = np.where(deg[:, None] > 0, s, score)
     labels = np.argmax(s + 1e-9 * score, axis=1)
-    return _flat_patches_whole(S, sharp, labels, np.maximum(np.c_[D[:, 0], -D[:, 0], D[:, 1], -D[:, 1], D[:, 2],
-                                                                     -D[:, 2]], 0.0))
+    return _flat_patches_whole(S, sharp, labels, normal_score)
 
 
 def _flat_patches_whole(S: TriSurface, sharp: np.ndarray, labels: np.ndarray, normal_score: np.ndarray,
