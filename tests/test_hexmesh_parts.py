@@ -19,7 +19,7 @@ from solver.hexmesh.quality import (
 )
 from solver.hexmesh.quantize import greedy_round
 from solver.hexmesh.seamless import AffineUnionFind, IntegerSpace
-from solver.hexmesh.smooth import foldover_free
+from solver.hexmesh.smooth import BoundaryMotion, active_vertices, foldover_free, optimise
 from solver.linalg.rotations import CUBE_GROUP
 from solver.mesh.tetmesh import TetMesh
 from solver.surface.trisurface import TriSurface, closest_point_on_triangles
@@ -243,6 +243,25 @@ def test_foldover_free_gradient_matches_finite_differences():
         Jp[:, i, j] += d
         fp, _ = foldover_free(Jp, 0.05)
         assert np.allclose((fp - f) / d, g[:, i, j], rtol=1e-4, atol=1e-5)
+
+
+def test_smoothing_moves_the_poor_cells_and_two_rings_and_holds_the_grid():
+    V, H = _hex_block(10, 0.0)
+    centre = int(np.argmin(np.linalg.norm(V, axis=1)))
+    V[centre] += 0.15  # a corner pushed 0.75 of a cell off the grid: its 8 cells poor
+    sj = scaled_jacobian(V, H)
+    assert sj.min() < 0.5 and np.sum(sj < 0.9) == 8
+    free = active_vertices(len(V), H, sj)
+    # the 8 cells' 27 vertices, then one ring (5^3) and two (7^3)
+    assert free.sum() == 7**3
+    q, _ = boundary_quads(H)
+    assert not free[np.unique(q)].any()
+    cells = free[H].any(axis=1)
+    motion = BoundaryMotion(V, q, np.zeros((0, 2), int), None, (np.zeros((0, 3)), np.zeros((0, 3))),
+                            np.zeros(len(V), bool)).held(free)
+    W = optimise(V, H[cells], 0.2, motion)
+    assert np.array_equal(W[~free], V[~free])
+    assert scaled_jacobian(W, H).min() > 0.95
 
 
 # ------------------------------------------------------------- node balls
