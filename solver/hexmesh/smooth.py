@@ -18,10 +18,9 @@ cube corner), the second keeps volumes near the cell's.
 
 Only the poor cells and a margin around them move (``active_vertices``);
 the regular grid elsewhere is held.  Boundary vertices move in the tangent
-plane of the input surface and are
-projected back onto it (sharp-feature vertices along their feature, corners
-not at all); vertices of irregular edges (the network) are held near their
-place by a spring.  A pass is kept only if the minimum scaled Jacobian does
+plane of the input surface and are projected back onto it (sharp-feature
+vertices along their feature, corners not at all); vertices of irregular
+edges (the network) are held near their place by a spring.  A pass is kept only if the minimum scaled Jacobian does
 not decrease; the report says what smoothing gained.  ``smooth_hexes`` is
 that policy (which vertex moves how, the spring's weight, what is kept);
 ``optimise`` the optimisation itself.
@@ -175,7 +174,7 @@ class BoundaryMotion:
         self.feature_edges = feature_edges
         self.quads = quads
 
-    def held(self, free: np.ndarray) -> "BoundaryMotion":
+    def held(self, free: np.ndarray) -> BoundaryMotion:
         """A copy in which the vertices outside `free` (n,) bool do not move."""
         m = copy.copy(self)
         m.corner = self.corner | ~free
