@@ -213,6 +213,39 @@ def test_a_map_that_needs_a_finer_field_solves_it_again_finer(monkeypatch, tmp_p
     assert len(calls) == 1 and not os.path.exists(out + ".vtu")
 
 
+def test_poor_cells_are_a_warning_that_names_them_and_ends_the_ladder(solved, monkeypatch):
+    """Cells below a scaled Jacobian of 0.3: valid with a warning that says
+    how many, the least and where, and, for cells much finer than the
+    field's tets, that a larger cell size gives better ones; a smaller cell
+    would not help, so the automatic ladder stops there."""
+    from solver.hexmesh.report import HexReport, verdict
+
+    r = HexReport(euler=[2], euler_expected=[2], structure_exact=True, sj_min=0.21, sj_poor=3,
+                  sj_worst_at=[0.5, -0.25, 1.0], cell_size=0.01, tet_edge=0.1)
+    verdict(r)
+    assert r.valid and len(r.warnings) == 1, r.warnings
+    assert "3 cells have a scaled Jacobian below 0.3 (the least 0.21, at (0.5, -0.25, 1))" in r.warnings[0]
+    assert "a larger cell size gives better ones" in r.warnings[0]
+    r.cell_size = 0.1  # as large as the tets: no such hint
+    verdict(r)
+    assert r.warnings and "larger cell size" not in r.warnings[0]
+    r.sj_poor = 0
+    verdict(r)
+    assert r.valid and not r.warnings
+    res = solved("cylinder")
+    real, sizes = mesher.assess, []
+
+    def poor(report, inp, V, H, cell):
+        real(report, inp, V, H, cell)
+        sizes.append(cell)
+        report.sj_poor = 2
+        verdict(report)
+
+    monkeypatch.setattr(mesher, "assess", poor)
+    hm = hexmesh(res, target_hexes=1000)
+    assert len(sizes) == 1 and hm.report.valid and "below 0.3" in hm.report.warnings[0]
+
+
 @pytest.mark.slow
 def test_the_verdict_has_a_level_for_a_boundary_slightly_off(solved, monkeypatch):
     """valid; valid with warnings (the boundary 1-2% of the diagonal off the

@@ -29,6 +29,10 @@ diagonal of the input surface."""
 HAUSDORFF_WARNED = 0.02
 """Past HAUSDORFF_BAR and up to this, the mesh is valid with a warning
 (a secondary measure slightly over its bar); past it, defective."""
+SJ_WARNED = 0.3
+"""A valid mesh with cells whose scaled Jacobian is below this is valid with
+a warning: poor elements for a simulation (and the bar of suggested
+networks' meshes, docs/suggest.md)."""
 SIZE_SPREAD = 0.2
 """A cell counts as even (HexReport.size_within) when its size is within
 this fraction of the cell size."""
@@ -113,9 +117,16 @@ class HexReport:
         what the run changed on its way (a smaller automatic cell size where
         the map failed at the first one, and why)
     warnings : list of str
-        a valid mesh's secondary measures slightly over their bars, with the
-        figures (the boundary 1-2% of the diagonal off the surface): the
-        verdict's middle level, *valid with warnings*
+        a valid mesh's secondary measures over their bars, with the figures
+        (the boundary 1-2% of the diagonal off the surface; cells with a
+        scaled Jacobian below SJ_WARNED): the verdict's middle level, *valid
+        with warnings*
+    sj_poor, sj_worst_at : int, list of 3 floats
+        how many cells have a scaled Jacobian below SJ_WARNED, and the
+        centre of the least one
+    tet_edge : float
+        the mean edge length of the field's tets (cells much finer than
+        them lose quality next to the singular curves)
     """
 
     status: str = DEFECTIVE
@@ -150,6 +161,9 @@ class HexReport:
     notes: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
     cell_reason: str = ""
+    sj_poor: int = 0
+    sj_worst_at: list = field(default_factory=list)
+    tet_edge: float = 0.0
     given_extra: int = 0
     given_distance: float = 0.0
     given_covered: float = 1.0
@@ -236,6 +250,9 @@ def assess(report: HexReport, inp, V: np.ndarray, H: np.ndarray, cell: float) ->
     report.hexes, report.vertices = len(H), len(V)
     report.inverted = int(np.sum(sj <= 0))
     report.sj_min, report.sj_mean = float(sj.min()), float(sj.mean())
+    report.sj_poor = int(np.sum(sj < SJ_WARNED))
+    report.sj_worst_at = [float(x) for x in V[H[int(np.argmin(sj))]].mean(axis=0)]
+    report.tet_edge = float(inp.mesh.mean_edge_length)
     q, over = boundary_quads(H)
     report.faces_over_two = over
     report.euler = euler_per_component(q)
@@ -314,7 +331,8 @@ def verdict(report: HexReport) -> None:
     cell, no lost corner and no face in more than two cells, has the
     surface's Euler characteristics, irregular edges exactly on the
     prescribed curves and a boundary within HAUSDORFF_WARNED of the surface
-    (past HAUSDORFF_BAR with a warning)."""
+    (past HAUSDORFF_BAR with a warning); cells with a scaled Jacobian below
+    SJ_WARNED are a warning."""
     why = []
     if report.non_hex_cells:
         why.append(f"{report.non_hex_cells} cells are not hexahedra")
@@ -334,6 +352,17 @@ def verdict(report: HexReport) -> None:
         why.append(off)
     elif report.hausdorff_relative > HAUSDORFF_BAR:
         warn.append(f"{off} (the bar is {100 * HAUSDORFF_BAR:g}%; up to {100 * HAUSDORFF_WARNED:g}% is a warning)")
+    if report.sj_poor and not report.inverted:
+        x, y, z = report.sj_worst_at
+        poor = (f"{report.sj_poor} cells have a scaled Jacobian below {SJ_WARNED:g} (the least {report.sj_min:.2f}, "
+                f"at ({x:.4g}, {y:.4g}, {z:.4g}))")
+        if report.cell_size < 0.75 * report.tet_edge:
+            # the ball's field on 53k tets (bench/RESULTS.md): least cell 0.73
+            # at ~3,000 cells, 0.52 at ~100,000, 0.29 at ~900,000
+            poor += (f"; cells much finer than the field's tets (cell {report.cell_size:.3g}, tet edges "
+                     f"{report.tet_edge:.3g} on average) lose quality next to the singular curves: a larger cell "
+                     "size gives better ones")
+        warn.append(poor)
     report.status = DEFECTIVE if why else VALID
     report.reason = "; ".join(why)
     report.warnings = warn
