@@ -118,3 +118,32 @@ def test_a_singular_pair_on_either_side_of_a_hole_solves(holes, xs):
     assert r.report.converged, r.report.summary()
     assert r.report.lm.final.penalty < 0.05, r.report.summary()
     check_omega_singular_set(r)
+
+
+def test_a_correction_that_does_not_take_leaves_the_smoothest_turns(monkeypatch):
+    """The count of curves through a meridian's least-squares chain can be
+    misread (on a plate with a hole and four -1/4 curves at its corners, 3
+    fTetWild meshes in 32 read 0 or 1 where the smoothest field's -1 quarter
+    turn was right; corrected, LM ended at its cap with a penalty of ~2e3).
+    Where the corrected field still reads wrong, or no longer reads a whole
+    quarter turn, the smoothest field's turns stand; a correction that
+    takes is kept."""
+    from types import SimpleNamespace
+
+    import solver.field.handles as handles
+
+    smoothest = SimpleNamespace(generators=[("g0", None, None)], generator_null_values=np.zeros((1, 3)), k=0)
+    monkeypatch.setattr(handles, "meridians", lambda mesh, emb, bf: [((1,), 1)])
+    monkeypatch.setattr(handles, "bounding_combinations", lambda values: [])
+    monkeypatch.setattr(handles, "loop_turns", lambda B, bf, loops: [((1,), 1, bf.k)])
+    mesh = SimpleNamespace(boundary=None)
+    for after, kept in ((None, False), (2, False), (1, True)):
+        resolved = []
+
+        def resolve(turns, after=after):
+            resolved.append(turns)
+            return SimpleNamespace(generators=smoothest.generators, k=after)
+
+        bf = handles.settle_handle_turns(mesh, None, smoothest, resolve)
+        assert resolved and resolved[0] == {"g0": 1}
+        assert (bf is not smoothest and bf.k == 1) if kept else bf is smoothest, after

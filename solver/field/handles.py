@@ -48,6 +48,7 @@ def settle_handle_turns(mesh: TetMesh, embedding: Embedding, bf: BoundaryField, 
         return bf
     fixed = bounding_combinations(bf.generator_null_values)
     loops = meridians(mesh, embedding, bf)
+    smoothest = bf
     wanted, first = {}, {}
     for attempt in range(2):
         wrong = meridian_errors(mesh.boundary, bf, loops)
@@ -63,6 +64,17 @@ def settle_handle_turns(mesh: TetMesh, embedding: Embedding, bf: BoundaryField, 
         if delta is None:
             break
         bf = resolve({keys[i]: int(d) for i, d in enumerate(delta) if d})
+    if bf is not smoothest and (meridian_errors(mesh.boundary, bf, loops)
+                                or any(k is None for _n, _t, k in loop_turns(mesh.boundary, bf, loops))):
+        # the corrected field still reads wrong, or no longer reads a whole
+        # turn: the correction did not take, and the count it followed is
+        # suspect.  On a plate with a hole and four -1/4 curves at its
+        # corners (bench_hexnet plate 8), 3 fTetWild meshes in 32 read a
+        # count of 0 or 1 where the smoothest field's -1 quarter turn was
+        # right (29 in 32 converged with it, the count unread); corrected,
+        # they read -1.33 or stayed off, and LM ended at its cap (penalty
+        # ~2e3, tangents 40 deg off).  The smoothest field's turns stand
+        return smoothest
     return bf
 
 
@@ -95,6 +107,20 @@ def meridian_errors(B: TriSurface, bf: BoundaryField, loops: list) -> list:
     Returns [(n as a tuple, quarter turns to add)].
     """
     out = []
+    for n, through, k in loop_turns(B, bf, loops):
+        if k is None:
+            continue  # not a whole number of quarter turns: nothing to read
+        best = min((((through - k + 4) % 8) - 4 for through in (through, -through)), key=abs)
+        if best:
+            out.append((tuple(int(x) for x in n), int(best)))
+    return out
+
+
+def loop_turns(B: TriSurface, bf: BoundaryField, loops: list) -> list:
+    """[(n, turns through, k)] for the loops whose curves' count is known:
+    the quarter turns k of the boundary field's holonomy around each
+    (meridian_errors), None where it is not nearly a whole number."""
+    out = []
     for n, through in loops:
         if through is None:
             continue  # the curves' count through it is not known (meridians)
@@ -103,12 +129,7 @@ def meridian_errors(B: TriSurface, bf: BoundaryField, loops: list) -> list:
         base = B.edges[ids[0], 0] if signs[0] > 0 else B.edges[ids[0], 1]
         sense = 1.0 if float(q[1:] @ bf.normals[base]) >= 0 else -1.0
         k = 2.0 * np.arctan2(sense * np.linalg.norm(q[1:]), float(q[0])) / (np.pi / 2)  # (-4, 4]
-        if abs(k - np.round(k)) > 0.25:
-            continue  # not a whole number of quarter turns: nothing to read
-        k = int(np.round(k))
-        best = min((((t - k + 4) % 8) - 4 for t in (through, -through)), key=abs)
-        if best:
-            out.append((tuple(int(x) for x in n), int(best)))
+        out.append((n, through, int(np.round(k)) if abs(k - np.round(k)) <= 0.25 else None))
     return out
 
 
