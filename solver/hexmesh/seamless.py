@@ -40,14 +40,18 @@ is a small dense quadratic: with z split into continuous y and integer w,
     y(w) = Q_yy^-1 (b_y - Q_yw w),
     E(w) = 1/2 w' S w - c' w,   S = Q_ww - Q_wy Q_yy^-1 Q_yw,
 
-one sparse factorisation and one solve per integer unknown give S exactly
-(``_Reduced``).  Its minimum over real w is the seamless map
+one solve of Q_yy per integer unknown (and one for y0) gives S
+(``_Reduced``: a sparse factorisation on small systems, conjugate gradients
+with an algebraic multigrid preconditioner on large ones, whose fill would
+grow faster than the mesh).  Its minimum over real w is the seamless map
 (``seamless_map``); greedy rounding of w (quantize.py) gives the
 integer-grid map (``integer_grid_map``), with no re-solve of the large
 system between roundings.  Inverted tets left by the rounding are then
 stiffened (MIQ; AlgoHex's ``update_cell_weights``): their weight grows and
-the continuous unknowns are solved again, keeping the best map; a map still
-folded is untangled with its integers fixed (``optimise_map``).
+the continuous unknowns are solved again (conjugate gradients
+preconditioned by the first solve's factorisation or multigrid), keeping
+the best map; a map still folded is untangled with its integers fixed
+(``optimise_map``).
 """
 
 from __future__ import annotations
@@ -60,7 +64,10 @@ import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import HexMeshError
+from ..linalg.amg import AMG
 from ..linalg.lbfgs import lbfgs
+from ..linalg.multipcg import pcg_columns
+from ..linalg.parallel import parallel
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.tetmesh import TET_EDGE_OPPOSITE, TET_FACES, TetMesh
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, split_edges
@@ -925,25 +932,115 @@ def _grid_map(ms: MapSystem, z: np.ndarray, **kw) -> GridMap:
     return GridMap(z, U, det, ms.energy(z), **kw)
 
 
-class _Reduced:
-    """The energy as a function of the integer unknowns (module docs)."""
+# Continuous unknowns up to which Q_yy is factorised (SuperLU); above, PCG
+# with an AMG V-cycle.  SPD solves with 1 + 4 right-hand sides (2 cores, PCG
+# to a relative residual of 1e-12, its hierarchy included): the small
+# examples' 6.4-7.3k unknowns 0.05-0.27 s factorised against 0.14-0.39 s;
+# leading blocks of the 171k-tet ball's system 0.1 s either way at 5k
+# unknowns, 0.5 against 0.3 s at 10k, 8.2 against 1.3 s at 40k; the 53k-tet
+# ball's 29,909 unknowns 3.6-5.3 s (54x fill) against 1.3-2.1 s; the
+# 171k-tet ball's 89,910 unknowns 179 s (132x fill; the process peaked at
+# 6.2 GB) against 5 s.  Up to the threshold the maps are those of the
+# factorisation, bit for bit.
+DIRECT_MAX = 8_000
+# PCG stops at this relative residual per column.  On the 171k-tet ball the
+# maps (seamless and integer-grid) then differ from the factorisation's by
+# 3.8e-11 and 3.0e-11 cells, and no corner coordinate snaps (extract.snap,
+# 2^-20) elsewhere: the hex mesh is the same, in 104 steps for the first
+# solve.  At 1e-12 (99 steps) they differed by 4.5e-10 and 2.0e-10, 24 of
+# the 2.1 M snapped coordinates moved by 2^-20, the hexes by up to 1.8e-7
+# after smoothing and the least scaled Jacobian by 1.5e-5.
+PCG_RTOL = 1e-13
+PCG_MAXITER = 1000
+# A stiffened solve that took more PCG steps than this (a factorisation's) or
+# than this many times the first solve's (AMG's) builds the preconditioner
+# anew on its matrix for the next stiffening, whose weights grow on the same
+# tets.  Measured: the examples' stiffenings took 9-19 steps with the first
+# factorisation (a new one costs 30-60 steps at 7k unknowns); the 171k-tet
+# ball's two 131 and 148 with the first hierarchy, 104 for the first solve
+# (a step takes 6 ms there, a hierarchy 0.5 s with the first one's
+# aggregates' roots); a synthetic map folded on a fifth of its tets
+# (tests/test_map_solve.py) took 28, 54, 80, 144, 247 and 407 steps over
+# six stiffenings with the first factorisation and 59 to 623 with the first
+# hierarchy (36 for the first solve), 38-50 with each matrix's own
+# hierarchy; 28-59 and 59-107 steps with these refreshes.
+LU_REFRESH_STEPS = 30
+AMG_REFRESH_RATIO = 2.0
 
-    def __init__(self, Q: sp.csr_matrix, b: np.ndarray, integer: np.ndarray):
+
+def _factorise(A: sp.spmatrix):
+    """SuperLU of the SPD matrix A: symmetric mode with a symmetric ordering
+    is several times faster than SuperLU's default (COLAMD, partial
+    pivoting)."""
+    return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                     options={"SymmetricMode": True})
+
+
+class _Reduced:
+    """The energy as a function of the integer unknowns (module docs).
+
+    Q_yy is factorised (SuperLU) up to ``direct_max`` continuous unknowns;
+    above, its solves are PCG preconditioned by one V-cycle of a
+    smoothed-aggregation AMG (amg.py), every right-hand side at once
+    (``pcg_columns``), to a relative residual of ``PCG_RTOL``: a sparse LU
+    of these 3D meshes fills superlinearly (``DIRECT_MAX``).  PCG that does
+    not converge falls back to the factorisation.  The factorisation or
+    hierarchy is kept to precondition the stiffened systems (``stiffened``).
+
+    Parameters
+    ----------
+    Q : (nz, nz) sparse SPD, b : (nz,)
+        the energy 1/2 z'Qz - b'z
+    integer : (nz,) bool
+        the integer unknowns w (the rest are the continuous y)
+    direct_max : int
+        factorise Q_yy up to this many continuous unknowns
+
+    Attributes
+    ----------
+    y0, Z : y(w) = y0 - Z w
+    S, c : the reduced energy 1/2 w'Sw - c'w
+    method : 'lu' or 'amg-pcg'
+    iterations : list of the PCG steps of each solve (empty if none)
+    """
+
+    def __init__(self, Q: sp.csr_matrix, b: np.ndarray, integer: np.ndarray, direct_max: int = DIRECT_MAX):
         self.iw = np.nonzero(integer)[0]
         self.iy = np.nonzero(~integer)[0]
+        self.n = len(b)
         Q = Q.tocsc()
-        Qyy = Q[self.iy][:, self.iy]
-        Qyw = Q[self.iy][:, self.iw].toarray()
+        Qy = Q[self.iy]
+        Qyy = Qy[:, self.iy]
+        Qyw = Qy[:, self.iw].toarray()
         Qww = Q[self.iw][:, self.iw].toarray()
-        # SPD: symmetric mode with a symmetric ordering is several times
-        # faster than SuperLU's default (COLAMD, partial pivoting)
-        self.lu = spla.splu(Qyy.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                            options={"SymmetricMode": True})
-        self.y0 = self.lu.solve(b[self.iy])
-        self.Z = self.lu.solve(Qyw) if len(self.iw) else np.zeros((len(self.iy), 0))
+        self.Qyy, self.Qyw, self.by = Qyy.tocsr(), Qyw, b[self.iy]
+        self.lu = self.amg = None
+        self.iterations: list[int] = []
+        if len(self.iy) <= direct_max:
+            self.method = "lu"
+            self.lu = _factorise(Qyy)
+            self.y0 = self.lu.solve(self.by)
+            self.Z = self.lu.solve(Qyw) if len(self.iw) else np.zeros((len(self.iy), 0))
+        else:
+            self.method = "amg-pcg"
+            self.amg = AMG.build(self.Qyy, block=1)
+            Y = self._solve(self.Qyy, np.column_stack([self.by, Qyw]))
+            self.y0, self.Z = Y[:, 0].copy(), Y[:, 1:].copy()
         self.S = Qww - Qyw.T @ self.Z
         self.c = b[self.iw] - Qyw.T @ self.y0
-        self.n = len(b)
+
+    def _precondition(self, R: np.ndarray) -> np.ndarray:
+        return self.lu.solve(R) if self.lu is not None else self.amg.vcycle(R)
+
+    def _solve(self, A: sp.csr_matrix, B: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
+        """A^-1 B by PCG (this system's preconditioner), from X0; by a
+        factorisation of A where PCG does not converge."""
+        Ap = parallel(A)
+        res = pcg_columns(lambda X: Ap @ X, B, self._precondition, X0=X0, rtol=PCG_RTOL, maxiter=PCG_MAXITER)
+        self.iterations.append(res.iterations)
+        if res.converged:
+            return res.X
+        return _factorise(A).solve(B)
 
     def z(self, w: np.ndarray) -> np.ndarray:
         out = np.empty(self.n)
@@ -955,6 +1052,46 @@ class _Reduced:
         if not len(self.iw):
             return np.zeros(0)
         return np.linalg.solve(self.S + 1e-12 * np.eye(len(self.S)) * np.trace(self.S), self.c)
+
+    def stiffened(self, dQ: sp.spmatrix, db: np.ndarray, w: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """z minimising 1/2 z'(Q + dQ)z - (b + db)'z with the integer
+        unknowns held at w: the continuous ones solve
+
+            (Q_yy + dQ_yy) y = b_y + db_y - (Q_yw + dQ_yw) w
+
+        by PCG from y (the last map's), preconditioned by Q_yy's
+        factorisation or AMG hierarchy, not a new one.  dQ (a stiffening:
+        a few tets' weights raised) changes few rows, so the preconditioned
+        matrix is the identity plus a low-rank term (factorisation: 9-19
+        steps on the examples' stiffenings, against a new factorisation)
+        or stays close to Q_yy's (AMG: 131 and 148 steps on the 171k-tet
+        ball's two, 104 for the first solve).  Where the solve took many steps
+        (``LU_REFRESH_STEPS``, ``AMG_REFRESH_RATIO``) the preconditioner is
+        built again on this matrix for the next call.
+
+        Parameters
+        ----------
+        dQ : (nz, nz) sparse, db : (nz,)
+            the change of the energy
+        w : (m,) the integer unknowns
+        y : (ny,) the starting continuous unknowns
+
+        Returns
+        -------
+        (nz,) z
+        """
+        dQy = sp.csr_matrix(dQ)[self.iy]
+        A = (self.Qyy + dQy[:, self.iy]).tocsr()
+        rhs = self.by + db[self.iy] - self.Qyw @ w - dQy[:, self.iw] @ w
+        out = np.empty(self.n)
+        out[self.iw] = w
+        out[self.iy] = self._solve(A, rhs, y)
+        steps = self.iterations[-1]
+        if self.lu is not None and steps > LU_REFRESH_STEPS:
+            self.lu = _factorise(A)
+        elif self.amg is not None and steps > AMG_REFRESH_RATIO * self.iterations[0]:
+            self.amg = AMG.build(A, block=1, like=self.amg)
+        return out
 
 
 def seamless_map(ms: MapSystem) -> tuple[GridMap, _Reduced]:
@@ -984,10 +1121,16 @@ def integer_grid_map(ms: MapSystem, red: _Reduced | None = None, stiffen_iters: 
     best = _grid_map(ms, red.z(w), rounded=len(w), max_shift=shift)
     if best.inverted == 0 or stiffen_iters == 0:
         return best
-    # stiffening: the integer unknowns stay, the continuous ones move
+    # stiffening: the integer unknowns stay, the continuous ones move.  The
+    # energy's weights change only on the tets stiffened so far: Q + dQ with
+    # dQ = LX' diag(wts - weight) LX over their rows, solved by PCG with the
+    # first solve's factorisation or hierarchy (_Reduced.stiffened).  A new
+    # factorisation per iteration took 329 s for two iterations on the
+    # 171k-tet ball (89,910 unknowns).
     LX, weight = ms.least_squares()
     wts = weight.copy()
     nT = len(ms.tet_weight)
+    target = np.tile(np.eye(3).reshape(-1), nT)
     cur = best
     for it in range(1, stiffen_iters + 1):
         bad = cur.det <= 0
@@ -996,10 +1139,13 @@ def integer_grid_map(ms: MapSystem, red: _Reduced | None = None, stiffen_iters: 
         scale = np.ones(nT)
         scale[bad] = stiffen_factor
         wts = wts * np.repeat(scale, 9)
-        Q = (LX.T @ sp.diags(wts) @ LX).tocsr()
-        b = LX.T @ (wts * np.tile(np.eye(3).reshape(-1), nT))
-        red_s = _Reduced(Q, np.asarray(b).ravel(), ms.integer)
-        cur = _grid_map(ms, red_s.z(w), rounded=len(w), max_shift=shift, stiffening=it)
+        rows = np.nonzero(wts != weight)[0]
+        dw = wts[rows] - weight[rows]
+        L = LX[rows]
+        dQ = L.T @ sp.diags(dw) @ L
+        db = np.asarray(L.T @ (dw * target[rows])).ravel()
+        z = red.stiffened(dQ, db, w, cur.z[red.iy])
+        cur = _grid_map(ms, z, rounded=len(w), max_shift=shift, stiffening=it)
         if cur.inverted < best.inverted or (cur.inverted == best.inverted and cur.det.min() > best.det.min()):
             best = cur
     return best
