@@ -358,7 +358,7 @@ def verdict(report: HexReport) -> None:
                 f"at ({x:.4g}, {y:.4g}, {z:.4g}))")
         if report.cell_size < 0.75 * report.tet_edge:
             # the ball's field on 53k tets (bench/RESULTS.md): least cell 0.73
-            # at ~3,000 cells, 0.52 at ~100,000, 0.29 at ~900,000
+            # at ~3,000 cells, 0.52 at ~100,000, 0.29-0.41 at ~900,000
             poor += (f"; cells much finer than the field's tets (cell {report.cell_size:.3g}, tet edges "
                      f"{report.tet_edge:.3g} on average) lose quality next to the singular curves: a larger cell "
                      "size gives better ones")
