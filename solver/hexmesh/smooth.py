@@ -20,10 +20,11 @@ Only the poor cells and a margin around them move (``active_vertices``);
 the regular grid elsewhere is held.  Boundary vertices move in the tangent
 plane of the input surface and are projected back onto it (sharp-feature
 vertices along their feature, corners not at all); vertices of irregular
-edges (the network) are held near their place by a spring.  A pass is kept only if the minimum scaled Jacobian does
-not decrease; the report says what smoothing gained.  ``smooth_hexes`` is
-that policy (which vertex moves how, the spring's weight, what is kept);
-``optimise`` the optimisation itself.
+edges (the network) are held near their place by a spring.  A pass is
+kept only if the minimum scaled Jacobian does not decrease; the report
+says what smoothing gained.  ``smooth_hexes`` is that policy (which vertex
+moves how, the spring's weight, what is kept); ``optimise`` the
+optimisation itself.
 """
 
 from __future__ import annotations
