@@ -110,6 +110,18 @@ def _voxels(shape: str):
     return voxel_surface(occ, 0.5)
 
 
+def _ring(kind: str):
+    """Solids of revolution (testkit/revolve.py): a washer with sharp rims,
+    a ring with rounded rims, a long pipe."""
+    from testkit.revolve import rounded_ring, washer
+
+    if kind == "washer":
+        return washer()
+    if kind == "rounded":
+        return rounded_ring()
+    return washer(0.4, 0.6, 2.0, 0.1, 48)
+
+
 def solids() -> dict:
     """name -> a function making (V, F)."""
     from solver.examples import box, cylinder_surface, icosphere, load_example, plate_with_hole_surface, torus_surface
@@ -156,6 +168,10 @@ def solids() -> dict:
         "genus2_example": lambda: load_example("genus2")[:2],
         "torus": lambda: torus_surface(),
         "torus_fat": lambda: torus_surface(1.0, 0.6, 48, 24),
+        "torus_rot": rot(lambda: torus_surface(1.5, 0.35, 72, 20), 5),
+        "washer": lambda: _ring("washer"),
+        "rounded_ring": lambda: _ring("rounded"),
+        "pipe_rot": rot(lambda: _ring("pipe"), 6),
     }
     for s in range(6):
         S[f"blob_{s}"] = (lambda s=s: _blob(s))

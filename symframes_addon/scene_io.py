@@ -259,7 +259,7 @@ def read_network(collection, settings, max_segment: float) -> tuple[Network, lis
             except InputError as e:
                 raise InputError(f"curve object '{obj.name}': {e}") from None
             curves.append(Curve(points=resample(P, max_segment), sigma=curve_sigma(cs), role=cs.role,
-                                torsion=cs.torsion, name=name))
+                                torsion=cs.torsion, name=name, closed=bool(sp.use_cyclic_u and len(P) > 3)))
     angle = math.degrees(settings.sharp_angle) if settings.use_sharp_angle else None
     tol = float(settings.node_tolerance) if settings.node_tolerance > 0 else None
     return Network(curves=curves, sharp_angle=angle, node_tolerance=tol), ignored

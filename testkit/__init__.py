@@ -1,6 +1,6 @@
 """Tools for the tests and the benchmarks, never shipped in the extension:
 inputs made the way other tools make them (tetedge.py), real-like
 networks taken from hex meshes (hexnet.py), the genus-2 family (genus2.py),
-sculpted solids (sculpt.py) and solved fields changed for a test
+sculpted solids (sculpt.py), solids of revolution (revolve.py) and solved fields changed for a test
 (fields.py).  They import the
 solver; the solver never imports them."""

@@ -104,6 +104,24 @@ def test_suggest_network_sets_the_angle_that_keeps_its_creases():
     assert len(s.network.objects) == 0  # every chart boundary is a crease: no curve
 
 
+def test_a_torus_gets_closed_loops_read_back_closed():
+    """A torus's suggestion is four closed loops of +1/4 (the ring route,
+    solver/suggest/ring.py): written as cyclic splines, they read back as
+    closed curves of the same index, so the user edits loops, not arcs."""
+    from symframes.solver.examples import torus_surface
+
+    V, F = torus_surface(1.0, 0.4, 48, 16)
+    obj = bpy.data.objects.new("Torus", examples.mesh_from_arrays("Torus", V, F))
+    scene().collection.objects.link(obj)
+    scene().symframes.domain = obj
+    assert bpy.ops.symframes.suggest_network() == {"FINISHED"}
+    objs = list(scene().symframes.network.objects)
+    assert len(objs) == 4 and all(o.data.splines[0].use_cyclic_u for o in objs)
+    inp = scene_io.read_inputs(bpy.context)
+    assert len(inp.network.curves) == 4
+    assert all(c.closed and c.sigma == 0.25 for c in inp.network.curves)
+
+
 def test_a_cancelled_suggestion_gives_nothing_to_write():
     """The suggestion runs as a job (a worker thread from the UI); Esc during
     it discards its result, and the operator then writes nothing."""

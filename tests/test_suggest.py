@@ -129,14 +129,24 @@ def test_cylinder_gets_the_o_grid():
     check_input(V, F, net)
 
 
-def test_torus_gets_a_square_ring():
-    """A torus is labelled as a square ring: 10 charts (the top and bottom
-    ones annuli), 16 corners, each a node with a radial curve: +1/4 at the
-    8 outer corners, -1/4 at the 8 inner ones (one chart turns by 270
-    degrees there), so that the ends add up to the torus' Euler
-    characteristic 0; the hole's 4 vertical boundaries are concave."""
+def _elliptic_torus():
+    """A torus stretched 1.25 x along x: genus 1, not a solid of revolution
+    (its normals leave the meridian planes by 0.11 RMS), so the padded
+    polycube takes it."""
     V, F = torus_surface(1.0, 0.45, 40, 14)
+    return V * [1.25, 1.0, 1.0], F
+
+
+def test_a_ring_that_is_not_of_revolution_gets_a_square_ring():
+    """A torus-like solid that is not of revolution is labelled as a square
+    ring: 10 charts (the top and bottom ones annuli), 16 corners, each a
+    node with a radial curve: +1/4 at the 8 outer corners, -1/4 at the 8
+    inner ones (one chart turns by 270 degrees there), so that the ends add
+    up to the torus' Euler characteristic 0; the hole's 4 vertical
+    boundaries are concave."""
+    V, F = _elliptic_torus()
     net, rep = suggest_network(V, F)
+    assert rep.route == "padded polycube"
     assert rep.charts == 10 and rep.corners == 16 and rep.nodes == 16
     radial = [c for c in rep.curves if c.kind == "radial"]
     assert sorted(c.sigma for c in radial) == [-0.25] * 8 + [0.25] * 8
@@ -147,6 +157,63 @@ def test_torus_gets_a_square_ring():
         if c.name in {m.name for m in minus}:
             # under the hole's wall, running up and down the axis
             assert np.ptp(c.points[:, 2]) > 3 * np.ptp(np.linalg.norm(c.points[:, :2], axis=1))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_torus_gets_four_loops_about_its_own_axis(seed):
+    """A torus, turned and moved anywhere (ring.py): its axis is found from
+    the normals, and its network is the swept O-grid: 4 closed loops of
+    +1/4 about that axis, no node, at 0.45 of the tube's radius from the
+    tube's centre along both diagonals (the O-grid's inner square), and
+    check_input accepts it."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    V, F = torus_surface(1.0, 0.4, 48, 16)
+    Rm = Rotation.random(random_state=seed).as_matrix()
+    shift = rng.uniform(-3, 3, 3)
+    W = V @ Rm.T + shift
+    net, rep = suggest_network(W, F)
+    assert rep.route == "ring" and rep.nodes == 0 and rep.charts == 4
+    assert len(net.curves) == 4 and all(c.closed and c.sigma == 0.25 for c in net.curves)
+    for c in net.curves:
+        P = (c.points - shift) @ Rm  # back in the torus's own frame
+        r = np.linalg.norm(P[:, :2], axis=1)
+        assert np.ptp(r) < 1e-2 and np.ptp(P[:, 2]) < 1e-2  # a circle about the axis
+        off = np.array([r.mean() - 1.0, P[:, 2].mean()])
+        assert np.allclose(np.abs(off), 0.45 * 0.4, rtol=0.25), off
+    check_input(W, F, net)
+
+
+def test_a_ring_with_sharp_rims_needs_no_curve_and_a_rounded_one_gets_loops():
+    """A washer (rectangular profile, sharp rims) is four bands between
+    sharp creases: no curve at all, the hex mesh a sweep.  The same ring
+    with rounded rims gets a +1/4 loop under each fillet.  A profile with a
+    groove gets -1/4 loops under its concave turns."""
+    from testkit.revolve import polyline, revolved_surface, rounded_ring, washer
+
+    net, rep = suggest_network(*washer())
+    assert rep.route == "ring" and net.curves == [] and rep.sharp_boundaries == 4
+    V, F = rounded_ring()
+    net, rep = suggest_network(V, F)
+    assert rep.route == "ring" and sorted(c.sigma for c in net.curves) == [0.25] * 4
+    r = [np.linalg.norm(c.points[:, :2], axis=1).mean() for c in net.curves]
+    assert all(0.5 < x < 1.0 for x in r)
+    # a groove round the outside: a U-shaped profile, its two concave corners -1/4 loops
+    groove = [(0.5, -0.3), (1.0, -0.3), (1.0, -0.1), (0.8, -0.1), (0.8, 0.1), (1.0, 0.1), (1.0, 0.3), (0.5, 0.3)]
+    V, F = revolved_surface(polyline(groove, 0.05), 72)
+    net, rep = suggest_network(V, F, sharp_angle=100.0)  # no crease: every boundary smooth
+    assert rep.route == "ring"
+    assert sorted(c.sigma for c in net.curves) == [-0.25] * 2 + [0.25] * 6
+    # chamfered outer rims: a 45-degree crease inside a band, which the ring
+    # route leaves to the padded polycube (it knows such creases)
+    from solver.suggest import sharp_creases
+    from solver.suggest.ring import ring_network
+    from solver.surface.validation import validate_surface
+
+    chamfer = [(0.5, -0.25), (0.9, -0.25), (1.0, -0.15), (1.0, 0.15), (0.9, 0.25), (0.5, 0.25)]
+    S = validate_surface(*revolved_surface(polyline(chamfer, 0.05), 72))
+    assert ring_network(S, sharp_creases(S, 30.0)[0]) is None
 
 
 def _nodes_and_depths(net, rep):
@@ -176,7 +243,7 @@ def test_proportioned_keeps_a_core_as_thick_as_the_padding():
     corners = np.array([c.points[-1] for c, i in zip(net.curves, rep.curves) if i.kind == "radial"])
     assert len(corners) == 8 and np.all(np.abs(corners[:, 2]) > 0.22)
     assert rep.feature_size > 0.2  # 0.10 with the normals' corners
-    for V, F in ((V0, F0), torus_surface()):
+    for V, F in ((V0, F0), _elliptic_torus()):
         net, rep = suggest_network(V, F, proportioned=True)
         nodes = _nodes_and_depths(net, rep)
         assert len(nodes) in (8, 16)

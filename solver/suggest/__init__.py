@@ -11,7 +11,9 @@ why and where.
 
 The steps: the frame and the per-triangle labels (labels.py), the charts,
 their boundaries and corners (charts.py), and the curves and nodes built
-from them (build.py).
+from them (build.py).  A solid of revolution about an axis outside it (a
+torus, a washer, a pipe) takes the polycube in the frame that turns with
+it instead: bands around the axis, closed loops and no node (ring.py).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from ..surface.validation import validate_surface
 from .build import SuggestedCurve, padding_network
 from .charts import chart_graph
 from .labels import LABEL_NAMES, align_frame, face_adjacency, label_faces, label_scores, merge_small_charts
+from .ring import ring_network
 
 __all__ = ["SuggestReport", "SuggestedCurve", "suggest_network"]
 
@@ -71,6 +74,10 @@ class SuggestReport:
         command line uses it for a bare surface unless --target-tets or
         --edge-length is given.
     seconds : float
+    route : str
+        How the network was made: ``'padded polycube'``, ``'ring'`` (a
+        solid of revolution about an axis outside it: the polycube in the
+        frame that turns with it) or ``'creases'`` (the sharp creases alone).
     """
 
     frame: np.ndarray
@@ -86,6 +93,7 @@ class SuggestReport:
     feature_size: float = 0.0
     target_tets: int | None = None
     seconds: float = 0.0
+    route: str = "padded polycube"
 
     def summary(self) -> str:
         """A few lines for a person: charts, curves by kind and index, notes."""
@@ -95,7 +103,7 @@ class SuggestReport:
         for c in self.curves:
             kinds[c.kind] = kinds.get(c.kind, 0) + 1
         lines = [
-            f"suggested network (padded polycube): {len(self.curves)} curves "
+            f"suggested network ({self.route}): {len(self.curves)} curves "
             f"({', '.join(f'{v} {k}' for k, v in sorted(kinds.items())) or 'none'}; {n_pos} of index +1/4, "
             f"{n_neg} of -1/4), {self.nodes} nodes",
             f"  polycube: {self.charts} charts, {self.chart_boundaries} chart boundaries ({self.sharp_boundaries} on "
@@ -170,6 +178,10 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
     sharp, dropped = sharp_creases(S, sharp_angle)
     if dropped:
         notes.append(f"{dropped} sharp edges in short isolated groups (noise, not creases) left smooth")
+    found = _ring(V, F, S, sharp, dropped, notes, sharp_angle, depth, check, target_tets)
+    if found is not None:
+        found[1].seconds = time.perf_counter() - t0
+        return found
     R = align_frame(S)
     try:
         net, rep = _padded_polycube(V, F, S, R, sharp, dropped, notes, sharp_angle, depth, smoothing, check,
@@ -182,6 +194,7 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
         if found is None:
             raise
         net, rep = found
+        rep.route = "creases"
         rep.notes = notes + [f"the padded polycube failed ({str(refusal)[:200]}); every patch between the "
                              "sharp creases is a disk and the creases' corners satisfy Poincare-Hopf, so the "
                              "network needs no curve"] + rep.notes
@@ -243,6 +256,39 @@ def _padded_polycube(V, F, S, R, sharp, dropped, notes, sharp_angle, depth, smoo
             raise NetworkError(f"the suggested network is not valid ({e}); this is a limit of the suggestion, not "
                                "of the input: draw the network by hand (docs/suggest.md)") from None
     return net, rep
+
+
+def _ring(V, F, S, sharp, dropped, notes, sharp_angle, depth, check, target_tets):
+    """The ring route (ring.py) where (V, F) bound a solid of revolution about
+    an axis outside it and check_input accepts its loops (tried at up to
+    three depths, each 0.7 x shallower), else None: the padded polycube then
+    takes the solid."""
+    from ..network.validation import check_input
+
+    for _ in range(3 if depth is None and check else 1):
+        found = ring_network(S, sharp, depth)
+        if found is None:
+            return None
+        curves, info, frame, labels, delta, more = found
+        kw = dict(sharp_edges=S.edges[sharp]) if dropped else dict(sharp_angle=sharp_angle)
+        net = Network(curves=curves, **kw)
+        n_charts = len(np.unique(labels))  # bands around the axis: as many boundaries, each a circle
+        rep = SuggestReport(frame, labels, n_charts, n_charts, n_charts - len(curves), 0, 0, delta,
+                            [SuggestedCurve(name, sigma, "padding", charts, length)
+                             for name, sigma, charts, length in info], list(notes) + more, route="ring")
+        if not check:
+            return net, rep
+        try:
+            ci = check_input(V, F, net, target_tets=target_tets)
+        except (NetworkError, TopologyError):
+            if not curves:
+                return None
+            depth = 0.7 * delta
+            continue
+        rep.feature_size = float(ci.feature_size) if np.isfinite(ci.feature_size) else 0.0
+        rep.target_tets = resolving_budget(S, ci.feature_size, target_tets)
+        return net, rep
+    return None
 
 
 def _crease_network(V, F, S, R, sharp, dropped, sharp_angle, target_tets) -> tuple[Network, SuggestReport] | None:
