@@ -112,13 +112,18 @@ def _voxels(shape: str):
 
 def _ring(kind: str):
     """Solids of revolution (testkit/revolve.py): a washer with sharp rims,
-    a ring with rounded rims, a long pipe."""
-    from testkit.revolve import rounded_ring, washer
+    a ring with rounded rims, a long pipe; a cylinder with a boss, a shaft
+    with a collar whose outer rims are rounded."""
+    from testkit.revolve import collared_shaft, rounded_ring, stepped_shaft, washer
 
     if kind == "washer":
         return washer()
     if kind == "rounded":
         return rounded_ring()
+    if kind == "stepped":
+        return stepped_shaft()
+    if kind == "collared":
+        return collared_shaft()
     return washer(0.4, 0.6, 2.0, 0.1, 48)
 
 
@@ -172,6 +177,8 @@ def solids() -> dict:
         "washer": lambda: _ring("washer"),
         "rounded_ring": lambda: _ring("rounded"),
         "pipe_rot": rot(lambda: _ring("pipe"), 6),
+        "stepped_shaft": lambda: _ring("stepped"),
+        "collared_shaft_rot": rot(lambda: _ring("collared"), 7),
     }
     for s in range(6):
         S[f"blob_{s}"] = (lambda s=s: _blob(s))

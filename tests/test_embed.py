@@ -26,6 +26,33 @@ def test_a_curve_through_a_mesh_edge_is_retried_or_walked_face_to_face():
     assert loc.barycentric(tr.tets[-1], P[-1]).min() > -1e-9  # ends where the curve ends
 
 
+def test_a_loop_starting_on_a_face_returns_to_its_start_tet():
+    """A closed curve whose start lies on a face between two tets: the walk
+    round it comes back to that point from the other tet, which the start
+    was not located in.  The embedding jitters it and retries (as for a
+    curve through an edge), where it used to stop with 'did not return to
+    its start tet' (a suggested loop on a turned shaft, 1 fTetWild mesh in
+    2)."""
+    from solver.mesh.embed import embed_network
+    from solver.network.network import Curve, PreparedNetwork
+
+    mesh = box_mesh(4)
+    phi = np.linspace(0.0, 2 * np.pi, 41)
+    # from (0.5, 0.4375, 0.3125) (exact in binary), on the grid plane x = 0.5
+    # between two cubes' tets, round a circle in the plane z = 0.3125
+    P0 = np.array([0.5, 0.4375, 0.3125])
+    P = P0 + 0.125 * np.c_[np.cos(phi) - 1.0, np.sin(phi), np.zeros_like(phi)]
+    P[0] = P[-1] = P0
+    loc = TetLocator(mesh)
+    t0 = int(loc.locate(P[:1])[0])
+    tr = trace_curve(mesh, loc, P, t0, -1, False, "loop", 1e-9 * mesh.mean_edge_length, closed=True)
+    assert tr.tets[-1] != tr.tets[0]  # the case: back on the face, in the neighbour
+    net = PreparedNetwork(curves=[Curve(P, sigma=0.25, closed=True)], source=[0], start_kind=["loop"],
+                          end_kind=["loop"], nodes=[])
+    emb = embed_network(mesh, net, node_radius=0.1)
+    assert len(emb.network_faces(mesh)) >= 4
+
+
 def _tubes(name, h):
     from solver.examples import load_example
     from solver.mesh.tubes import build_tubes

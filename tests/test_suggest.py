@@ -216,6 +216,36 @@ def test_a_ring_with_sharp_rims_needs_no_curve_and_a_rounded_one_gets_loops():
     assert ring_network(S, sharp_creases(S, 30.0)[0]) is None
 
 
+def test_a_shaft_with_a_boss_gets_the_o_grid_of_its_cross_sections():
+    """A solid of revolution the axis passes through, where the padded
+    polycube fails (a cylinder with a boss on its top face: the body's and
+    the boss's O-grid curves would both end on the bottom disk,
+    Poincare-Hopf 4 != 2), gets four +1/4 curves along the axis at 0.45 of
+    the boss's radius, from cap to cap (ring.py's axial route); with the
+    collar's outer rims rounded, a +1/4 loop under each fillet too."""
+    from testkit.revolve import collared_shaft, stepped_shaft
+
+    net, rep = suggest_network(*stepped_shaft())
+    assert rep.route == "axial" and rep.nodes == 0 and "Poincare-Hopf" in rep.notes[0]
+    assert len(net.curves) == 4 and all(c.sigma == 0.25 and not c.closed for c in net.curves)
+    for c in net.curves:
+        r = np.linalg.norm(c.points[:, :2], axis=1)
+        assert np.allclose(r, 0.45 * 0.5, atol=2e-3)  # the cut crosses the 64-gon between its corners
+        assert np.isclose(c.points[:, 2].min(), -0.5, atol=1e-6) and np.isclose(c.points[:, 2].max(), 1.1, atol=1e-6)
+    # the collar (its padded polycube fails as the boss's does: bench/RESULTS.md)
+    from solver.suggest import sharp_creases
+    from solver.suggest.ring import axial_network
+    from solver.surface.validation import validate_surface
+
+    S = validate_surface(*collared_shaft())
+    curves = axial_network(S, sharp_creases(S, 30.0)[0])[0]
+    loops = [c for c in curves if c.closed]
+    assert len(curves) == 6 and len(loops) == 2 and all(c.sigma == 0.25 for c in curves)
+    z = sorted(float(np.mean(c.points[:, 2])) for c in loops)
+    assert z[0] < 0 < z[1]  # under the lower and the upper fillet ...
+    assert all(np.linalg.norm(c.points[:, :2], axis=1).min() > 0.7 for c in loops)  # ... near the collar's rim
+
+
 def _nodes_and_depths(net, rep):
     """Each node's position, labels and depth per frame axis, from its
     radial curve (node to surface corner: the sum of its charts' depths

@@ -370,6 +370,10 @@ def _embed_once(mesh, net: PreparedNetwork, loc: TetLocator, rng, amp: float, no
             P[-1] = x + 1e-3 * h * d
         tr = trace_curve(mesh, loc, P, t0, start_face, ekind == "boundary", label, tol, strict, c.closed)
         if c.closed and tr.tets[-1] != tr.tets[0]:
+            if strict:
+                # its start (and end) within rounding of a face of its start
+                # tet: the walk came back to the neighbour; jitter and retry
+                raise _Degenerate()
             raise MeshingError(f"closed curve {label} did not return to its start tet")
         traces.append(tr)
     return _assemble(mesh, net, traces, node_tets, node_radius)

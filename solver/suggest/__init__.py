@@ -32,7 +32,7 @@ from ..surface.validation import validate_surface
 from .build import SuggestedCurve, padding_network
 from .charts import chart_graph
 from .labels import LABEL_NAMES, align_frame, face_adjacency, label_faces, label_scores, merge_small_charts
-from .ring import ring_network
+from .ring import axial_network, ring_network
 
 __all__ = ["SuggestReport", "SuggestedCurve", "suggest_network"]
 
@@ -77,7 +77,9 @@ class SuggestReport:
     route : str
         How the network was made: ``'padded polycube'``, ``'ring'`` (a
         solid of revolution about an axis outside it: the polycube in the
-        frame that turns with it) or ``'creases'`` (the sharp creases alone).
+        frame that turns with it), ``'creases'`` (the sharp creases alone)
+        or ``'axial'`` (a solid of revolution the axis passes through, where
+        the padded polycube failed: the O-grid of its cross-sections).
     """
 
     frame: np.ndarray
@@ -178,7 +180,7 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
     sharp, dropped = sharp_creases(S, sharp_angle)
     if dropped:
         notes.append(f"{dropped} sharp edges in short isolated groups (noise, not creases) left smooth")
-    found = _ring(V, F, S, sharp, dropped, notes, sharp_angle, depth, check, target_tets)
+    found = _revolved(ring_network, "ring", V, F, S, sharp, dropped, notes, sharp_angle, depth, check, target_tets)
     if found is not None:
         found[1].seconds = time.perf_counter() - t0
         return found
@@ -191,13 +193,21 @@ def suggest_network(V, F, sharp_angle: float = 30.0, depth: float | None = None,
         # network (a bar twisted by 90 degrees or more: its side faces' normals
         # turn through a quarter turn, so no one label fits a side), take it
         found = _crease_network(V, F, S, R, sharp, dropped, sharp_angle, target_tets) if check else None
-        if found is None:
-            raise
-        net, rep = found
-        rep.route = "creases"
-        rep.notes = notes + [f"the padded polycube failed ({str(refusal)[:200]}); every patch between the "
-                             "sharp creases is a disk and the creases' corners satisfy Poincare-Hopf, so the "
-                             "network needs no curve"] + rep.notes
+        if found is not None:
+            net, rep = found
+            rep.route = "creases"
+            rep.notes = notes + [f"the padded polycube failed ({str(refusal)[:200]}); every patch between the "
+                                 "sharp creases is a disk and the creases' corners satisfy Poincare-Hopf, so the "
+                                 "network needs no curve"] + rep.notes
+        else:
+            # a solid of revolution the axis passes through (a stepped shaft):
+            # the O-grid of its cross-sections along the axis
+            found = _revolved(axial_network, "axial", V, F, S, sharp, dropped, notes, sharp_angle, depth, check,
+                              target_tets)
+            if found is None:
+                raise
+            net, rep = found
+            rep.notes = [f"the padded polycube failed ({str(refusal)[:200]})"] + rep.notes
     rep.seconds = time.perf_counter() - t0
     return net, rep
 
@@ -258,30 +268,31 @@ def _padded_polycube(V, F, S, R, sharp, dropped, notes, sharp_angle, depth, smoo
     return net, rep
 
 
-def _ring(V, F, S, sharp, dropped, notes, sharp_angle, depth, check, target_tets):
-    """The ring route (ring.py) where (V, F) bound a solid of revolution about
-    an axis outside it and check_input accepts its loops (tried at up to
-    three depths, each 0.7 x shallower), else None: the padded polycube then
-    takes the solid."""
+def _revolved(route, name, V, F, S, sharp, dropped, notes, sharp_angle, depth, check, target_tets):
+    """A route of ring.py (``ring_network``: a solid of revolution about an
+    axis outside it; ``axial_network``: one the axis passes through) where it
+    applies and check_input accepts its curves (tried at up to three depths,
+    each 0.7 x shallower), else None."""
     from ..network.validation import check_input
 
     for _ in range(3 if depth is None and check else 1):
-        found = ring_network(S, sharp, depth)
+        found = route(S, sharp, depth)
         if found is None:
             return None
-        curves, info, frame, labels, delta, more = found
+        curves, info, frame, labels, delta, more, (bands, sharp_bands) = found
         kw = dict(sharp_edges=S.edges[sharp]) if dropped else dict(sharp_angle=sharp_angle)
         net = Network(curves=curves, **kw)
-        n_charts = len(np.unique(labels))  # bands around the axis: as many boundaries, each a circle
-        rep = SuggestReport(frame, labels, n_charts, n_charts, n_charts - len(curves), 0, 0, delta,
-                            [SuggestedCurve(name, sigma, "padding", charts, length)
-                             for name, sigma, charts, length in info], list(notes) + more, route="ring")
+        # bands around the axis, their boundaries circles (a ring's as many as its bands)
+        boundaries = bands if name == "ring" else bands - 1
+        rep = SuggestReport(frame, labels, bands, boundaries, sharp_bands, 0, 0, delta,
+                            [SuggestedCurve(name_, sigma, "axial" if charts == "axis" else "padding", charts, length)
+                             for name_, sigma, charts, length in info], list(notes) + more, route=name)
         if not check:
             return net, rep
         try:
             ci = check_input(V, F, net, target_tets=target_tets)
         except (NetworkError, TopologyError):
-            if not curves:
+            if not curves or delta <= 0:
                 return None
             depth = 0.7 * delta
             continue

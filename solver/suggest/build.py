@@ -283,7 +283,8 @@ def _geometry(S, R, G, plan, dc, proportioned=False):
 
 def _extend(S, R, G, plan, k, P):
     """Run a padding curve whose corner is not a node on to the surface,
-    along the direction of the corner's third chart."""
+    along the direction of the corner's third chart (or against it, where
+    that points back along the curve)."""
     ch = G.chains[k]
     for end in (0, -1):
         v = int(ch.vertices[end])
@@ -292,6 +293,10 @@ def _extend(S, R, G, plan, k, P):
         lab = plan.third[(k, v)]
         d = label_direction(R, lab)
         q = P[end]
+        # on, away from the curve: under a concave corner (a boss's foot) the
+        # third chart faces back along the curve
+        if len(P) > 1 and np.dot(q - P[1 if end == 0 else -2], d) < 0:
+            d = -d
         hit = ray_hit(S, q - 0.5 * np.linalg.norm(q - S.V[v]) * d, d)
         if hit is None:
             raise NetworkError(f"no network suggested: the padding curve under the {_charts(G, ch)} boundary finds "

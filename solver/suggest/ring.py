@@ -40,6 +40,14 @@ Steps (``ring_network``):
 A solid that is not a ring, or whose profile's labels make no valid
 rectilinear polygon (two opposite labels next to each other), is left to the
 padded polycube (``ring_network`` returns None).
+
+``axial_network`` takes a solid of revolution the axis passes through (a
+cylinder with a boss, a stepped shaft; genus 0), where the padded polycube
+failed: its profile runs from the axis to the axis, the caps there flat and
+bounded by sharp rims; four +1/4 curves along the axis at ``AXIAL`` times
+the narrowest radius between the caps (the O-grid of every cross-section)
+run from cap to cap, and each smooth turn of the profile gets a loop as on
+a ring.
 """
 
 from __future__ import annotations
@@ -56,6 +64,7 @@ TILT_MAX = 0.3  # ... and their largest
 MIN_RUN = 0.02  # a profile run of one label shorter than this share of the profile joins a neighbour
 DEPTH = 0.18  # the depth as a share of the median chord of the bands next to smooth boundaries
 CLEARANCE = 0.7  # each loop stays this many depths inside the profile and from the other loops
+AXIAL = 0.45  # the axial curves of a solid the axis passes through, at this share of its narrowest radius
 # labels in the ring's frame: +r, -r, +z, -z (the report writes them as +X, -X, +Z, -Z of frame rows u, v, a)
 RING_LABELS = ("+r", "-r", "+z", "-z")
 _DIRS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
@@ -99,11 +108,12 @@ def profile(S: TriSurface, c: np.ndarray, a: np.ndarray, sharp: np.ndarray):
     v0 = np.cross(a, u0)
     D = S.V - c
     scale = S.bbox_diagonal
+    off_axis = np.linalg.norm(np.cross(D, a), axis=1) > 1e-9 * scale  # a pole lies in every half-plane's plane
     for phi in np.linspace(0.0, np.pi, 7)[:-1] + 0.1234:
         u = np.cos(phi) * u0 + np.sin(phi) * v0
         w = np.cross(a, u)
-        s = D @ w
-        if np.min(np.abs(s)) < 1e-9 * scale:
+        s = np.where(off_axis, D @ w, 0.0)  # an edge from a pole does not cross
+        if np.min(np.abs(s[off_axis])) < 1e-9 * scale:
             continue
         E = S.edges
         s0, s1 = s[E[:, 0]], s[E[:, 1]]
@@ -123,27 +133,33 @@ def profile(S: TriSurface, c: np.ndarray, a: np.ndarray, sharp: np.ndarray):
         Adj = Adj + Adj.T
         deg = np.asarray(Adj.getnnz(axis=1)).ravel()
         idx = np.nonzero(keep)[0]
-        if np.any(deg[idx] != 2):
+        ends = idx[deg[idx] == 1]
+        if np.any(deg[idx] > 2) or np.any(deg[idx] == 0) or len(ends) not in (0, 2):
             continue
         ncomp, _ = connected_components(Adj[idx][:, idx], directed=False)
         if ncomp != 1:
             return None
-        order = [idx[0]]
+        order = [ends[0] if len(ends) else idx[0]]
         prev = -1
         while True:
             nb = Adj.indices[Adj.indptr[order[-1]]:Adj.indptr[order[-1] + 1]]
-            nxt = nb[0] if nb[0] != prev else nb[1]
-            if nxt == order[0]:
+            nb = nb[nb != prev]
+            if len(nb) == 0 or nb[0] == order[0]:
                 break
             prev = order[-1]
-            order.append(nxt)
+            order.append(nb[0])
         order = np.array(order)
         Q = np.c_[X[order] @ u, X[order] @ a]
         flags = sharp[order]
+        closed = len(ends) == 0
+        if not closed:
+            # an open chain runs from the axis to the axis: closed through it
+            Q = np.vstack([[0.0, Q[0, 1]], Q, [0.0, Q[-1, 1]]])
+            flags = np.r_[False, flags, False]
         area = 0.5 * np.sum(Q[:, 0] * np.roll(Q[:, 1], -1) - np.roll(Q[:, 0], -1) * Q[:, 1])
         if area < 0:
             Q, flags = Q[::-1], flags[::-1]
-        return Q, flags, u
+        return Q, flags, u, closed
     return None
 
 
@@ -208,9 +224,10 @@ def _inside_distance(Q: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 def ring_loops(Q: np.ndarray, flags: np.ndarray, depth: float | None = None):
-    """The loops of a ring's profile: a list of ((r, z), sigma, 'a|b') and
-    the depth, [] where every label change is sharp, or None where the
-    profile's labels make no rectilinear polygon or no depth fits."""
+    """The loops of a ring's profile: a list of ((r, z), sigma, 'a|b'), the
+    depth and (bands, sharp band boundaries); no loop where every label
+    change is sharp; None where the profile's labels make no rectilinear
+    polygon or no depth fits."""
     charts = profile_charts(Q)
     if charts is None:
         return None
@@ -240,8 +257,9 @@ def ring_loops(Q: np.ndarray, flags: np.ndarray, depth: float | None = None):
     if turn != 4:
         return None
     smooth = [cn for cn in corners if not cn[3]]
+    counts = (len(runs), len(corners) - len(smooth))
     if not smooth:
-        return [], 0.0
+        return [], 0.0, counts
     if depth is None:
         chords = []
         for i, (start, e, _) in enumerate(runs):
@@ -261,7 +279,7 @@ def ring_loops(Q: np.ndarray, flags: np.ndarray, depth: float | None = None):
         if ok:
             loops = [(q, 0.25 if cv else -0.25, f"{RING_LABELS[a]}|{RING_LABELS[b]}")
                      for q, (p, a, b, sh, cv) in zip(pts, smooth)]
-            return loops, float(depth)
+            return loops, float(depth), counts
         depth *= 0.8
     return None
 
@@ -290,8 +308,9 @@ def circle(c: np.ndarray, a: np.ndarray, u: np.ndarray, r: float, z: float, spac
 
 def ring_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
     """The ring route's curves (docs/suggest.md, *Rings*): (curves, info,
-    frame, labels, depth, notes) where (V, F) bound a ring, else None.
-    ``info`` holds (name, sigma, charts, length) per curve."""
+    frame, labels, depth, notes, (bands, sharp band boundaries)) where
+    (V, F) bound a ring, else None.  ``info`` holds (name, sigma, charts,
+    length) per curve."""
     chi = len(S.V) - len(S.edges) + len(S.F)
     if chi != 0:
         return None
@@ -303,14 +322,14 @@ def ring_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
     cut = profile(S, c, a, sharp)
     if cut is None:
         return None
-    Q, flags, u = cut
+    Q, flags, u, closed = cut
     # the profile must keep off the axis: a ring, not a solid the axis passes through
-    if Q[:, 0].min() <= 0:
+    if not closed or Q[:, 0].min() <= 0:
         return None
     found = ring_loops(Q, flags, depth)
     if found is None:
         return None
-    loops, delta = found
+    loops, delta, counts = found
     spacing = 0.25 * (delta if delta > 0 else 0.05 * S.bbox_diagonal)
     curves, info = [], []
     for i, (q, sigma, charts) in enumerate(loops):
@@ -322,4 +341,125 @@ def ring_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
     notes = [f"a solid of revolution about the axis through ({', '.join(f'{x:.4g}' for x in c)}) along "
              f"({', '.join(f'{x:.3g}' for x in a)}) (normals off the meridian planes by {rms:.3g} RMS): its polycube "
              f"is taken in the frame that turns with it, bands with no corner; {len(loops)} loops, no node"]
-    return curves, info, frame, labels, delta, notes
+    return curves, info, frame, labels, delta, notes, counts
+
+
+def _on_run(Q: np.ndarray, run: tuple[int, int, int], r: float) -> float | None:
+    """The height where the profile's run (its segments start..end-1) passes
+    the radius r, or None."""
+    s, e, _ = run
+    for i in range(s, e):
+        (r0, z0), (r1, z1) = Q[i], Q[i + 1]
+        if min(r0, r1) <= r <= max(r0, r1) and r0 != r1:
+            return float(z0 + (r - r0) / (r1 - r0) * (z1 - z0))
+    return None
+
+
+def axial_curves(Q: np.ndarray, flags: np.ndarray, depth: float | None = None):
+    """The network of a solid the axis passes through, from its profile Q
+    (closed through the axis: Q[0] and Q[-1] on it, the solid on the left):
+    (loops as ring_loops gives them, (rho, z_bottom, z_top) of the four
+    axial curves, depth, (bands, sharp band boundaries)), or None.  The flat caps the axis crosses must be
+    bounded by sharp rims (a smooth pole is left to the padded polycube,
+    whose cube-sphere suits it)."""
+    k = len(Q)
+    T = Q[1:] - Q[:-1]
+    L = np.linalg.norm(T, axis=1)
+    Nout = np.c_[T[:, 1], -T[:, 0]] / np.maximum(L, 1e-300)[:, None]
+    lab = np.argmax(Nout @ _DIRS.T, axis=1)
+    change = np.nonzero(lab[1:] != lab[:-1])[0] + 1
+    runs = [(int(s), int(e), int(lab[s])) for s, e in zip(np.r_[0, change], np.r_[change, k - 1])]
+    if len(runs) < 3 or runs[0][2] != 3 or runs[-1][2] != 2:  # from the bottom cap (-z) to the top one (+z)
+        return None
+    if any(b[2] == (a_[2] ^ 1) for a_, b in zip(runs[:-1], runs[1:])):
+        return None
+    at_change = np.zeros(k, bool)
+    corners = []
+    for (_, e, la), (_, _, lb) in zip(runs[:-1], runs[1:]):
+        near = [max(e - 1, 0), e, min(e + 1, k - 1)]
+        at_change[near] = True
+        da, db = _DIRS[la], _DIRS[lb]
+        corners.append((Q[e], la, lb, bool(np.any(flags[near])), da[0] * db[1] - da[1] * db[0] > 0))
+    if np.any(flags & ~at_change):
+        return None  # a crease inside a band
+    # half a turn from cap to cap (the axis closes the other half)
+    if sum(1 if cv else -1 for *_, cv in corners) != 2 or not (corners[0][3] and corners[-1][3]):
+        return None
+    r_neck = float(Q[runs[0][1]:runs[-1][0] + 1, 0].min())
+    rho = AXIAL * r_neck
+    z0, z1 = _on_run(Q, runs[0], rho), _on_run(Q, runs[-1], rho)
+    if z0 is None or z1 is None or not z0 < z1:
+        return None
+    zs = np.linspace(z0, z1, 64)[1:-1]
+    if np.any(_inside_distance(Q, np.c_[np.full_like(zs, rho), zs]) <= 0):
+        return None
+    smooth = [cn for cn in corners if not cn[3]]
+    counts = (len(runs), len(corners) - len(smooth))
+    if not smooth:
+        return [], (rho, z0, z1), 0.0, counts
+    if depth is None:
+        chords = [np.linalg.norm(Q[e] - Q[s]) for i, (s, e, _) in enumerate(runs)
+                  if (i > 0 and not corners[i - 1][3]) or (i < len(corners) and not corners[i][3])]
+        depth = DEPTH * float(np.median(chords))
+        tries = 40
+    else:
+        tries = 1
+    for _ in range(tries):
+        pts = np.array([p - depth * (_DIRS[a] + _DIRS[b]) for p, a, b, *_ in smooth])
+        ok = (np.all(_inside_distance(Q, pts) >= CLEARANCE * depth)
+              and np.all(np.abs(pts[:, 0] - rho) >= CLEARANCE * depth))
+        if ok and len(pts) > 1:
+            gap = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+            ok = gap[np.triu_indices(len(pts), 1)].min() >= CLEARANCE * depth
+        if ok:
+            loops = [(q, 0.25 if cv else -0.25, f"{RING_LABELS[a]}|{RING_LABELS[b]}")
+                     for q, (p, a, b, sh, cv) in zip(pts, smooth)]
+            return loops, (rho, z0, z1), float(depth), counts
+        depth *= 0.8
+    return None
+
+
+def axial_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
+    """The route for a solid of revolution the axis passes through, with
+    flat caps there (a stepped shaft, a cylinder with a boss or a flange):
+    four straight +1/4 curves along the axis at AXIAL times the narrowest
+    radius between the caps (the O-grid of every cross-section) and the
+    ring route's loops under the profile's smooth turns.  (curves, info,
+    frame, labels, depth, notes) as ring_network, or None."""
+    chi = len(S.V) - len(S.edges) + len(S.F)
+    if chi != 2:
+        return None
+    c, a, tilt = fit_axis(S)
+    A = S.face_areas / S.face_areas.sum()
+    rms = float(np.sqrt(A @ tilt**2))
+    if rms > TILT_RMS or np.max(np.abs(tilt)) > TILT_MAX:
+        return None
+    cut = profile(S, c, a, sharp)
+    if cut is None or cut[3]:
+        return None
+    Q, flags, u, _ = cut
+    found = axial_curves(Q, flags, depth)
+    if found is None:
+        return None
+    loops, (rho, z0, z1), delta, counts = found
+    spacing = 0.25 * (delta if delta > 0 else rho)
+    v = np.cross(a, u)
+    curves, info = [], []
+    n = max(8, int(np.ceil((z1 - z0) / spacing)))
+    t = np.linspace(z0, z1, n + 1)[:, None]
+    for i in range(4):
+        phi = np.pi / 4 + i * np.pi / 2
+        P = c + rho * (np.cos(phi) * u + np.sin(phi) * v) + t * a
+        name = f"axial_{i}"
+        curves.append(Curve(P, sigma=0.25, name=name))
+        info.append((name, 0.25, "axis", float(z1 - z0)))
+    for i, (q, sigma, charts) in enumerate(loops):
+        P = circle(c, a, u, float(q[0]), float(q[1]), spacing)
+        name = f"ring_{i}"
+        curves.append(Curve(P, sigma=sigma, name=name, closed=True))
+        info.append((name, sigma, charts, float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())))
+    labels, frame = ring_frame(S, c, a, u)
+    notes = [f"a solid of revolution through its axis ({', '.join(f'{x:.4g}' for x in c)}) along "
+             f"({', '.join(f'{x:.3g}' for x in a)}), flat caps where the axis crosses it: four curves along the "
+             f"axis at {rho:.4g} from it (an O-grid in every cross-section), {len(loops)} loops, no node"]
+    return curves, info, frame, labels, delta, notes, counts
