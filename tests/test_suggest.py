@@ -185,6 +185,7 @@ def test_a_torus_gets_four_loops_about_its_own_axis(seed):
     check_input(W, F, net)
 
 
+@pytest.mark.slow
 def test_a_ring_with_sharp_rims_needs_no_curve_and_a_rounded_one_gets_loops():
     """A washer (rectangular profile, sharp rims) is four bands between
     sharp creases: no curve at all, the hex mesh a sweep.  The same ring
@@ -216,6 +217,7 @@ def test_a_ring_with_sharp_rims_needs_no_curve_and_a_rounded_one_gets_loops():
     assert ring_network(S, sharp_creases(S, 30.0)[0]) is None
 
 
+@pytest.mark.slow
 def test_a_shaft_with_a_boss_gets_the_o_grid_of_its_cross_sections():
     """A solid of revolution the axis passes through, where the padded
     polycube fails (a cylinder with a boss on its top face: the body's and
