@@ -243,7 +243,7 @@ def test_monodromy_is_small(at, name):
 def test_monodromy_falls_under_refinement(at):
     """Eq. 9 on a fixed subdomain a quarter unit away from the curves and the
     boundary (the paper's Fig. 15 measures away from the singular curves)."""
-    hs = [0.3, 0.2, 0.14]
+    hs = [0.3, 0.2, 0.16]  # slope 2.4 here (2.1 with 0.14, 12 s against 8 s for that solve)
     means, lengths = [], []
     for h in hs:
         r = at("cylinder", h)
