@@ -117,6 +117,37 @@ def test_a_closed_zigzag_loop_is_faired_all_round():
     assert turning(Q, 0.075, True).max() < 15.0
 
 
+def test_a_rough_tight_loop_has_no_corner_and_a_square_one_keeps_its_corners():
+    """A loop of radius 0.8 as 28 points strayed in radius, angle and height
+    by up to 0.06 (a tet-edge chain of edges about 0.18 long round a radius
+    of 4.4 of them, as the hexnet torus's routed loops are): its zig-zag
+    adds 20-30 degrees to the arc's turn between chords of two edges, and
+    the old rule (over 45 degrees between chords of w and of 2 w, less than
+    1.5 times as much at 2 w, straight arms) read a corner there; the loop
+    was then refused as turning by 55-81 degrees over h (3 routings of the
+    torus in 6).  Between chords of 4 w an arc turns about twice as much
+    again, a corner no more: no corner.  A square loop keeps its corners."""
+    import solver.network.fairing as fr
+    from solver.network.polyline import arclength, resample
+
+    rng = np.random.default_rng(21)
+    t = np.linspace(0.0, 2 * np.pi, 29)[:-1] + rng.uniform(-0.08, 0.08, 28)
+    r = 0.8 + rng.uniform(-0.06, 0.06, 28)
+    P = np.c_[r * np.cos(t), r * np.sin(t), rng.uniform(-0.05, 0.05, 28)]
+    P = np.vstack([P, P[:1]])
+    ell = max(0.151, float(np.median(np.linalg.norm(np.diff(P, axis=0), axis=1))))
+    fine = resample(P, ell / 4.0)
+    w = fr.CORNER_WINDOW * ell
+    ang, wide = turning(fine, w, True), turning(fine, 2.0 * w, True)
+    old = (ang > fr.MAX_KINK) & (wide > fr.MAX_KINK) & (wide < 1.5 * ang)
+    old &= fr._straight_arms(fine, arclength(fine), w, ell, True, old)
+    assert old.any()  # the old rule's corner
+    assert len(fr._corner_knots(P, ell, True)) == 0
+    c = np.array([[0.0, 0, 0], [1.2, 0, 0], [1.2, 1.2, 0], [0, 1.2, 0], [0, 0, 0]])
+    square = np.vstack([np.linspace(c[i], c[i + 1], 9)[:-1] for i in range(4)] + [c[:1]])
+    assert len(fr._corner_knots(square, 0.15, True)) == 3  # (a corner at the loop's seam is not made a knot)
+
+
 def test_a_real_corner_is_kept(cylinder):
     """A curve that turns 90 degrees between straight arms several h long
     is not smoothed into an acceptable curve: validation still names the

@@ -10,7 +10,8 @@ fairs it at a length tied to the mesh, never to the bounding box:
 3. *corners*: where the curve turns by more than ``MAX_KINK``
    between chords of length ``CORNER_WINDOW * l`` on either side and
    between chords twice as long (both fitting on the curve), but there by
-   less than 1.5 times as much (a corner, not an arc or a bump), the
+   less than 1.5 times as much, and so between chords four times as long
+   where they fit (a corner, not an arc or a bump), the
    input vertex nearest the largest turn is kept as a knot (a real
    corner survives and validation reports it as it would have);
 4. *resample* between ends and corners by arc length at spacing ``l / 2``;
@@ -106,6 +107,19 @@ def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
     big = (ang > MAX_KINK) & (wide > MAX_KINK) & (wide < 1.5 * ang)
     if not closed:
         big &= (sf >= 2.0 * w) & (sf <= sf[-1] - 2.0 * w)
+    # ... and again between chords of 4 w, where they fit: a tight arc turns
+    # about twice as much again, a corner with straight arms no more.  (A
+    # tet-edge chain round a loop of radius 4 l zig-zags by 20-30 degrees
+    # between chords of w, so its arc's 28 read as 45-60 and 55-62 between
+    # chords of 2 w: a corner, and the loop was refused as turning by 55-81
+    # degrees over h, 3 routings of the hexnet torus in 6.)  A loop shorter
+    # than eight windows has no corner that can be told from its own turn.
+    L = sf[-1]
+    if closed and L <= 8.0 * w:
+        return np.zeros(0, int)
+    fits = np.ones(len(sf), bool) if closed else (sf >= 4.0 * w) & (sf <= L - 4.0 * w)
+    if np.any(big & fits):
+        big &= ~fits | (turning(fine, 4.0 * w, closed) < 1.5 * ang)
     # ... and its arms are straight: a tet-edge chain that detours by an
     # edge on a tight arc turns like a corner at both chords (a loop of
     # radius 5 l: 66-78 degrees between chords of w, 67-87 between chords
