@@ -191,11 +191,10 @@ def test_a_ring_with_sharp_rims_needs_no_curve_and_a_rounded_one_gets_loops():
     sharp creases: no curve at all, the hex mesh a sweep.  The same ring
     with rounded rims gets a +1/4 loop under each fillet.  A profile with a
     groove gets -1/4 loops under its concave turns."""
-    from testkit.revolve import polyline, revolved_surface, rounded_ring, washer
-
     from solver.suggest import sharp_creases
     from solver.suggest.ring import ring_network
     from solver.surface.validation import validate_surface
+    from testkit.revolve import polyline, revolved_surface, rounded_ring, washer
 
     net, rep = suggest_network(*washer())
     assert rep.route == "ring" and net.curves == [] and rep.sharp_boundaries == 4
