@@ -260,26 +260,32 @@ def ring_loops(Q: np.ndarray, flags: np.ndarray, depth: float | None = None):
     counts = (len(runs), len(corners) - len(smooth))
     if not smooth:
         return [], 0.0, counts
+    chords = [np.linalg.norm(Q[e % k] - Q[start]) for i, (start, e, _) in enumerate(runs)
+              if not (corners[i - 1][3] and corners[i][3])]
+    placed = _place_loops(Q, smooth, depth, chords, lambda pts: pts[:, 0])  # off the axis
+    return None if placed is None else placed + (counts,)
+
+
+def _place_loops(Q: np.ndarray, smooth: list, depth: float | None, chords: list, away):
+    """(loops, depth) for the smooth label changes of the profile Q: each at
+    p - depth (d_a + d_b), the depth DEPTH times the median of ``chords``
+    (or as given) lowered x 0.8 until every loop is CLEARANCE depths inside
+    Q, from the others and by ``away(points)`` from what else they must
+    keep off; None where no depth does."""
     if depth is None:
-        chords = []
-        for i, (start, e, _) in enumerate(runs):
-            before, after = corners[i - 1], corners[i]
-            if not (before[3] and after[3]):
-                chords.append(np.linalg.norm(Q[e % k] - Q[start]))
-        depth = DEPTH * float(np.median(chords))
-        tries = 40
+        depth, tries = DEPTH * float(np.median(chords)), 40
     else:
         tries = 1
     for _ in range(tries):
         pts = np.array([p - depth * (_DIRS[a] + _DIRS[b]) for p, a, b, *_ in smooth])
-        ok = np.all(_inside_distance(Q, pts) >= CLEARANCE * depth) and np.all(pts[:, 0] > CLEARANCE * depth)
+        ok = np.all(_inside_distance(Q, pts) >= CLEARANCE * depth) and np.all(away(pts) >= CLEARANCE * depth)
         if ok and len(pts) > 1:
             gap = np.linalg.norm(pts[:, None] - pts[None], axis=2)
             ok = gap[np.triu_indices(len(pts), 1)].min() >= CLEARANCE * depth
         if ok:
             loops = [(q, 0.25 if cv else -0.25, f"{RING_LABELS[a]}|{RING_LABELS[b]}")
                      for q, (p, a, b, sh, cv) in zip(pts, smooth)]
-            return loops, float(depth), counts
+            return loops, float(depth)
         depth *= 0.8
     return None
 
@@ -306,13 +312,11 @@ def circle(c: np.ndarray, a: np.ndarray, u: np.ndarray, r: float, z: float, spac
     return P
 
 
-def ring_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
-    """The ring route's curves (docs/suggest.md, *Rings*): (curves, info,
-    frame, labels, depth, notes, (bands, sharp band boundaries)) where
-    (V, F) bound a ring, else None.  ``info`` holds (name, sigma, charts,
-    length) per curve."""
-    chi = len(S.V) - len(S.edges) + len(S.F)
-    if chi != 0:
+def _of_revolution(S: TriSurface, sharp: np.ndarray, euler: int):
+    """(c, a, RMS tilt, profile(...)) where S is one surface of Euler
+    characteristic ``euler`` whose normals lie in the meridian planes of
+    an axis (within TILT_RMS and TILT_MAX), else None."""
+    if len(S.V) - len(S.edges) + len(S.F) != euler:
         return None
     c, a, tilt = fit_axis(S)
     A = S.face_areas / S.face_areas.sum()
@@ -320,9 +324,30 @@ def ring_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
     if rms > TILT_RMS or np.max(np.abs(tilt)) > TILT_MAX:
         return None
     cut = profile(S, c, a, sharp)
-    if cut is None:
+    return None if cut is None else (c, a, rms, cut)
+
+
+def _loop_curves(loops, c, a, u, spacing: float) -> tuple[list, list]:
+    """Closed Curves (and their info rows) for the loops ((r, z), sigma,
+    charts) about the axis (c, a)."""
+    curves, info = [], []
+    for i, (q, sigma, charts) in enumerate(loops):
+        P = circle(c, a, u, float(q[0]), float(q[1]), spacing)
+        name = f"ring_{i}"
+        curves.append(Curve(P, sigma=sigma, name=name, closed=True))
+        info.append((name, sigma, charts, float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())))
+    return curves, info
+
+
+def ring_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
+    """The ring route's curves (docs/suggest.md, *Rings*): (curves, info,
+    frame, labels, depth, notes, (bands, sharp band boundaries)) where
+    (V, F) bound a ring, else None.  ``info`` holds (name, sigma, charts,
+    length) per curve."""
+    found = _of_revolution(S, sharp, 0)
+    if found is None:
         return None
-    Q, flags, u, closed = cut
+    c, a, rms, (Q, flags, u, closed) = found
     # the profile must keep off the axis: a ring, not a solid the axis passes through
     if not closed or Q[:, 0].min() <= 0:
         return None
@@ -331,12 +356,7 @@ def ring_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
         return None
     loops, delta, counts = found
     spacing = 0.25 * (delta if delta > 0 else 0.05 * S.bbox_diagonal)
-    curves, info = [], []
-    for i, (q, sigma, charts) in enumerate(loops):
-        P = circle(c, a, u, float(q[0]), float(q[1]), spacing)
-        name = f"ring_{i}"
-        curves.append(Curve(P, sigma=sigma, name=name, closed=True))
-        info.append((name, sigma, charts, float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())))
+    curves, info = _loop_curves(loops, c, a, u, spacing)
     labels, frame = ring_frame(S, c, a, u)
     notes = [f"a solid of revolution about the axis through ({', '.join(f'{x:.4g}' for x in c)}) along "
              f"({', '.join(f'{x:.3g}' for x in a)}) (normals off the meridian planes by {rms:.3g} RMS): its polycube "
@@ -397,26 +417,10 @@ def axial_curves(Q: np.ndarray, flags: np.ndarray, depth: float | None = None):
     counts = (len(runs), len(corners) - len(smooth))
     if not smooth:
         return [], (rho, z0, z1), 0.0, counts
-    if depth is None:
-        chords = [np.linalg.norm(Q[e] - Q[s]) for i, (s, e, _) in enumerate(runs)
-                  if (i > 0 and not corners[i - 1][3]) or (i < len(corners) and not corners[i][3])]
-        depth = DEPTH * float(np.median(chords))
-        tries = 40
-    else:
-        tries = 1
-    for _ in range(tries):
-        pts = np.array([p - depth * (_DIRS[a] + _DIRS[b]) for p, a, b, *_ in smooth])
-        ok = (np.all(_inside_distance(Q, pts) >= CLEARANCE * depth)
-              and np.all(np.abs(pts[:, 0] - rho) >= CLEARANCE * depth))
-        if ok and len(pts) > 1:
-            gap = np.linalg.norm(pts[:, None] - pts[None], axis=2)
-            ok = gap[np.triu_indices(len(pts), 1)].min() >= CLEARANCE * depth
-        if ok:
-            loops = [(q, 0.25 if cv else -0.25, f"{RING_LABELS[a]}|{RING_LABELS[b]}")
-                     for q, (p, a, b, sh, cv) in zip(pts, smooth)]
-            return loops, (rho, z0, z1), float(depth), counts
-        depth *= 0.8
-    return None
+    chords = [np.linalg.norm(Q[e] - Q[s]) for i, (s, e, _) in enumerate(runs)
+              if (i > 0 and not corners[i - 1][3]) or (i < len(corners) and not corners[i][3])]
+    placed = _place_loops(Q, smooth, depth, chords, lambda pts: np.abs(pts[:, 0] - rho))  # off the axial curves
+    return None if placed is None else (placed[0], (rho, z0, z1), placed[1], counts)
 
 
 def axial_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
@@ -426,18 +430,10 @@ def axial_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
     radius between the caps (the O-grid of every cross-section) and the
     ring route's loops under the profile's smooth turns.  (curves, info,
     frame, labels, depth, notes) as ring_network, or None."""
-    chi = len(S.V) - len(S.edges) + len(S.F)
-    if chi != 2:
+    found = _of_revolution(S, sharp, 2)
+    if found is None or found[3][3]:
         return None
-    c, a, tilt = fit_axis(S)
-    A = S.face_areas / S.face_areas.sum()
-    rms = float(np.sqrt(A @ tilt**2))
-    if rms > TILT_RMS or np.max(np.abs(tilt)) > TILT_MAX:
-        return None
-    cut = profile(S, c, a, sharp)
-    if cut is None or cut[3]:
-        return None
-    Q, flags, u, _ = cut
+    c, a, _, (Q, flags, u, _) = found
     found = axial_curves(Q, flags, depth)
     if found is None:
         return None
@@ -453,11 +449,8 @@ def axial_network(S: TriSurface, sharp: np.ndarray, depth: float | None = None):
         name = f"axial_{i}"
         curves.append(Curve(P, sigma=0.25, name=name))
         info.append((name, 0.25, "axis", float(z1 - z0)))
-    for i, (q, sigma, charts) in enumerate(loops):
-        P = circle(c, a, u, float(q[0]), float(q[1]), spacing)
-        name = f"ring_{i}"
-        curves.append(Curve(P, sigma=sigma, name=name, closed=True))
-        info.append((name, sigma, charts, float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())))
+    more, more_info = _loop_curves(loops, c, a, u, spacing)
+    curves, info = curves + more, info + more_info
     labels, frame = ring_frame(S, c, a, u)
     notes = [f"a solid of revolution through its axis ({', '.join(f'{x:.4g}' for x in c)}) along "
              f"({', '.join(f'{x:.3g}' for x in a)}), flat caps where the axis crosses it: four curves along the "
