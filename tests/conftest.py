@@ -174,46 +174,6 @@ def _shared_cache(tmp_path_factory):
     yield
 
 
-def _recorded_seconds() -> dict[str, float]:
-    """Each test file's seconds as bench/SUITE.md last measured them
-    (bench/suite_durations.py --write); {} where it is missing."""
-    import re
-
-    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench", "SUITE.md")
-    try:
-        with open(path, encoding="utf-8") as fh:
-            text = fh.read()
-    except OSError:
-        return {}
-    return {m.group(1): float(m.group(2)) for m in re.finditer(r"^\| `(tests/[^`]+\.py)` \| ([\d.]+) \|", text, re.M)}
-
-
-def pytest_configure(config):
-    """Files go to the workers in the order of collection (below), not
-    pytest-xdist's default of the most tests first."""
-    if hasattr(config.option, "loadscopereorder"):
-        config.option.loadscopereorder = False
-
-
-def pytest_collection_modifyitems(session, config, items):
-    """The heaviest files first, as bench/SUITE.md measured them, each
-    file's tests in their own order: ``./dev.sh test`` deals whole files to
-    its two workers as they free up, so the light files left for last even
-    out when the two finish (longest processing time first).  A file not
-    yet measured goes last.  Every worker sorts the same way, so they
-    collect the same order."""
-    seconds = _recorded_seconds()
-    if not seconds:
-        return
-    root = str(config.rootpath)
-
-    def weight(item):
-        rel = os.path.relpath(str(item.path), root).replace(os.sep, "/")
-        return -seconds.get(rel, 0.0)
-
-    items[:] = sorted(items, key=weight)
-
-
 def pytest_sessionfinish(session):
     """The controller of a pytest-xdist run removes the workers' shared
     cache (a few hundred MB of pickles) once they are done."""
