@@ -84,7 +84,7 @@ def fit_axis(S: TriSurface) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Gaa, Gam, Gmm = G[:3, :3], G[:3, 3:], G[3:, 3:]
     # min over m of [a; m]^T G [a; m]: m = -Gmm^-1 Gam^T a, leaving the Schur complement in a
     K = np.linalg.solve(Gmm, Gam.T)
-    w, vec = np.linalg.eigh(Gaa - Gam @ K)
+    _, vec = np.linalg.eigh(Gaa - Gam @ K)
     a = vec[:, 0]
     m = -K @ a  # = c x a
     c = c0 + np.cross(a, m)
@@ -101,8 +101,11 @@ def tilts(S: TriSurface, c: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 def profile(S: TriSurface, c: np.ndarray, a: np.ndarray, sharp: np.ndarray):
     """The surface cut by a half-plane through the axis: ((k, 2) points in
-    (r, z), (k,) sharp flags, u) with the solid on the polygon's left, u the
-    half-plane's direction; None where the cut is not one closed loop."""
+    (r, z), (k,) sharp flags, u, closed) with the solid on the polygon's
+    left, u the half-plane's direction.  A ring's cut is one closed loop; a
+    solid the axis passes through is cut in one chain from the axis to the
+    axis, returned closed through it (its first and last points on the
+    axis, ``closed`` False).  None where the cut is neither."""
     u0 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
     u0 /= np.linalg.norm(u0)
     v0 = np.cross(a, u0)
