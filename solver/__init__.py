@@ -29,7 +29,8 @@ formats) and ``solver.examples`` (the built-in example solids and networks,
 * Hex meshing (docs/hexmesh.md): ``hexmesh`` makes a pure hex mesh of a
   solved field (``HexMesh``, its ``HexReport`` and its ``BoundaryPatches``)
   with ``HexOptions`` (cell size, ``DEFAULT_HEXES`` cells by default, up to
-  ``MAX_HEXES``; smoothing); ``default_cell_size``.  ``HexInput``, ``hex_source_arrays`` and
+  ``MAX_HEXES``; smoothing; ``FinerNear``: smaller cells near chosen patches
+  and curves); ``default_cell_size``.  ``HexInput``, ``hex_source_arrays`` and
   ``input_from_arrays`` are the earlier names of ``SolvedField`` and its
   arrays, kept for one release.
 * No network yet (docs/suggest.md): ``suggest_network`` suggests one for a
@@ -67,6 +68,7 @@ from .hexmesh import (
     DEFAULT_HEXES,
     MAX_HEXES,
     BoundaryPatches,
+    FinerNear,
     HexInput,
     HexMesh,
     HexOptions,
@@ -89,6 +91,7 @@ __all__ = [
     "CheckResult",
     "Curve",
     "FieldProblem",
+    "FinerNear",
     "FrameField",
     "HexInput",
     "BoundaryPatches",

@@ -79,6 +79,13 @@ def _parser() -> argparse.ArgumentParser:
                    "about --hex-cells cells, finer where the network needs it)")
     p.add_argument("--hex-cells", type=int, metavar="N", help="with --hex and no --cell-size: the number of "
                    "cells aimed at (default 3000)")
+    p.add_argument("--finer-near", metavar="WHERE", help="with --hex: smaller cells near these boundary patches and "
+                   "curves, e.g. \"patch 3, curve 2\" (patches numbered from 1 as the hex mesh's boundary groups, "
+                   "curves from 0 as given, or \"curve 'name'\"); docs/hexmesh.md")
+    p.add_argument("--finer-ratio", type=float, metavar="R", help="with --finer-near: the cell size there as a "
+                   "fraction of the cell size (default 0.5)")
+    p.add_argument("--finer-reach", type=float, metavar="CELLS", help="with --finer-near: the distance, in cells, "
+                   "over which the size grows back (default 4)")
     p.add_argument("--no-smooth", action="store_true", help="with --hex: keep the vertices where the integer-grid "
                    "map puts them (no optimisation of the cells' shape)")
     p.add_argument("--from-result", metavar="FILE.npz", help="with --hex: mesh the field stored in a result file "
@@ -144,9 +151,17 @@ def _check_hex_outputs(args) -> None:
     for path in args.hex:
         check_hex_path(path, "--hex")
     hexing = args.cell_size is not None or args.hex_cells is not None or args.no_smooth or args.mesh_unconverged
-    if hexing and not args.hex:
-        raise OptionsError("--cell-size, --hex-cells, --no-smooth and --mesh-unconverged go with --hex FILE (the hex "
-                           "mesh to write)")
+    if (hexing or args.finer_near is not None) and not args.hex:
+        raise OptionsError("--cell-size, --hex-cells, --finer-near, --no-smooth and --mesh-unconverged go with --hex "
+                           "FILE (the hex mesh to write)")
+    if (args.finer_ratio is not None or args.finer_reach is not None) and args.finer_near is None:
+        raise OptionsError("--finer-ratio and --finer-reach go with --finer-near (where the cells are to be smaller)")
+    args.finer = None
+    if args.finer_near is not None:
+        from .hexmesh.sizing import FINER_RATIO, FINER_REACH, FinerNear
+
+        args.finer = FinerNear.parse(args.finer_near, FINER_RATIO if args.finer_ratio is None else args.finer_ratio,
+                                     FINER_REACH if args.finer_reach is None else args.finer_reach)
     if args.from_result and not (args.hex or args.export or args.check):
         raise OptionsError("--from-result reads a stored field for --hex FILE (a hex mesh), --export FILE (the "
                            "field for another tool) or --check (check the file); give one of them")
@@ -188,6 +203,10 @@ def _hex_refusal(args, size: tuple[float, float] | None, curves, sources=None) -
 
     if args.cell_size is not None and size is not None:
         check_cell_size(args.cell_size, *size, subject=f"--cell-size {args.cell_size:g}", error=OptionsError)
+    if getattr(args, "finer", None) is not None:
+        from .hexmesh.sizing import chosen_curves
+
+        chosen_curves(args.finer, curves, sources)  # OptionsError (exit 1): a curve the network lacks
     try:
         check_indices(curves, sources)
     except HexMeshError as e:
@@ -221,7 +240,7 @@ def _hex(args, inp, progress, finer=None) -> int:
         return EXIT_NOT_CONVERGED
     try:
         options = HexOptions(cell_size=args.cell_size, target_hexes=args.hex_cells or DEFAULT_HEXES,
-                             smooth=not args.no_smooth)
+                             smooth=not args.no_smooth, finer_near=getattr(args, "finer", None))
         hm = hexmesh(inp, options=options, progress=progress, allow_unconverged=args.mesh_unconverged)
     except HexMeshError as e:
         again = finer(e) if finer is not None and e.kind == "map" else None

@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty
 
-from ..solver import HexOptions, SymFramesError, TopologyError, check
+from ..solver import FinerNear, HexOptions, SymFramesError, TopologyError, check
 from ..solver.examples import EXAMPLES
 from . import (
     diagnostics,
@@ -388,9 +388,13 @@ class SYMFRAMES_OT_hex_mesh(_Threaded, bpy.types.Operator):
     def _prepare(self, context, echo: bool = False):
         s = context.scene.symframes
         try:
+            finer = (FinerNear.parse(s.hex_finer_near, float(s.hex_finer_ratio), float(s.hex_finer_reach))
+                     if s.hex_finer_near.strip() else None)
             options = HexOptions(cell_size=float(s.hex_cell_size) if s.hex_cell_size > 0 else None,
-                                 target_hexes=int(s.hex_cells), smooth=bool(s.hex_smooth))
+                                 target_hexes=int(s.hex_cells), smooth=bool(s.hex_smooth), finer_near=finer)
             source = hex_source(context)
+            if finer is not None:
+                finer.check(source)  # patches and curves the field has, before the job starts
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e))
             return None

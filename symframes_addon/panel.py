@@ -244,6 +244,11 @@ class SYMFRAMES_PT_hex(SymFramesPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.use_property_split = False
         row.operator_enum("symframes.apply_hex_preset", "preset")
+        layout.prop(s, "hex_finer_near")
+        sub = layout.column(align=True)
+        sub.active = bool(s.hex_finer_near.strip())
+        sub.prop(s, "hex_finer_ratio")
+        sub.prop(s, "hex_finer_reach")
         layout.prop(s, "hex_smooth")
         j = operators.running_job()
         if isinstance(j, job.HexJob):

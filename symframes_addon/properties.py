@@ -7,7 +7,7 @@ torsion; it is edited in the panel and read by scene_io.read_network.
 """
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..solver import DEFAULT_HEXES
 
@@ -296,6 +296,20 @@ class SymFramesSettings(bpy.types.PropertyGroup):
     hex_smooth: BoolProperty(
         name="Smooth", default=True,
         description="Optimise the hex vertices after extraction (it never lowers the minimum scaled Jacobian)",
+    )
+    hex_finer_near: StringProperty(
+        name="Finer Near", default="",
+        description="Smaller cells near these boundary patches and curves, e.g. \"patch 3, curve 2\" or "
+        "\"curve 'radial 0'\": patches numbered as the hex mesh's 'patch' attribute, curves from 0 in the "
+        "network's order or by name (empty: one cell size everywhere)",
+    )
+    hex_finer_ratio: FloatProperty(
+        name="Ratio", default=0.5, min=0.05, max=1.0, subtype="FACTOR",
+        description="With Finer Near: the cell size there, as a fraction of the cell size",
+    )
+    hex_finer_reach: FloatProperty(
+        name="Reach", default=4.0, min=0.1, soft_max=20.0,
+        description="With Finer Near: the distance, in cells, over which the size grows back to the cell size",
     )
     hex_explode: FloatProperty(
         name="Explode", default=0.0, min=0.0, max=0.9, subtype="FACTOR", update=_update_hex_view,

@@ -406,6 +406,25 @@ def test_a_refused_run_leaves_the_scene_unchanged(cyl):
 
 @pytest.mark.slow
 @pytest.mark.mesher
+def test_finer_near_a_patch_from_the_panel(cyl):
+    """Finer Near: a patch the field lacks is refused before the job, the
+    scene unchanged; a patch it has (the cylinder's bottom cap, 2) gives
+    more, thinner cells there, and the stored report says where."""
+    reopen(cyl)
+    before = scene_state()
+    s = scene().symframes
+    s.hex_finer_near = "patch 9"
+    _refused(bpy.ops.symframes.hex_mesh, "the surface has 3 patches .* not patch 9")
+    assert scene_state() == before
+    s.hex_finer_near, s.hex_finer_ratio = "patch 2", 0.5
+    assert bpy.ops.symframes.hex_mesh() == {"FINISHED"}
+    rep = hex_mesh.stored_report(scene())
+    assert rep.status == "valid" and rep.hexes > cyl.report.hexes, rep.summary()
+    assert "patch 2 (cells 0.5 of the cell size there" in rep.finer_near
+
+
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_cancel_leaves_the_scene_unchanged(cyl):
     reopen(cyl)
     before = scene_state()

@@ -235,8 +235,8 @@ def test_poor_cells_are_a_warning_that_names_them_and_ends_the_ladder(solved, mo
     res = solved("cylinder")
     real, sizes = mesher.assess, []
 
-    def poor(report, inp, V, H, cell):
-        real(report, inp, V, H, cell)
+    def poor(report, inp, V, H, cell, rel=None):
+        real(report, inp, V, H, cell, rel)
         sizes.append(cell)
         report.sj_poor = 2
         verdict(report)
@@ -267,8 +267,8 @@ def test_the_verdict_has_a_level_for_a_boundary_slightly_off(solved, monkeypatch
     res = solved("cylinder")
     real, sizes = mesher.assess, []
 
-    def off(report, inp, V, H, cell):  # the first size's boundary 1.5% off, the others on it
-        real(report, inp, V, H, cell)
+    def off(report, inp, V, H, cell, rel=None):  # the first size's boundary 1.5% off, the others on it
+        real(report, inp, V, H, cell, rel)
         sizes.append(cell)
         report.hausdorff_relative = 0.015 if len(sizes) == 1 else 0.001
         verdict(report)
@@ -282,8 +282,8 @@ def test_the_verdict_has_a_level_for_a_boundary_slightly_off(solved, monkeypatch
     hm = hexmesh(res, 0.3)  # a size given: tried alone, kept with its warning
     assert sizes == [0.3] and hm.report.valid and hm.report.warnings
 
-    def warned(report, inp, V, H, cell):  # every size off, the second closest
-        real(report, inp, V, H, cell)
+    def warned(report, inp, V, H, cell, rel=None):  # every size off, the second closest
+        real(report, inp, V, H, cell, rel)
         sizes.append(cell)
         report.hausdorff_relative = (0.015, 0.012, 0.018)[min(len(sizes), 3) - 1]
         verdict(report)

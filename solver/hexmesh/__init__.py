@@ -19,7 +19,9 @@ the automatic cell size and the refusal of one that does not fit; intake.py,
 what is refused before any work; source.py, the earlier names of what it
 takes (``HexInput`` is ``field.solved.SolvedField``, kept for one release);
 hexes.py, what it hands back (``HexMesh``); patches.py, the
-boundary patches for simulation.
+boundary patches for simulation; sizing.py, the size field of
+``HexOptions.finer_near`` (``FinerNear``: smaller cells near chosen patches
+and curves).
 """
 
 from ..errors import HexMeshError
@@ -29,6 +31,7 @@ from .mesher import STAGE_WEIGHTS, hexmesh
 from .options import DEFAULT_HEXES, MAX_HEXES, HexOptions
 from .patches import BoundaryPatches
 from .report import CurveMatch, HexReport
+from .sizing import FinerNear
 from .source import HexInput, hex_source_arrays, input_from_arrays
 from .transitions import EdgeField, field_on_edges
 
@@ -39,6 +42,7 @@ __all__ = [
     "BoundaryPatches",
     "CurveMatch",
     "EdgeField",
+    "FinerNear",
     "HexInput",
     "HexMesh",
     "HexMeshError",

@@ -117,8 +117,11 @@ def _cells(volume: float, cell: float) -> tuple[float, str]:
     return (10.0**log if log < 300 else np.inf), (f"{10.0**log:,.0f}" if log < 12 else f"10^{log:.0f}")
 
 
-def cell_count(inp: SolvedField, cell: float) -> float:
-    """About how many cells of this size the solid holds."""
+def cell_count(inp: SolvedField, cell: float, sizes=None) -> float:
+    """About how many cells of this size the solid holds (with a size
+    field's smaller cells, ``sizing.SizeField``)."""
+    if sizes is not None and not sizes.uniform:
+        return sizes.cells(inp.mesh, cell)
     return _cells(float(np.sum(inp.mesh.tet_volumes)), cell)[0]
 
 
@@ -164,7 +167,7 @@ def check_cell_size(cell: float, extent: float, volume: float, subject: str | No
                    f"choose a cell size of at least {(volume / MAX_HEXES) ** (1 / 3):.4g}{fix}")
 
 
-def check_cell(inp: SolvedField, cell: float, why: str = "given") -> None:
+def check_cell(inp: SolvedField, cell: float, why: str = "given", sizes=None) -> None:
     """Refuse a cell size (given, or the automatic one for ``why``) that
     does not fit the solid (``check_cell_size``) or this machine's memory
     (``memory_refusal``).
@@ -179,18 +182,22 @@ def check_cell(inp: SolvedField, cell: float, why: str = "given") -> None:
     else:
         check_cell_size(cell, *solid_size(inp), subject=f"the automatic cell size {cell:.4g} (for {why})",
                         fix="; give a cell size (cell_size, --cell-size) instead")
-    refusal = memory_refusal(inp, cell)
+    if sizes is not None and not sizes.uniform and cell_count(inp, cell, sizes) > MAX_HEXES:
+        raise HexMeshError(f"cell size {cell:.4g} with smaller cells near {sizes.finer.describe()} would make about "
+                           f"{cell_count(inp, cell, sizes):,.0f} hexahedra (the limit is {MAX_HEXES:,}); choose a "
+                           "larger cell size or a larger finer_near ratio", kind="settings")
+    refusal = memory_refusal(inp, cell, sizes)
     if refusal:
         raise HexMeshError(refusal, kind="settings")
 
 
-def too_many(inp: SolvedField, cell: float) -> str | None:
+def too_many(inp: SolvedField, cell: float, sizes=None) -> str | None:
     """Why a cell size the automatic steps reach may not be tried (the cell
     limit, the memory estimate), or None."""
-    n = cell_count(inp, cell)
+    n = cell_count(inp, cell, sizes)
     if n > MAX_HEXES:
         return f"it would make about {n:,.0f} hexahedra (the limit is {MAX_HEXES:,})"
-    return memory_refusal(inp, cell)
+    return memory_refusal(inp, cell, sizes)
 
 
 def hex_memory_mb(cells: float, tets: int) -> float:
@@ -199,9 +206,9 @@ def hex_memory_mb(cells: float, tets: int) -> float:
     return HEX_BASE_MB + (HEX_KB_PER_CELL * cells + HEX_KB_PER_TET * tets) / 1024.0
 
 
-def hex_estimate(inp: SolvedField, cell: float) -> tuple[float, float]:
+def hex_estimate(inp: SolvedField, cell: float, sizes=None) -> tuple[float, float]:
     """(about how many cells, estimated MB of the hex stages) at a cell size."""
-    n = cell_count(inp, cell)
+    n = cell_count(inp, cell, sizes)
     return n, hex_memory_mb(n, inp.mesh.n_tets)
 
 
@@ -209,11 +216,11 @@ def _gb(mb: float) -> str:
     return f"{mb / 1024:.1f} GB" if mb < 10240 else f"{mb / 1024:,.0f} GB"
 
 
-def memory_refusal(inp: SolvedField, cell: float) -> str | None:
+def memory_refusal(inp: SolvedField, cell: float, sizes=None) -> str | None:
     """The message refusing a hex run at this cell size for its memory
     estimate, or None when it fits in ``RAM_FRACTION`` of this machine's
     memory."""
-    n, mb = hex_estimate(inp, cell)
+    n, mb = hex_estimate(inp, cell, sizes)
     ram = physical_memory_mb()
     if np.isfinite(mb) and mb <= RAM_FRACTION * ram:
         return None

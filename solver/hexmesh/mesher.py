@@ -45,6 +45,7 @@ from .seamless import (
     split_flat,
     widen_rings,
 )
+from .sizing import SizeField, size_field
 from .smooth import smooth_hexes
 from .transitions import checked_transitions
 
@@ -68,7 +69,7 @@ class _Retry(HexMeshError):
 
 def hexmesh(field, cell_size: float | None = None, *, smooth: bool = True, progress=None, cancel=None,
             target_hexes: int = DEFAULT_HEXES, allow_unconverged: bool = False,
-            options: HexOptions | None = None) -> HexMesh:
+            options: HexOptions | None = None, finer_near=None) -> HexMesh:
     """A pure hexahedral mesh of a solved field whose irregular edges are the
     prescribed curves.
 
@@ -96,8 +97,14 @@ def hexmesh(field, cell_size: float | None = None, *, smooth: bool = True, progr
         mesh a field that did not converge anyway (``report.notes`` says
         so); by default such a field is refused
     options : HexOptions, optional
-        cell_size, target_hexes and smooth as one value; a keyword left at
-        its default defers to it, one that disagrees with it is refused
+        cell_size, target_hexes, smooth and finer_near as one value; a
+        keyword left at its default defers to it, one that disagrees with it
+        is refused
+    finer_near : FinerNear or str, optional
+        smaller cells near chosen boundary patches or network curves
+        (``sizing.FinerNear``, or words such as ``"patch 3, curve 2"``: half
+        the cell size there, back to it over 4 cells); the cell size is the
+        one away from them
 
     Returns
     -------
@@ -117,7 +124,7 @@ def hexmesh(field, cell_size: float | None = None, *, smooth: bool = True, progr
         (SymFrames' map failed: a limit of SymFrames); the message says how
         many tets and where
     """
-    opts = hex_options(options, cell_size=cell_size, target_hexes=target_hexes, smooth=smooth)
+    opts = hex_options(options, cell_size=cell_size, target_hexes=target_hexes, smooth=smooth, finer_near=finer_near)
     allow_unconverged = checks.boolean("allow_unconverged", allow_unconverged, OptionsError)
     for name, fn in (("progress", progress), ("cancel", cancel)):
         if fn is not None and not callable(fn):
@@ -130,13 +137,17 @@ def hexmesh(field, cell_size: float | None = None, *, smooth: bool = True, progr
     clock = Stages(STAGE_WEIGHTS, report.stage_seconds, progress, cancel)
     auto = opts.cell_size is None
     cell, why = (opts.cell_size, "given") if not auto else cell_choice(inp, opts.target_hexes)
-    check_cell(inp, cell, why)
+    sizes = size_field(inp, opts.finer_near)
+    check_cell(inp, cell, why, sizes)
     check_indices(inp.network.curves, inp.network.source)
     report.cell_reason = why
-    return _ladder(inp, cell, AUTO_STEPS if auto else (1.0,), opts.smooth, clock, report)
+    if sizes.finer is not None:
+        report.finer_near = sizes.finer.describe()
+    return _ladder(inp, cell, AUTO_STEPS if auto else (1.0,), opts.smooth, clock, report, sizes)
 
 
-def _ladder(inp: SolvedField, cell: float, steps: tuple, smooth: bool, clock: Stages, report: HexReport) -> HexMesh:
+def _ladder(inp: SolvedField, cell: float, steps: tuple, smooth: bool, clock: Stages, report: HexReport,
+            sizes: SizeField) -> HexMesh:
     """The stages at each cell size of ``steps`` (fractions of ``cell``)
     until one gives a valid mesh whose boundary is within HAUSDORFF_BAR of
     the surface (other warnings, poor cells, a smaller cell would not fix);
@@ -148,18 +159,18 @@ def _ladder(inp: SolvedField, cell: float, steps: tuple, smooth: bool, clock: St
     first_defective, warned, failure = None, None, ""
     for k, f in enumerate(steps):
         c = cell * f
-        stop = too_many(inp, c) if k else None
+        stop = too_many(inp, c, sizes) if k else None
         if stop and (first_defective is not None or warned is not None):
             report.notes.append(f"cell size {c:.4g} is not tried: {stop}")
             break
         if stop:  # the last size's map failed, and the next one may not be tried
             raise HexMeshError(f"{failure}; the next cell size, {c:.4g}, is not tried: {stop}; try a finer field (a "
                                "smaller edge length)", report, kind="map")
-        n, mb = hex_estimate(inp, c)
+        n, mb = hex_estimate(inp, c, sizes)
         clock.say("curves onto edges", f"hex: cell size {c:.4g}: expected ~{n:,.0f} cells and ~{mb:,.0f} MB of "
                                        "memory for the hex stages")
         try:
-            hm = _mesh_at(inp, c, smooth, clock, report)
+            hm = _mesh_at(inp, c, smooth, clock, report, sizes)
         except _Retry as e:
             failure = str(e)
             if k + 1 < len(steps):
@@ -187,6 +198,7 @@ def _ladder(inp: SolvedField, cell: float, steps: tuple, smooth: bool, clock: St
         if k + 1 == len(steps):
             return _kept(warned or first_defective, hm.report, f"at cell size {c:.4g} the mesh was {what}")
         report = _fresh_report(report, f"at cell size {c:.4g} the mesh was {what}; trying {cell * steps[k + 1]:.4g}")
+        report.finer_near = hm.report.finer_near
         clock.seconds = report.stage_seconds
         clock.say("quality", f"hex: {report.notes[-1]}")
     return _kept(warned or first_defective, report)
@@ -266,7 +278,8 @@ def _ticker(clock: Stages, stage: str, what: str):
     return tick
 
 
-def _mesh_at(inp: SolvedField, cell: float, smooth: bool, clock: Stages, report: HexReport) -> HexMesh:
+def _mesh_at(inp: SolvedField, cell: float, smooth: bool, clock: Stages, report: HexReport,
+             sizes: SizeField | None = None) -> HexMesh:
     """The stages at one cell size (module docs); raises _Retry where a
     smaller cell may succeed."""
     report.cell_size = cell
@@ -274,7 +287,7 @@ def _mesh_at(inp: SolvedField, cell: float, smooth: bool, clock: Stages, report:
     # the rings of tets around the singular chain edges widened where they are
     # too few for the edge's valence (seamless.ring_edges)
     cem = _stage(clock, "curves onto edges", widen_rings, cem, again=True)
-    cem, tr, ms = _map_system(cem, inp, cell, clock, report)
+    cem, tr, ms = _map_system(cem, inp, cell, clock, report, sizes)
     sm, red = _stage(clock, "seamless map", seamless_map, ms)
     report.seamless_inverted = sm.inverted
     gm = _stage(clock, "integer-grid map", integer_grid_map, ms, red, retry=True)
@@ -293,11 +306,13 @@ def _mesh_at(inp: SolvedField, cell: float, smooth: bool, clock: Stages, report:
         raise HexMeshError(f"the map holds no whole cell at cell size {cell:.4g} ({_whose(report)}); "
                            f"{_smaller(report)}", report, kind="settings")
     V, H = raw.vertices, raw.hexes
+    rel = None if sizes is None else sizes.relative(V[H].mean(axis=1), cell)  # per cell, where a size field asks
     sj0 = scaled_jacobian(V, H)
     report.sj_min_raw, report.sj_mean_raw = float(sj0.min()), float(sj0.mean())
     if smooth:
-        V = _stage(clock, "smoothing", smooth_hexes, V, H, cell, inp, cem, _ticker(clock, "smoothing", "smoothing"))
-    _stage(clock, "quality", assess, report, inp, V, H, cell)
+        V = _stage(clock, "smoothing", smooth_hexes, V, H, cell, inp, cem, _ticker(clock, "smoothing", "smoothing"),
+                   rel)
+    _stage(clock, "quality", assess, report, inp, V, H, cell, rel)
     e, val = irregular_edges(H)
     return HexMesh(V, H, scaled_jacobian(V, H), report, e, val,
                    (cem.mesh.vertices, cem.mesh.tets, snap(gm.corners)),
@@ -318,13 +333,14 @@ def _curves_on_edges(inp: SolvedField, clock: Stages, report: HexReport) -> Curv
                            "smaller edge length), and please report this input", report, kind="map") from None
 
 
-def _map_system(cem: CurveEdgeMesh, inp: SolvedField, cell: float, clock: Stages, report: HexReport):
+def _map_system(cem: CurveEdgeMesh, inp: SolvedField, cell: float, clock: Stages, report: HexReport,
+                sizes: SizeField | None = None):
     """The stages 'transitions' and 'map system', again on the mesh split
     where tets are flat whatever the map (seamless.split_flat), at most
     MAP_ROUNDS times; tets still flat are refused."""
     for k in range(MAP_ROUNDS):
         tr = _stage(clock, "transitions", checked_transitions, cem, inp, report, again=k > 0)
-        ms, flat = _stage(clock, "map system", map_system, cem, tr, cell, report, again=k > 0)
+        ms, flat = _stage(clock, "map system", map_system, cem, tr, cell, report, sizes, again=k > 0)
         split = _stage(clock, "map system", split_flat, cem, flat, again=True) if len(flat) else None
         if split is None:
             break

@@ -8,6 +8,7 @@ from dataclasses import dataclass, fields
 
 from .. import checks
 from ..errors import OptionsError
+from .sizing import FinerNear
 
 DEFAULT_HEXES = 3000
 """The number of cells the automatic cell size aims at."""
@@ -32,17 +33,23 @@ class HexOptions:
     smooth : bool
         Optimise the vertex positions after the extraction (never lowering
         the minimum scaled Jacobian).
+    finer_near : FinerNear, optional
+        Smaller cells near chosen boundary patches or network curves
+        (``sizing.FinerNear``: which, how much smaller, over how many
+        cells); None (the default): one cell size everywhere.
 
     Raises
     ------
     OptionsError
         a cell size that is not a finite number > 0, a target that is not a
-        whole number in [1, MAX_HEXES], a smooth that is not a boolean
+        whole number in [1, MAX_HEXES], a smooth that is not a boolean, a
+        finer_near that is not a FinerNear (or words FinerNear.parse reads)
     """
 
     cell_size: float | None = None
     target_hexes: int = DEFAULT_HEXES
     smooth: bool = True
+    finer_near: FinerNear | None = None
 
     def __post_init__(self):
         # types and ranges in one place (checks.py), before any hex work
@@ -55,6 +62,10 @@ class HexOptions:
                                            fix="the number of cells the automatic cell size aims at (default "
                                                f"{DEFAULT_HEXES})"),
             "smooth": checks.boolean("smooth", self.smooth, E),
+            "finer_near": (FinerNear.parse(self.finer_near) if isinstance(self.finer_near, str) else
+                           checks.instance("finer_near", self.finer_near, (FinerNear, type(None)), E,
+                                           fix="solver.hexmesh.FinerNear(patches=(...), curves=(...), ratio=0.5), "
+                                               "words such as 'patch 3, curve 2', or None")),
         }
         for name, value in checked.items():
             object.__setattr__(self, name, value)  # frozen: the checked, normalised value
@@ -84,7 +95,8 @@ def hex_options(options: HexOptions | None = None, **keywords) -> HexOptions:
     if options is None:
         return given
     checks.instance("options", options, HexOptions, OptionsError,
-                    fix="solver.hexmesh.HexOptions(cell_size=..., target_hexes=..., smooth=...), or None")
+                    fix="solver.hexmesh.HexOptions(cell_size=..., target_hexes=..., smooth=..., finer_near=...), "
+                                        "or None")
     default = HexOptions()
     for f in fields(HexOptions):
         mine, theirs = getattr(given, f.name), getattr(options, f.name)

@@ -106,9 +106,13 @@ class HexReport:
         the share of cells whose size (the mean length of their 12 edges)
         is within ``SIZE_SPREAD`` (20 %) of ``cell_size``; ``size_p5`` and
         ``size_p95``: the 5th and 95th percentiles of the cells' sizes, as
-        fractions of ``cell_size``.  The network's layout may force grading
-        (a cube-sphere's shell cells grow outward by the ratio of the
-        surface to the inner cube), so this is reported, not a verdict
+        fractions of ``cell_size``.  Under a size field (``finer_near``)
+        each cell is measured against the size asked for at its centre.  The
+        network's layout may force grading (a cube-sphere's shell cells grow
+        outward by the ratio of the surface to the inner cube), so this is
+        reported, not a verdict
+    finer_near : str
+        the size field asked for, in words ('' for one cell size)
     cell_reason : str
         why the cell size is what it is ('given', or what the automatic
         size resolves: the target's cells, the shortest singular curve, two
@@ -170,6 +174,7 @@ class HexReport:
     size_within: float = 0.0
     size_p5: float = 0.0
     size_p95: float = 0.0
+    finer_near: str = ""
 
     @property
     def valid(self) -> bool:
@@ -204,8 +209,9 @@ class HexReport:
                  + f"; {'exactly the prescribed curves' if self.structure_exact else 'NOT the prescribed curves'}"
                  + (f" ({self.extra_irregular} elsewhere)" if self.extra_irregular else ""),
                  f"  cell sizes (mean edge length): {100 * self.size_within:.0f}% of the cells within "
-                 f"{100 * SIZE_SPREAD:.0f}% of the cell size; 5-95th percentile {self.size_p5:.2f}-"
-                 f"{self.size_p95:.2f} of it",
+                 f"{100 * SIZE_SPREAD:.0f}% of the {'size asked for there' if self.finer_near else 'cell size'}; "
+                 f"5-95th percentile {self.size_p5:.2f}-{self.size_p95:.2f} of it"
+                 + (f"; finer near {self.finer_near}" if self.finer_near else ""),
                  f"  boundary: Euler characteristic {self.euler} (surface {self.euler_expected}); faces in more "
                  f"than two cells {self.faces_over_two}; Hausdorff distance {self.hausdorff:.3g} "
                  f"({100 * self.hausdorff_relative:.2f}% of the diagonal)",
@@ -232,7 +238,7 @@ def where(points: np.ndarray) -> str:
     return f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g})"
 
 
-def assess(report: HexReport, inp, V: np.ndarray, H: np.ndarray, cell: float) -> None:
+def assess(report: HexReport, inp, V: np.ndarray, H: np.ndarray, cell: float, rel: np.ndarray | None = None) -> None:
     """Fill in the report's measures of the hex mesh (V, H) and its verdict.
 
     Parameters
@@ -245,6 +251,9 @@ def assess(report: HexReport, inp, V: np.ndarray, H: np.ndarray, cell: float) ->
         the mesh's vertices and cells
     cell : float
         the cell size: the tolerance of the curves' match
+    rel : (m,) float array, optional
+        a size field's size per cell over the cell size (sizing.py): each
+        cell's size is measured against its own
     """
     sj = scaled_jacobian(V, H)
     report.hexes, report.vertices = len(H), len(V)
@@ -267,7 +276,7 @@ def assess(report: HexReport, inp, V: np.ndarray, H: np.ndarray, cell: float) ->
     else:
         report.sj_mean_irregular = 1.0
     match_curves(report, inp, V, e[irr], val[irr], cell)
-    size = cell_sizes(V, H) / cell
+    size = cell_sizes(V, H) / (cell if rel is None else cell * np.asarray(rel, float))
     report.size_within = float(np.mean(np.abs(size - 1.0) <= SIZE_SPREAD))
     report.size_p5, report.size_p95 = (float(x) for x in np.percentile(size, [5, 95]))
     report.hausdorff = hausdorff_distance(inp.surface, V, q)

@@ -5,9 +5,10 @@ The map u gives each tet corner a point of R^3 (parameter units: cells).
 It minimises the frame-fitting energy (AlgoHex's FrameFittingElement3D,
 CubeCover's least squares, paper §5 "Meshing")
 
-    E(u) = sum_t V_t || cell * grad(u_t) F_t - I ||_F^2
+    E(u) = sum_t V_t || cell_t * grad(u_t) F_t - I ||_F^2
 
-subject to linear constraints:
+(cell_t: the cell size, or a size field's at tet t, sizing.py) subject to
+linear constraints:
 
 * across a face off the cut the charts agree (corners are merged: one
   unknown per *wedge*, the corners of a vertex joined through non-cut faces);
@@ -451,7 +452,7 @@ def _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau):
     return A, Bd, rows
 
 
-def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSystem:
+def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, rel: np.ndarray | None = None) -> MapSystem:
     """Assemble the reduced seamless-map system (module docs).
 
     Parameters
@@ -461,6 +462,9 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
         combed frames, transitions and cut of cem.mesh
     cell : float
         the target hex edge length, in model units
+    rel : (#T,) float array, optional
+        a size field: tet t fits its gradient to cells of ``cell * rel[t]``
+        (sizing.py); None: ``cell`` everywhere
 
     Returns
     -------
@@ -500,7 +504,7 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float) -> MapSys
     for r, val in uf.fixed.items():
         fixed_val.setdefault(r, val @ Ntau)
     Xm = _corner_matrix(mesh.tets, wedge, A, Bd, roots, sgn, offs, col, fixed_val, Ntau, nr, nk)
-    LX, Q, bvec, coef, vol = _fitting_energy(mesh, tr.frames, cell, Xm)
+    LX, Q, bvec, coef, vol = _fitting_energy(mesh, tr.frames, cell if rel is None else cell * rel, Xm)
     integer = np.zeros(nr + nk, bool)
     integer[col[free & root_int]] = True
     integer[nr:] = True
@@ -666,10 +670,11 @@ def _corner_matrix(T, wedge, A, Bd, roots, sgn, offs, col, fixed_val, Ntau, nr, 
                          shape=(12 * nT, nr + nk))
 
 
-def _fitting_energy(mesh: TetMesh, F: np.ndarray, cell: float, Xm: sp.csr_matrix):
+def _fitting_energy(mesh: TetMesh, F: np.ndarray, cell, Xm: sp.csr_matrix):
     """The frame-fitting energy (module docs) in z: (LX, Q, b, coef, volumes)
     with residuals LX z - vec(I) per tet, weights the volumes, and coef the
-    (#T, 4, 3) coefficients of cell * grad(u) F in the corners."""
+    (#T, 4, 3) coefficients of cell * grad(u) F in the corners (cell: one
+    size, or one per tet for a size field)."""
     T, X = mesh.tets, mesh.vertices
     nT = len(T)
     Xt = X[T]
@@ -677,7 +682,8 @@ def _fitting_energy(mesh: TetMesh, F: np.ndarray, cell: float, Xm: sp.csr_matrix
     gl = np.zeros((nT, 4, 3))
     gl[:, 1:] = np.linalg.inv(np.transpose(Mb, (0, 2, 1)))  # rows: grad lambda_1..3
     gl[:, 0] = -gl[:, 1:].sum(axis=1)
-    coef = cell * np.einsum("tck,tkj->tcj", gl, F)  # (nT, 4, 3): corner c, frame axis j
+    # (nT, 4, 3): corner c, frame axis j; cell: one size, or one per tet
+    coef = np.asarray(cell, float)[..., None, None] * np.einsum("tck,tkj->tcj", gl, F)
     vol = mesh.tet_volumes
     # residual (t, a, j) = sum_c u[t, c, a] coef[t, c, j] - delta_aj
     rr, cc, vv = [], [], []
@@ -846,7 +852,8 @@ def freeing_edges(cem: CurveEdgeMesh, tets: np.ndarray) -> np.ndarray:
     return out.astype(np.int64).reshape(-1, 2)
 
 
-def map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, report=None) -> tuple[MapSystem, np.ndarray]:
+def map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, report=None,
+               sizes=None) -> tuple[MapSystem, np.ndarray]:
     """The map system of the split mesh and its transitions, and the tets
     flat in every map it allows (``degenerate_tets``).
 
@@ -859,6 +866,8 @@ def map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, report=None) ->
         the cell size
     report : HexReport, optional
         carried by a refusal
+    sizes : sizing.SizeField, optional
+        smaller cells where it asks (None: ``cell`` everywhere)
 
     Returns
     -------
@@ -869,8 +878,10 @@ def map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, report=None) ->
     HexMeshError
         kind 'map', where the constraints cannot be met
     """
+    mesh = cem.mesh
+    rel = None if sizes is None else sizes.relative(mesh.vertices[mesh.tets].mean(axis=1), cell)
     try:
-        ms = build_map_system(cem, tr, cell)
+        ms = build_map_system(cem, tr, cell, rel)
     except MapError as e:
         raise HexMeshError(f"the map's constraints cannot be met: {e}", report, kind="map") from None
     return ms, degenerate_tets(ms)

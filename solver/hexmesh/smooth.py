@@ -107,10 +107,11 @@ def _foldover_rows(R: np.ndarray, eps: float, lam: float = LAMBDA):
         return f, C
 
 
-def corner_energy(V: np.ndarray, H: np.ndarray, cell: float, eps: float, with_grad: bool = True):
+def corner_energy(V: np.ndarray, H: np.ndarray, cell, eps: float, with_grad: bool = True):
     """Sum of f over every hex corner (J's rows: the corner's three edges
-    over the cell size), and its gradient (n, 3) in V.  Each coordinate is a
-    contiguous vector throughout (``_foldover_rows``)."""
+    over the cell size: one, or one per hex of a size field), and its
+    gradient (n, 3) in V.  Each coordinate is a contiguous vector throughout
+    (``_foldover_rows``)."""
     X = np.ascontiguousarray(V.T)  # (3, n)
     corner = H.reshape(-1)
     nb = H[:, HEX_CORNER_NEIGHBOURS]  # (m, 8, 3): the corner's three neighbours
@@ -119,16 +120,18 @@ def corner_energy(V: np.ndarray, H: np.ndarray, cell: float, eps: float, with_gr
     R = np.empty((3, 3, len(corner)))
     for j in range(3):
         np.subtract(X[:, ends[j]], base, out=R[j])
-    R /= cell
+    c = cell if np.ndim(cell) == 0 else np.repeat(np.asarray(cell, float), 8)  # per corner
+    R /= c
     f, G = _foldover_rows(R, eps)
     total = float(f.sum())
     if not with_grad:
         return total, None
     n = len(V)
+    G /= c
     g = np.empty((n, 3))
     for k in range(3):
         g[:, k] = (np.bincount(ends[0], G[0, k], n) + np.bincount(ends[1], G[1, k], n)
-                   + np.bincount(ends[2], G[2, k], n) - np.bincount(corner, G[0, k] + G[1, k] + G[2, k], n)) / cell
+                   + np.bincount(ends[2], G[2, k], n) - np.bincount(corner, G[0, k] + G[1, k] + G[2, k], n))
     return total, g
 
 
@@ -230,17 +233,20 @@ class BoundaryMotion:
         return V
 
 
-def optimise(V: np.ndarray, H: np.ndarray, cell: float, motion: BoundaryMotion, anchor: np.ndarray | None = None,
+def optimise(V: np.ndarray, H: np.ndarray, cell, motion: BoundaryMotion, anchor: np.ndarray | None = None,
              anchor_weight: float = 1.0, iters: int = 150, rounds: int = 2, callback=None) -> np.ndarray:
     """Minimise the corner energy over the vertex motions `motion` allows,
-    projecting the boundary back after each round; anchor: (n,) bool,
-    vertices pulled towards their start by a spring; callback(iteration,
-    energy) after each L-BFGS iteration (it may raise to cancel).  Returns
-    the new positions."""
+    projecting the boundary back after each round; cell: the cell size, or
+    one per hex of H (a size field); anchor: (n,) bool, vertices pulled
+    towards their start by a spring (per cell of displacement: the median
+    cell); callback(iteration, energy) after each L-BFGS iteration (it may
+    raise to cancel).  Returns the new positions."""
     V = V.copy()
     V0 = V.copy()
     a_idx = np.nonzero(anchor)[0] if anchor is not None else np.zeros(0, dtype=np.int64)
     n_corner = 8 * len(H)
+    per_hex = np.asarray(cell, float)[..., None, None, None]  # broadcasts over (m, 8, 3, 3)
+    unit = float(np.median(cell))
     for _ in range(rounds):
         groups = motion.bases(V)
         if not sum(len(ids) for ids, _ in groups):
@@ -249,7 +255,7 @@ def optimise(V: np.ndarray, H: np.ndarray, cell: float, motion: BoundaryMotion, 
         sizes = [ids.size * B.shape[2] for ids, B in groups]
         offs = np.r_[0, np.cumsum(sizes)]
         P = V[H]
-        E = (P[:, HEX_CORNER_NEIGHBOURS] - P[:, :, None, :]) / cell
+        E = (P[:, HEX_CORNER_NEIGHBOURS] - P[:, :, None, :]) / per_hex
         Dmin = float(det3(E.reshape(-1, 3, 3)).min())
         # eps from the worst corner: large while inverted, small once untangled
         eps = 1e-3 if Dmin > 0.05 else max(1e-3, float(np.sqrt(1e-6 + 0.01 * Dmin * Dmin)))
@@ -267,9 +273,9 @@ def optimise(V: np.ndarray, H: np.ndarray, cell: float, motion: BoundaryMotion, 
             e /= n_corner
             g /= n_corner
             if len(a_idx):
-                d = (W[a_idx] - V0[a_idx]) / cell
+                d = (W[a_idx] - V0[a_idx]) / unit
                 e += anchor_weight * float(np.sum(d * d)) / len(a_idx)
-                g[a_idx] += 2.0 * anchor_weight * d / cell / len(a_idx)
+                g[a_idx] += 2.0 * anchor_weight * d / unit / len(a_idx)
             gx = np.concatenate([np.einsum("kij,ki->kj", B, g[ids]).reshape(-1) for ids, B in groups])
             return e, gx
 
@@ -293,7 +299,8 @@ def curve_vertices(V: np.ndarray, cem, cell: float) -> list:
     return out
 
 
-def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=None) -> np.ndarray:
+def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=None,
+                 rel: np.ndarray | None = None) -> np.ndarray:
     """Untangle and improve the vertex positions (``optimise``): interior
     vertices freely, boundary vertices along the input surface, vertices of
     sharp edges and of the network's feature curves along them, vertices of
@@ -313,6 +320,10 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
         the split tet mesh the map lives on (its chains are the curves)
     callback : callable(iteration, energy), optional
         after each L-BFGS iteration (it may raise to cancel)
+    rel : (m,) float array, optional
+        a size field: each cell's size over the cell size (sizing.py); the
+        optimisation keeps each cell near its own size, and the curves'
+        vertices within 0.9 of their cells
 
     Returns
     -------
@@ -364,12 +375,17 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
 
     sing_curves = [c.points for c in inp.network.curves if c.sigma != 0]
     sv = np.nonzero(spring)[0]
+    hex_cell = np.full(len(H), float(cell)) if rel is None else cell * np.asarray(rel, float)
+    vertex_cell = np.full(len(V), np.inf)
+    np.minimum.at(vertex_cell, H.reshape(-1), np.repeat(hex_cell, 8))
+    sv_cell = vertex_cell[sv] / cell  # moved() measures in cells of the size field where it has one
 
     def moved(W):
-        """Largest distance of a singular curve's vertex from the curves."""
+        """Largest distance of a singular curve's vertex from the curves
+        (in units of the cell size, over the size field's)."""
         if not len(sv):
             return 0.0
-        return float(np.min([polyline_distance(P, W[sv]) for P in sing_curves], axis=0).max())
+        return float((np.min([polyline_distance(P, W[sv]) for P in sing_curves], axis=0) / sv_cell).max())
 
     # the weakest spring that keeps the curves' vertices within 0.9 of a
     # cell of the curves, then the largest step towards the stiffest optimum
@@ -377,7 +393,8 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
     W = V
     for weight in (SPRING, 3 * SPRING, 10 * SPRING, 100 * SPRING):
         try:
-            Wk = optimise(V, H[cells], cell, motion, anchor=spring, anchor_weight=weight, callback=callback)
+            Wk = optimise(V, H[cells], cell if rel is None else hex_cell[cells], motion, anchor=spring,
+                          anchor_weight=weight, callback=callback)
         except (ValueError, FloatingPointError, np.linalg.LinAlgError):
             continue  # a run that diverged (non-finite positions): the next spring, or the map's own places
         if not np.all(np.isfinite(Wk)):
