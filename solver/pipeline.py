@@ -559,6 +559,13 @@ SHORT_UNIFORM = 2.5
 """A graded mesh gives way to a uniform one at its bulk edge length only
 where every open curve is at least this many of those edges long."""
 
+GRADED_SHARE = 0.1
+"""... and only where the grading made at least this share of its tets: a
+mesh graded less is nearly that uniform one, and is not solved again on it
+(a cube-sphere network in an ellipsoid, bench/RESULTS.md: graded 11.9k tets,
+penalty 20.4; uniform at the same edge length 11.2k tets, 21.2, ~20 s for
+nothing before the finer mesh resolved it)."""
+
 
 def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None, cancel=None) -> Result:
     """``problem.solve()``; where the edge length was automatic and LM
@@ -567,7 +574,8 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
     well off its normal, whose repaired ends bend over most of their
     length), the solve again on a uniform mesh: at the same edge length
     where the first mesh was graded (and every curve is ``SHORT_UNIFORM``
-    edges long), then ``FINER`` times as fine, each if
+    edges long, and the grading made ``GRADED_SHARE`` of its tets), then
+    ``FINER`` times as fine, each if
     it fits the tet limit, until one converges.  The best field is
     returned, its report's ``notes`` saying what was done.  (The cube-sphere network
     of a 1.5 x 1 x 0.75 ellipsoid, radial curves 2.5 h long and 20-26
@@ -609,7 +617,9 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
                     if not c.closed), default=np.inf)
     # (a curve shorter than SHORT_UNIFORM edges would lie within its
     # nodes' balls of tets there, which the hex stage cannot follow)
-    lengths = ([h0] if problem.meshed.stats.graded_tets and shortest >= SHORT_UNIFORM * h0 else []) + [FINER * h0]
+    graded = problem.meshed.stats.graded_tets
+    same = graded and graded >= GRADED_SHARE * problem.mesh.n_tets and shortest >= SHORT_UNIFORM * h0
+    lengths = ([h0] if same else []) + [FINER * h0]
     best, best_problem, tried = res, problem, []
     for h in lengths:
         tets = uniform_tets(solid_volume(problem.checked.surface), h)

@@ -388,9 +388,9 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch):
         note = res.report.notes[-1]
         assert "uniform mesh at edge length 0.2" in note and "graded" in note
         assert res.report.converged == (want_converged_at <= 3)
-    # a curve shorter than SHORT_UNIFORM edges, or a uniform first mesh:
-    # straight to the finer one
-    for short, graded in ((True, 500), (False, 0)):
+    # a curve shorter than SHORT_UNIFORM edges, a uniform first mesh, or
+    # one the grading made less than GRADED_SHARE of: straight to the finer one
+    for short, graded in ((True, 500), (False, 0), (False, 50)):
         first.meshed.stats.graded_tets = graded
         first.network.curves = [types.SimpleNamespace(points=long_curve.points * (0.49 if short else 1.0),
                                                       closed=False)]
