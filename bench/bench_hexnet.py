@@ -92,7 +92,7 @@ def run_one(kind: str, seed: int, tet_edge: bool) -> dict:
                reason=h.reason, irregular={str(k): v for k, v in h.irregular.items()},
                structure_exact=bool(h.structure_exact), given_extra=int(h.given_extra),
                given_distance_cells=round(h.given_distance / h.cell_size, 2),
-               given_covered=round(h.given_covered, 3),
+               given_covered=round(h.given_covered, 3), given_moved_cells=round(h.given_moved / h.cell_size, 2),
                hausdorff_pct=round(100 * h.hausdorff_relative, 2), cell=round(h.cell_size, 4), notes=h.notes,
                size_within=round(h.size_within, 3), size_p5=round(h.size_p5, 2), size_p95=round(h.size_p95, 2),
                hex_s=round(time.perf_counter() - t1, 1),

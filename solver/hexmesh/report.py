@@ -96,6 +96,10 @@ class HexReport:
         seconds per stage
     sizes : dict
         sizes of the intermediate meshes and systems
+    given_moved : float
+        the largest distance (model units) from a singular curve as given
+        to what the intake made of it (fairing, ends turned onto the
+        normal); ``given_least`` names the least covered curve as given
     given_extra, given_distance, given_covered : int, float, float
         the irregular edges against the singular curves as the user gave
         them, before the intake repaired them: how many lie more than a
@@ -171,6 +175,8 @@ class HexReport:
     given_extra: int = 0
     given_distance: float = 0.0
     given_covered: float = 1.0
+    given_moved: float = 0.0
+    given_least: str = ""
     size_within: float = 0.0
     size_p5: float = 0.0
     size_p95: float = 0.0
@@ -220,10 +226,15 @@ class HexReport:
                  f"{self.rounding_shift:.2f} cells; stiffening {self.stiffening}",
                  "  seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in self.stage_seconds.items())]
         if self.curves:
+            cells = max(self.cell_size, 1e-300)
             lines.insert(4, f"  against the curves as given: {self.given_extra} irregular edges more than a cell away, "
                             f"the others within {self.given_distance:.3g} "
-                            f"({self.given_distance / max(self.cell_size, 1e-300):.2f} cells), covering "
-                            f"{100 * self.given_covered:.0f}% of each curve or more")
+                            f"({self.given_distance / cells:.2f} cells), covering "
+                            f"{100 * self.given_covered:.0f}% of each curve or more"
+                            + (f" ({self.given_least} least); the intake moved the curves up to "
+                               f"{self.given_moved:.3g} ({self.given_moved / cells:.2f} cells) from where they were "
+                               "given, to repair them (a chain that zig-zags is faired, not followed)"
+                               if self.given_covered < 1.0 else ""))
         lines += [f"  note: {n}" for n in self.notes]
         for c in self.curves:
             if c.covered < 1.0 or c.distance > self.cell_size:
@@ -298,6 +309,24 @@ def match_curves(report: HexReport, inp, V, E, val, cell: float) -> None:
     report.given_extra = extra
     report.given_distance = max([c.distance for c in matches if c.edges] + [0.0])
     report.given_covered = min([c.covered for c in matches] + [1.0])
+    if matches and report.given_covered < 1.0:
+        least = min(matches, key=lambda c: c.covered)
+        report.given_least = f"curve {least.curve}" + (f" '{least.name}'" if least.name else "")
+    report.given_moved = _moved(given, sing)
+
+
+def _moved(given: list, prepared: list) -> float:
+    """The largest distance from a singular curve as given to the curves
+    the intake made of it (the same index as given), sampled at its points
+    and segment midpoints; 0 where the network was not repaired."""
+    out = 0.0
+    for P, sigma, cid, _ in given:
+        mine = [Q for Q, s, c, _ in prepared if c == cid and s != 0]
+        if sigma == 0 or not mine or len(P) < 2:
+            continue
+        X = np.vstack([P, 0.5 * (P[1:] + P[:-1])])
+        out = max(out, float(np.min([polyline_distance(Q, X) for Q in mine], axis=0).max()))
+    return out
 
 
 def curve_matches(curves: list, V, E, val, cell: float) -> tuple[int, list]:
