@@ -48,7 +48,7 @@ from .mesh.resolution import (
 from .mesh.tetmesh import TetMesh
 from .network.network import Network, PreparedNetwork
 from .network.validation import CheckedInput, check_input
-from .report import Report, adaptation_status, solution_status
+from .report import PENALTY_ABS, PENALTY_REL, Report, adaptation_status, solution_status
 from .stages import Stages
 
 INITS = ("zero", "constant", "random", "linear")
@@ -372,7 +372,46 @@ class FieldProblem:
 
     def solve(self, init: str | None = None, penalty: float | None = None, max_iterations: int | None = None,
               root: int | None = None, progress=None, cancel=None) -> Result:
-        """Optimise omega (Eq. 23) and develop the frames (§4.3)."""
+        """Optimise omega (Eq. 23) and develop the frames (§4.3).
+
+        Where the boundary field's handle turns were corrected from the
+        singular curves' count through a meridian (field/handles.py) and LM
+        ends far from a solution (a penalty over ``HANDLE_RETRY`` times the
+        discretisation level: a turn the frames cannot make), the solve is
+        run again with the smoothest field's turns, and the better field is
+        kept (``report.notes`` says so)."""
+        res = self._solve(init, penalty, max_iterations, root, progress, cancel)
+        alt = self.boundary.uncorrected
+        if alt is None or res.report.converged or not _far_from_solution(res.report.lm.final):
+            return res
+        first = (self.boundary, self.constraints, self.structure_omega, self._volume)
+        if progress is not None:
+            progress("volume3d", 0.45, f"penalty {res.report.lm.final.penalty:.3g}: the handle turns read from the "
+                                       "curves leave no solution; solving again with the smoothest field's turns")
+        self._use_boundary(alt)
+        again = self._solve(init, None, max_iterations, root, progress, cancel)
+        p0, p1 = res.report.lm.final.penalty, again.report.lm.final.penalty
+        if again.report.converged or p1 < p0:
+            again.report.notes.append(
+                f"the handle turns read from the singular curves through a meridian (field/handles.py) left a "
+                f"penalty of {p0:.3g}; with the smoothest boundary field's turns: {p1:.3g} (kept)")
+            return again
+        self.boundary, self.constraints, self.structure_omega, self._volume = first
+        res.report.notes.append(f"the smoothest boundary field's handle turns did no better (penalty {p1:.3g})")
+        return res
+
+    def _use_boundary(self, bf: BoundaryField) -> None:
+        """Rebuild what depends on the boundary field (constraints, Omega_f
+        of the structure equation, the volume problem) for ``bf``."""
+        self.boundary = bf
+        self.constraints = build_constraints(self.mesh, self.network, self.embedding, bf)
+        self.structure_omega = tube_curvature(self.mesh, self.constraints, self.embedding, self.network)
+        self.report.sizes["unknowns"] = self.constraints.n_unknowns
+        self._volume = None
+
+    def _solve(self, init: str | None, penalty: float | None, max_iterations: int | None, root: int | None,
+               progress, cancel) -> Result:
+        """One LM solve (``solve``)."""
         opts = self.options
         init = init or opts.init
         if init not in INITS:
@@ -565,6 +604,21 @@ mesh graded less is nearly that uniform one, and is not solved again on it
 (a cube-sphere network in an ellipsoid, bench/RESULTS.md: graded 11.9k tets,
 penalty 20.4; uniform at the same edge length 11.2k tets, 21.2, ~20 s for
 nothing before the finer mesh resolved it)."""
+
+
+HANDLE_RETRY = 20.0
+"""``FieldProblem.solve`` tries the smoothest boundary field's handle turns
+where LM ends with a penalty over this many times the discretisation level
+(report.solution_status): a wrong turn around a genus-2 plate's handle left
+3.7e3 where the level was 50 (74 times); networks the mesh did not resolve
+end 1.6-2 times over it (bench/RESULTS.md: the ellipsoids, the genus-2
+block's oblique ends)."""
+
+
+def _far_from_solution(final) -> bool:
+    """An LM end whose structure penalty is over HANDLE_RETRY times the
+    discretisation level."""
+    return final.penalty > HANDLE_RETRY * (PENALTY_ABS + PENALTY_REL * final.smoothness)
 
 
 def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None, cancel=None) -> Result:

@@ -147,3 +147,40 @@ def test_a_correction_that_does_not_take_leaves_the_smoothest_turns(monkeypatch)
         bf = handles.settle_handle_turns(mesh, None, smoothest, resolve)
         assert resolved and resolved[0] == {"g0": 1}
         assert (bf is not smoothest and bf.k == 1) if kept else bf is smoothest, after
+        if kept:  # the smoothest field is kept beside it, for FieldProblem.solve to fall back on
+            assert bf.uncorrected is smoothest
+
+
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_a_wrong_turn_read_whole_gives_way_to_the_smoothest_fields(meshed, monkeypatch):
+    """A count through a meridian can also read whole and be wrong (a
+    genus-2 plate, 1 mesh in 13: read 0 where the smoothest field's -1
+    converged; corrected, LM ended at its cap with a penalty of 3.7e3).
+    Made here on the plate: its meridian's turn set one quarter off; LM
+    ends far from a solution, and the solve falls back on the smoothest
+    field's turns, converged, and says so.  Without them kept, the wrong
+    turn is all there is."""
+    import solver.field.handles as handles
+    import solver.field.meshed_boundary as mb
+
+    p = meshed("plate", max_iterations=12)
+    smooth = p.boundary
+    keys = [k for k, _ids, _signs in smooth.generators]
+    (n, _through), = handles.meridians(p.mesh, p.embedding, smooth)
+    (_n, _t, k), = handles.loop_turns(p.mesh.boundary, smooth, [(n, 0)])
+    delta = handles.integer_turns({tuple(int(x) for x in n): k + 1},
+                                  handles.bounding_combinations(smooth.generator_null_values), len(keys))
+    turns = {keys[i]: int(d) for i, d in enumerate(delta) if d}
+    monkeypatch.setattr(mb, "settle_handle_turns", lambda mesh, emb, bf, resolve: resolve(turns))
+    # (the check that the surface frames carry every curve would refuse this turn outright)
+    monkeypatch.setattr(mb, "check_carried", lambda *a: None)
+    wrong = mb.meshed_boundary_field(p.mesh, p.embedding, p.network, p.checked.features, p.edge_length)
+    p._use_boundary(wrong)
+    alone = p.solve()
+    assert not alone.report.converged and alone.report.lm.final.penalty > 100, alone.report.summary()
+    wrong.uncorrected = smooth
+    r = p.solve()
+    assert r.report.converged, r.report.summary()
+    assert "with the smoothest boundary field's turns" in r.report.notes[-1]
+    assert r.problem.boundary is smooth and r.problem is p

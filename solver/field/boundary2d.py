@@ -101,6 +101,10 @@ class BoundaryField:
     generator_null_values : (#generators, m) change of each generator's
         holonomy along m random null vectors of the face and alignment rows
         (zero for the combinations these rows fix)
+    uncorrected : BoundaryField or None
+        where field/handles.py corrected the generators' turns, the
+        smoothest field before the correction (FieldProblem.solve falls
+        back to it where the corrected one leaves LM far from a solution)
     """
 
     omega2d: np.ndarray
@@ -117,6 +121,7 @@ class BoundaryField:
     generators: list
     constraint_residual: float
     generator_null_values: np.ndarray | None = None
+    uncorrected: BoundaryField | None = None
 
 
 def edge_angles(S: TriSurface, vc: VertexCoordinates):

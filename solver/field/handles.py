@@ -75,6 +75,11 @@ def settle_handle_turns(mesh: TetMesh, embedding: Embedding, bf: BoundaryField, 
         # they read -1.33 or stayed off, and LM ended at its cap (penalty
         # ~2e3, tangents 40 deg off).  The smoothest field's turns stand
         return smoothest
+    if bf is not smoothest:
+        # a count can also read whole and be wrong (a genus-2 plate, 1 mesh
+        # in 13: a meridian read 0 quarter turns where the smoothest field's
+        # -1 converged, penalty 3.7e3 corrected): kept for FieldProblem.solve
+        bf.uncorrected = smoothest
     return bf
 
 
