@@ -6,6 +6,7 @@ testkit/hexnet.py family, default options, each run in a fresh process.
     ./dev.sh python bench/bench_hexnet.py --write               # also bench/hexnet.json
     ./dev.sh python bench/bench_hexnet.py --kinds ball cylinder plate genus2 torus --seeds 0 1 --tet-edge \
         --write --json hexnet_tetedge.json                      # the tet-edge variants too
+    ./dev.sh python bench/bench_hexnet.py --seeds 13 --transform turn --scale 1000   # turned, moved, scaled
 
 Each input is the boundary and the irregular edges of a hex mesh deformed by
 a smooth random map (an O-grid, a cube-sphere, plates with holes, a torus,
@@ -55,11 +56,44 @@ def bars(row: dict) -> list:
     return miss
 
 
-def run_one(kind: str, seed: int, tet_edge: bool) -> dict:
+TRANSFORMS = ("none", "turn", "mirror", "stretch")
+"""--transform: the input as made; turned (a random rotation of the seed) and
+moved, times --scale; mirrored in x (the triangles turned over, so still
+outward); stretched by 1.6 x 1 x 0.8."""
+
+
+def transformed(d: dict, how: str, scale: float, seed: int) -> dict:
+    """The input d (hexnet_input's) under one of TRANSFORMS: its surface and
+    its curves alike (the source hex mesh is dropped)."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from solver import Curve, Network
+
+    if how == "none" and scale == 1.0:
+        return d
+    M, F = np.eye(3), d["F"]
+    if how == "turn":
+        M = Rotation.random(random_state=seed).as_matrix()
+    elif how == "mirror":
+        M, F = np.diag([-1.0, 1.0, 1.0]), F[:, ::-1].copy()
+    elif how == "stretch":
+        M = np.diag([1.6, 1.0, 0.8])
+    shift = np.array([3.0, -2.0, 5.0]) * scale if how == "turn" else np.zeros(3)
+
+    def X(P):
+        return (np.asarray(P, float) @ M.T) * scale + shift
+
+    net = d["network"]
+    curves = [Curve(X(c.points), c.sigma, c.role, c.torsion, c.name) for c in net.curves]
+    return {**d, "V": X(d["V"]), "F": F, "network": Network(curves, sharp_angle=net.sharp_angle)}
+
+
+def run_one(kind: str, seed: int, tet_edge: bool, how: str = "none", scale: float = 1.0) -> dict:
     from solver import HexMeshError, SymFramesError, hexmesh, solve
     from testkit.hexnet import hexnet_input
 
-    d = hexnet_input(kind, seed)
+    d = transformed(hexnet_input(kind, seed), how, scale, seed)
     V, F, net = d["V"], d["F"], d["network"]
     if tet_edge:
         from testkit.tetedge import tet_edge_network
@@ -67,6 +101,7 @@ def run_one(kind: str, seed: int, tet_edge: bool) -> dict:
         diag = float((V.max(axis=0) - V.min(axis=0)) @ (V.max(axis=0) - V.min(axis=0))) ** 0.5
         net, _ = tet_edge_network(V, F, net, 0.05 * diag, seed=seed)
     row = dict(kind=kind, seed=seed, variant="tet-edge" if tet_edge else "clean", curves=len(net.curves),
+               **({"transform": how, "scale": scale} if how != "none" or scale != 1.0 else {}),
                source_irregular={str(k): int(v) for k, v in d["meta"].get("irregular_edges", {}).items()})
     t0 = time.perf_counter()
     try:
@@ -128,18 +163,22 @@ def main() -> None:
     ap.add_argument("--tet-edge", action="store_true", help="also each input's tet-edge variant")
     ap.add_argument("--write", action="store_true", help="write the rows to bench/hexnet.json (or --json)")
     ap.add_argument("--json", default="hexnet.json", help="with --write: the file's name in bench/")
+    ap.add_argument("--transform", choices=TRANSFORMS, default="none", help="each input turned and moved, mirrored "
+                    "or stretched (TRANSFORMS)")
+    ap.add_argument("--scale", type=float, default=1.0, help="each input scaled by this (with --transform turn: "
+                    "after the turn)")
     ap.add_argument("--one", nargs=3, metavar=("KIND", "SEED", "VARIANT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.one:
-        print(json.dumps(run_one(a.one[0], int(a.one[1]), a.one[2] == "tet-edge")))
+        print(json.dumps(run_one(a.one[0], int(a.one[1]), a.one[2] == "tet-edge", a.transform, a.scale)))
         return
     rows = []
     for kind in a.kinds:
         for seed in a.seeds:
             for variant in (["clean", "tet-edge"] if a.tet_edge else ["clean"]):
                 t = time.perf_counter()
-                p = subprocess.run([sys.executable, __file__, "--one", kind, str(seed), variant], capture_output=True,
-                                   text=True, cwd=ROOT)
+                p = subprocess.run([sys.executable, __file__, "--one", kind, str(seed), variant, "--transform",
+                                    a.transform, "--scale", str(a.scale)], capture_output=True, text=True, cwd=ROOT)
                 if p.returncode:
                     lines = p.stderr.strip().splitlines() or ["?"]
                     row = dict(kind=kind, seed=seed, variant=variant, error=lines[-1], error_kind="crash",
