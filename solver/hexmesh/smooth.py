@@ -246,7 +246,7 @@ def optimise(V: np.ndarray, H: np.ndarray, cell, motion: BoundaryMotion, anchor:
     a_idx = np.nonzero(anchor)[0] if anchor is not None else np.zeros(0, dtype=np.int64)
     n_corner = 8 * len(H)
     per_hex = np.asarray(cell, float)[..., None, None, None]  # broadcasts over (m, 8, 3, 3)
-    unit = float(np.median(cell))
+    unit = float(np.median(cell)) if np.size(cell) else 1.0  # (no cell to move: nothing is optimised)
     for _ in range(rounds):
         groups = motion.bases(V)
         if not sum(len(ids) for ids, _ in groups):
