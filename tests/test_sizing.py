@@ -104,7 +104,7 @@ def test_cells_on_a_chosen_patch_are_thinner_and_the_rest_as_before(plate):
 def test_cells_near_a_chosen_curve_are_smaller(plate):
     """Near one of the plate's four curves (by name) the cells are smaller
     across the curve than at the same curve without a size field (measured
-    0.80x), and smaller than at the other three; the irregular edges stay
+    0.75x), and smaller than at the other three (by 1.32-1.34x); the irregular edges stay
     the curves.  (Along the curve, through the plate's thickness, the
     layers are the whole plate's.)"""
     f, _, plain = plate
@@ -114,7 +114,8 @@ def test_cells_near_a_chosen_curve_are_smaller(plate):
 
     def near(m, i):
         """The mean length of the cell edges across the plate (in its
-        plane) within 0.75 cells of curve i."""
+        plane) of the 24 cells nearest curve i (it has five around it per
+        layer)."""
         E = m.vertices[m.hexes[:, HEX_EDGES]]  # (cells, 12, 2, 3)
         d = E[:, :, 1] - E[:, :, 0]
         L = np.linalg.norm(d, axis=2)
@@ -122,10 +123,10 @@ def test_cells_near_a_chosen_curve_are_smaller(plate):
         size = (L * across).sum(axis=1) / np.maximum(across.sum(axis=1), 1)
         C = m.vertices[m.hexes].mean(axis=1)
         dist = polyline_distance(f.network.curves[i].points, C)
-        return float(size[dist < 0.75 * m.report.cell_size].mean())
+        return float(size[np.argsort(dist)[:24]].mean())
 
     assert near(hm, 0) <= 0.9 * near(plain, 0), (near(hm, 0), near(plain, 0))
-    assert near(hm, 0) < min(near(hm, i) for i in (1, 2, 3))
+    assert all(near(hm, 0) < 0.9 * near(hm, i) for i in (1, 2, 3))
 
 
 def test_patches_and_curves_the_field_lacks_are_refused_before_any_hex_work(plate):
