@@ -71,6 +71,7 @@ class SYMFRAMES_MT_object(bpy.types.Menu):
         hexing = OBJECT_ENTRIES.index(("symframes.hex_mesh", "MESH_CUBE"))
         draw_entries(layout, OBJECT_ENTRIES[2:hexing + 1])
         layout.operator_menu_enum("symframes.apply_hex_preset", "preset", icon="PRESET")
+        layout.operator("symframes.finer_near_selected", icon="RESTRICT_SELECT_OFF")
         draw_entries(layout, OBJECT_ENTRIES[hexing + 1:])
 
 

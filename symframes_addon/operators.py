@@ -636,6 +636,49 @@ class SYMFRAMES_OT_apply_hex_preset(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SYMFRAMES_OT_finer_near_selected(bpy.types.Operator):
+    """Set Finer Near to the boundary patches (regions between sharp edges) of the domain's selected faces, keeping
+    the curves it names"""
+
+    bl_idname = "symframes.finer_near_selected"
+    bl_label = "Finer Near Selected Faces"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        s = context.scene.symframes
+        if s.domain is None or s.domain.type != "MESH":
+            cls.poll_message_set("no domain mesh: choose the solid first")
+            return False
+        if storage.stored_field(context.scene) is None:
+            cls.poll_message_set("no field computed yet: press Compute Field first")
+            return False
+        return True
+
+    def execute(self, context):
+        s = context.scene.symframes
+        obj = s.domain
+        if obj.mode == "EDIT":
+            obj.update_from_editmode()  # the selection as the user sees it
+        polys = [p for p in obj.data.polygons if p.select]
+        if not polys:
+            self.report({"ERROR"}, f"SymFrames: no face of '{obj.name}' is selected: select faces of the solid in "
+                                   "Edit Mode (face select), then press Finer Near Selected Faces")
+            return {"CANCELLED"}
+        try:
+            field = hex_source(context)
+            M = obj.matrix_world
+            ids = FinerNear.patches_at(field, [tuple(M @ p.center) for p in polys])
+            kept = FinerNear.parse(s.hex_finer_near).curves if s.hex_finer_near.strip() else ()
+        except (SymFramesError, ValueError) as e:
+            self.report({"ERROR"}, error_text(e))
+            return {"CANCELLED"}
+        items = [f"patch {p}" for p in ids] + [f"curve '{c}'" if isinstance(c, str) else f"curve {c}" for c in kept]
+        s.hex_finer_near = ", ".join(items)
+        self.report({"INFO"}, f"SymFrames: Finer Near {s.hex_finer_near} ({len(polys)} selected faces)")
+        return {"FINISHED"}
+
+
 CLASSES = (
     SYMFRAMES_OT_check_network,
     SYMFRAMES_OT_suggest_network,
@@ -650,4 +693,5 @@ CLASSES = (
     SYMFRAMES_OT_add_example,
     SYMFRAMES_OT_apply_preset,
     SYMFRAMES_OT_apply_hex_preset,
+    SYMFRAMES_OT_finer_near_selected,
 )

@@ -244,7 +244,9 @@ class SYMFRAMES_PT_hex(SymFramesPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.use_property_split = False
         row.operator_enum("symframes.apply_hex_preset", "preset")
-        layout.prop(s, "hex_finer_near")
+        row = layout.row(align=True)
+        row.prop(s, "hex_finer_near")
+        row.operator("symframes.finer_near_selected", text="", icon="RESTRICT_SELECT_OFF")
         sub = layout.column(align=True)
         sub.active = bool(s.hex_finer_near.strip())
         sub.prop(s, "hex_finer_ratio")

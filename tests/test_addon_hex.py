@@ -425,6 +425,28 @@ def test_finer_near_a_patch_from_the_panel(cyl):
 
 @pytest.mark.slow
 @pytest.mark.mesher
+def test_finer_near_from_the_selected_faces(cyl):
+    """Finer Near Selected Faces: the patches of the domain's selected faces
+    (the cylinder's bottom cap and its side: 2 and 1), the curves already
+    named kept; with nothing selected it says what to do and changes
+    nothing."""
+    reopen(cyl)
+    s = scene().symframes
+    dom = s.domain
+    for p in dom.data.polygons:
+        p.select = False
+    s.hex_finer_near = "curve 1"
+    _refused(bpy.ops.symframes.finer_near_selected, "no face of .* is selected: select faces of the solid in Edit "
+                                                    "Mode")
+    assert s.hex_finer_near == "curve 1"
+    M = dom.matrix_world
+    for p in dom.data.polygons:
+        n = (M.to_3x3() @ p.normal).normalized()
+        p.select = n.z < -0.9 or abs(n.z) < 0.1 and p.index % 7 == 0  # the bottom cap and a few side faces
+    assert bpy.ops.symframes.finer_near_selected() == {"FINISHED"}
+    assert s.hex_finer_near == "patch 1, patch 2, curve 1"
+@pytest.mark.slow
+@pytest.mark.mesher
 def test_cancel_leaves_the_scene_unchanged(cyl):
     reopen(cyl)
     before = scene_state()

@@ -105,7 +105,7 @@ def test_menus_are_appended_and_reach_every_operator():
     for idname in ("symframes.check_network", "symframes.compute", "symframes.show_glyphs",
                    "symframes.trace_streamlines", "symframes.show_singular_faces", "symframes.show_omega",
                    "symframes.show_slice", "symframes.hex_mesh", "symframes.apply_hex_preset", "symframes.clear",
-                   "symframes.apply_preset"):
+                   "symframes.apply_preset", "symframes.finer_near_selected"):
         assert idname in in_object, idname
     # every operator of the add-on is in a menu, hence in F3 search
     in_file = draw(menus.draw_import_menu).operators + draw(menus.draw_export_menu).operators

@@ -118,6 +118,17 @@ class FinerNear:
             (patches if kind == "patch" else curves).append(int(number) if number is not None else name)
         return cls(tuple(patches), tuple(curves), ratio, reach)
 
+    @staticmethod
+    def patches_at(field, points) -> list:
+        """The patch ids (sorted, each once) of the surface triangles nearest
+        ``points`` (k, 3) on a solved field's surface: the patches a user
+        picked by pointing at them (the add-on's Finer Near from selected
+        faces)."""
+        P = checks.points3("points", points, OptionsError, min_points=1)
+        tri_patch = surface_patches(field.surface, field.sharp)
+        _, f, _ = field.surface.closest_points(P)
+        return sorted({int(p) for p in tri_patch[f]})
+
     def check(self, field) -> None:
         """Refuse patches and curves that a solved field does not have
         (``OptionsError``, said with what it has), before any hex work."""
