@@ -74,6 +74,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--hex", action="store_true", help="also make the hex mesh and show it (cells coloured by "
                    "scaled Jacobian, the front ones falling away) instead of glyphs and streamlines")
     p.add_argument("--hex-cells", type=int, default=None, help="with --hex: cells aimed at (default: the scene's)")
+    p.add_argument("--hex-finer-near", default=None, metavar="WHERE", help="with --hex: Finer Near, smaller cells "
+                   "near these patches and curves (e.g. \"patch 5\"; docs/hexmesh.md)")
     p.add_argument("--fall-away", type=float, default=0.5, help="with --hex: the Hex View's Fall Away (0-1)")
     p.add_argument("--explode", type=float, default=0.15, help="with --hex: the Hex View's Explode (0-0.9)")
     p.add_argument("--no-render", action="store_true", help="skip the PNG")
@@ -162,6 +164,8 @@ def main(argv: list[str]) -> int:
     if args.hex:
         if args.hex_cells is not None:
             s.hex_cell_size, s.hex_cells = 0.0, args.hex_cells
+        if args.hex_finer_near is not None:
+            s.hex_finer_near = args.hex_finer_near
         t = time.perf_counter()
         try:
             bpy.ops.symframes.hex_mesh()
