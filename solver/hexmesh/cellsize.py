@@ -182,10 +182,11 @@ def check_cell(inp: SolvedField, cell: float, why: str = "given", sizes=None) ->
     else:
         check_cell_size(cell, *solid_size(inp), subject=f"the automatic cell size {cell:.4g} (for {why})",
                         fix="; give a cell size (cell_size, --cell-size) instead")
-    if sizes is not None and not sizes.uniform and cell_count(inp, cell, sizes) > MAX_HEXES:
+    n = cell_count(inp, cell, sizes) if sizes is not None and not sizes.uniform else 0.0
+    if n > MAX_HEXES:
         raise HexMeshError(f"cell size {cell:.4g} with smaller cells near {sizes.finer.describe()} would make about "
-                           f"{cell_count(inp, cell, sizes):,.0f} hexahedra (the limit is {MAX_HEXES:,}); choose a "
-                           "larger cell size or a larger finer_near ratio", kind="settings")
+                           f"{n:,.0f} hexahedra (the limit is {MAX_HEXES:,}); choose a larger cell size or a larger "
+                           "finer_near ratio", kind="settings")
     refusal = memory_refusal(inp, cell, sizes)
     if refusal:
         raise HexMeshError(refusal, kind="settings")

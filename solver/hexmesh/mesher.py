@@ -198,7 +198,6 @@ def _ladder(inp: SolvedField, cell: float, steps: tuple, smooth: bool, clock: St
         if k + 1 == len(steps):
             return _kept(warned or first_defective, hm.report, f"at cell size {c:.4g} the mesh was {what}")
         report = _fresh_report(report, f"at cell size {c:.4g} the mesh was {what}; trying {cell * steps[k + 1]:.4g}")
-        report.finer_near = hm.report.finer_near
         clock.seconds = report.stage_seconds
         clock.say("quality", f"hex: {report.notes[-1]}")
     return _kept(warned or first_defective, report)
@@ -238,7 +237,7 @@ def _fresh_report(old: HexReport, note: str) -> HexReport:
     """A new report for the next attempt, keeping the notes and the seconds
     spent so far."""
     rep = HexReport()
-    rep.notes, rep.cell_reason = old.notes + [note], old.cell_reason
+    rep.notes, rep.cell_reason, rep.finer_near = old.notes + [note], old.cell_reason, old.finer_near
     rep.stage_seconds = dict(old.stage_seconds)
     return rep
 

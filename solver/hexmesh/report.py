@@ -321,7 +321,7 @@ def _moved(given: list, prepared: list) -> float:
     and segment midpoints; 0 where the network was not repaired."""
     out = 0.0
     for P, sigma, cid, _ in given:
-        mine = [Q for Q, s, c, _ in prepared if c == cid and s != 0]
+        mine = [Q for Q, _s, c, _ in prepared if c == cid]
         if sigma == 0 or not mine or len(P) < 2:
             continue
         X = np.vstack([P, 0.5 * (P[1:] + P[:-1])])

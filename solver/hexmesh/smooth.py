@@ -375,10 +375,12 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
 
     sing_curves = [c.points for c in inp.network.curves if c.sigma != 0]
     sv = np.nonzero(spring)[0]
-    hex_cell = np.full(len(H), float(cell)) if rel is None else cell * np.asarray(rel, float)
-    vertex_cell = np.full(len(V), np.inf)
-    np.minimum.at(vertex_cell, H.reshape(-1), np.repeat(hex_cell, 8))
-    sv_cell = vertex_cell[sv] / cell  # moved() measures in cells of the size field where it has one
+    hex_cell, sv_cell = None, 1.0
+    if rel is not None:  # moved() measures in cells of the size field: a vertex's smallest cell
+        hex_cell = cell * np.asarray(rel, float)
+        vertex_cell = np.full(len(V), np.inf)
+        np.minimum.at(vertex_cell, H.reshape(-1), np.repeat(hex_cell, 8))
+        sv_cell = vertex_cell[sv] / cell
 
     def moved(W):
         """Largest distance of a singular curve's vertex from the curves
