@@ -183,6 +183,45 @@ def pytest_sessionfinish(session):
     shutil.rmtree(factory.getbasetemp() / CACHE_FOLDER, ignore_errors=True)
 
 
+def _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume):
+    """The memo key of one mesher run: its input rounded far below any
+    tolerance of the mesher (the same solid built at another scale or place
+    comes normalised to the same unit box up to round-off), the options and
+    the bindings that would run it."""
+    import numpy as np
+
+    from solver.mesh.tetwild import mesher_name
+
+    digest = hashlib.sha1(np.round(np.asarray(V, float), 9).tobytes())
+    digest.update(np.asarray(F, np.int64).tobytes())
+    return (digest.hexdigest(), round(float(edge_length), 12), float(epsilon), bool(simplify),
+            None if tetgen_volume is None else round(float(tetgen_volume), 15), mesher_name())
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _shared_mesher_runs():
+    """Each distinct fTetWild (or TetGen) run once per test run: tests that
+    mesh the same solid with the same tubes (the cylinder at 0.4 refined
+    and not, at the metre and at the micrometre) share its output, as they
+    share a solve above.  A run that can be cancelled is made afresh
+    (cancelling is what such a caller checks)."""
+    import solver.mesh.tetwild as tetwild
+
+    run = tetwild.run_tetwild
+
+    def shared(V, F, edge_length, epsilon, cancel=None, simplify=True, tetgen_volume=None):
+        if cancel is not None:
+            return run(V, F, edge_length, epsilon, cancel=cancel, simplify=simplify, tetgen_volume=tetgen_volume)
+        key = _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume)
+        P, T = _SESSION._get("mesher", key, lambda: run(V, F, edge_length, epsilon, simplify=simplify,
+                                                         tetgen_volume=tetgen_volume))
+        return P.copy(), T.copy()
+
+    tetwild.run_tetwild = shared
+    yield
+    tetwild.run_tetwild = run
+
+
 @pytest.fixture(scope="session")
 def example_input():
     """example_input(example) -> (V, F, Network) of an example, a copy of the

@@ -24,6 +24,7 @@ from scipy.spatial import cKDTree
 
 from .. import checks
 from ..errors import NetworkError
+from .polyline import spaced
 
 
 class Role(str, Enum):
@@ -280,11 +281,7 @@ class PreparedNetwork:
 
 def clean_polyline(points: np.ndarray, tol: float) -> np.ndarray:
     """Drop consecutive points closer than tol."""
-    keep = [0]
-    for i in range(1, len(points)):
-        if np.linalg.norm(points[i] - points[keep[-1]]) > tol:
-            keep.append(i)
-    return points[keep]
+    return points[spaced(points, tol)]
 
 
 def check_curve_basics(net: Network, diag: float) -> None:

@@ -1,5 +1,5 @@
 """Polylines: arc length, points at arc length, turning over a length,
-merging close points, resampling and the Hausdorff distance."""
+merging close points (spaced, merge_close), resampling and the Hausdorff distance."""
 
 from __future__ import annotations
 
@@ -39,16 +39,33 @@ def turning(P: np.ndarray, window: float, closed: bool = False) -> np.ndarray:
     return out
 
 
+def spaced(P: np.ndarray, tol: float) -> list[int]:
+    """Indices of the points of P kept when each is dropped that lies within
+    tol of the last one kept (the first is kept)."""
+    if len(P) < 2:
+        return list(range(len(P)))
+    gaps = np.sqrt(np.sum(np.diff(P, axis=0) ** 2, axis=1))
+    if np.all(gaps > tol):  # the common case: nothing to drop
+        return list(range(len(P)))
+    pts = P.tolist()  # Python floats: a loop over numpy rows paid ~3 us a point in call overhead
+    tol2 = tol * tol
+    keep = [0]
+    lx, ly, lz = pts[0]
+    for i in range(1, len(pts)):
+        x, y, z = pts[i]
+        if (x - lx) ** 2 + (y - ly) ** 2 + (z - lz) ** 2 > tol2:
+            keep.append(i)
+            lx, ly, lz = x, y, z
+    return keep
+
+
 def merge_close(P: np.ndarray, tol: float, closed: bool) -> np.ndarray:
     """Drop points closer than tol to the last kept one (ends are kept)."""
-    keep = [0]
-    for i in range(1, len(P) - 1):
-        if np.linalg.norm(P[i] - P[keep[-1]]) > tol:
-            keep.append(i)
+    keep = spaced(P[:-1], tol) if len(P) > 1 else [0]
     last = len(P) - 1
     if len(keep) > 1 and np.linalg.norm(P[last] - P[keep[-1]]) <= tol:
         keep[-1] = last
-    else:
+    elif last > 0:
         keep.append(last)
     return P[keep]
 

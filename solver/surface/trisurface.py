@@ -28,9 +28,9 @@ WINDING_GROUP_FACES = 64
 WINDING_FAR = 3.0
 
 
-CLOSEST_CHUNK = 65_536
-"""Points ``TriSurface.closest_points`` answers at once (its memory is a
-few KB per point of a chunk)."""
+CLOSEST_CHUNK = 8_192
+"""Points ``TriSurface.closest_points`` answers at once (its memory is
+about 12 KB per point of a chunk: 16 candidate triangles each)."""
 CLOSEST_PAIRS = 262_144
 """Point-triangle pairs its exhaustive fallback measures at once (~150 MB)."""
 SIZE_CLASS_SPREAD = 8.0
@@ -385,20 +385,23 @@ class TriSurface:
         dc, idx = tree.query(X, k=kq, distance_upper_bound=bound)
         dc = np.asarray(dc, float).reshape(len(X), kq)
         idx = np.asarray(idx).reshape(len(X), kq)
-        best_d = np.full(len(X), np.inf)
-        best_f = np.full(len(X), -1)
-        best_p = np.full((len(X), 3), np.nan)
-        for j in range(kq):
-            has = idx[:, j] < nf
-            if not has.any():
-                break
-            rows = np.nonzero(has)[0]
-            f = idx[rows, j]
-            q = closest_point_on_triangles(X[rows], P[f])
+        # every (point, candidate) pair in one call: with few points per
+        # call (the intake asks a handful at a time), one call per candidate
+        # rank cost more in numpy's per-call overhead than in arithmetic
+        rows, js = np.nonzero(idx < nf)
+        D = np.full((len(X), kq), np.inf)
+        Q = np.full((len(X), kq, 3), np.nan)
+        if len(rows):
+            q = closest_point_on_triangles(X[rows], P[idx[rows, js]])
             d = np.linalg.norm(q - X[rows], axis=1)
-            better = d < best_d[rows]
-            r = rows[better]
-            best_d[r], best_f[r], best_p[r] = d[better], f[better], q[better]
+            D[rows, js] = np.where(np.isnan(d), np.inf, d)
+            Q[rows, js] = q
+        jb = np.argmin(D, axis=1)  # the first of equals, as candidates come nearest first
+        at = np.arange(len(X))
+        best_d = D[at, jb]
+        found = np.isfinite(best_d)
+        best_f = np.where(found, idx[at, jb], -1)
+        best_p = np.where(found[:, None], Q[at, jb], np.nan)
         # a face beyond the kq nearest centroids may still be closer (large
         # triangles, or a point far from a dense surface): every face whose
         # centroid lies within the best distance + its own radius is
