@@ -8,7 +8,9 @@ such inputs the way they arise:
 1. a block-structured hex mesh of a known topology (``cube_sphere``: the
    7-block ball; ``o_grid_cylinder``: a 5-block disk extruded; ``o_grid_torus``:
    the same disk swept around a circle; ``plate_with_holes``: a grid of
-   squares, some with a round hole in an O-grid ring of 4 blocks, extruded);
+   squares, some with a round hole in an O-grid ring of 4 blocks, extruded;
+   ``hollow_cube``: a cube with a spherical cavity, 26 blocks round a middle
+   cube and 6 from its faces to the sphere);
 2. deformed by a smooth random map (``smooth_deformation``: a few
    low-frequency Fourier modes kept well inside the diffeomorphisms, an
    optional twist and bend; ``radial_blob``: a random radius on the ball's
@@ -32,7 +34,7 @@ import numpy as np
 from solver.hexmesh.quality import boundary_quads, edge_valences, scaled_jacobian
 from solver.network.network import Curve, Network, cluster_points
 
-KINDS = ("ball", "ellipsoid", "blob", "cylinder", "bent bar", "torus", "plate", "genus2")
+KINDS = ("ball", "ellipsoid", "blob", "cylinder", "bent bar", "torus", "plate", "genus2", "hollow")
 """The kinds ``hexnet_input`` makes."""
 
 MIRROR = np.array([0, 3, 2, 1, 4, 7, 6, 5])  # a VTK hex's corners with x and y swapped: the orientation flipped
@@ -317,6 +319,61 @@ def cube_sphere(n: int = 6, m: int | None = None, inner: float = 0.45, axes=(1.0
                 blocks.append((1 - t) * P_in + t * P_out + (t**3 - t**2) * K)
             else:
                 blocks.append((1 - t) * P_in + t * P_out)
+    return _assemble(blocks)
+
+
+def hollow_cube(n: int = 4, inner: float = 0.55, cavity: float = 0.3, k: int | None = None,
+                m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The hex mesh of the cube [-1, 1]^3 with a spherical cavity of radius
+    ``cavity`` at its centre: the 26 blocks of a 3 x 3 x 3 grid round a
+    middle cube [-inner, inner]^3, and in that cube 6 blocks from its faces
+    to the sphere (equiangular on it, as ``cube_sphere``'s outer blocks).
+
+    Parameters
+    ----------
+    n : int
+        Cells along the middle cube's edge (and each shell block's sides).
+    inner : float
+        Half-size of the middle cube; cavity < inner < 1.
+    k : int, optional
+        Cells across the frame [inner, 1]; default about the middle cube's
+        cell length, round((1 - inner) n / (2 inner)), at least 1.
+    m : int, optional
+        Radial layers of the shell; default round((inner - cavity) n /
+        (2 inner)), at least 2.
+
+    Returns
+    -------
+    V : (k, 3) float array
+    H : (m, 8) int array
+        VTK hexes, positively oriented.  Irregular: the middle cube's 12
+        edges (three frame blocks and two shell blocks round each: valence
+        5, -1/4) and the 8 radial edges from its corners to the sphere
+        (valence 3, +1/4), which meet in 8 nodes; two boundary components,
+        the outer one with 12 sharp edges.
+    """
+    if not 0 < cavity < inner < 1:
+        raise ValueError(f"need 0 < cavity < inner < 1, got cavity {cavity}, inner {inner}")
+    cell = 2 * inner / n
+    if k is None:
+        k = max(1, int(round((1 - inner) / cell)))
+    if m is None:
+        m = max(2, int(round((inner - cavity) / cell)))
+    spans = [np.linspace(-1.0, -inner, k + 1), np.linspace(-inner, inner, n + 1), np.linspace(inner, 1.0, k + 1)]
+    blocks = [np.stack(np.meshgrid(spans[i], spans[j], spans[l], indexing="ij"), axis=-1)
+              for i in range(3) for j in range(3) for l in range(3) if (i, j, l) != (1, 1, 1)]
+    g = np.linspace(-1.0, 1.0, n + 1)
+    uu, vv, tt = np.meshgrid(g, g, np.linspace(0.0, 1.0, m + 1), indexing="ij")
+    t = tt[..., None]
+    for axis in range(3):
+        u, v = [a for a in range(3) if a != axis]
+        for side in (-1.0, 1.0):
+            P_out = np.zeros(uu.shape + (3,))
+            P_out[..., axis], P_out[..., u], P_out[..., v] = side * inner, inner * uu, inner * vv
+            D = np.zeros_like(P_out)
+            D[..., axis], D[..., u], D[..., v] = side, np.tan(uu * np.pi / 4), np.tan(vv * np.pi / 4)
+            D *= cavity / np.linalg.norm(D, axis=-1, keepdims=True)
+            blocks.append((1 - t) * D + t * P_out)
     return _assemble(blocks)
 
 
@@ -606,7 +663,9 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         o_grid_cylinder, bent by 60-120 and twisted by 0-90 degrees),
         ``'torus'`` (o_grid_torus: 4 closed curves), ``'plate'``
         (plate_with_holes, 3 x 3 with one hole: 4 curves of -1/4),
-        ``'genus2'`` (5 x 3 with two holes: 8 curves of -1/4).
+        ``'genus2'`` (5 x 3 with two holes: 8 curves of -1/4), ``'hollow'``
+        (hollow_cube: a cube with a spherical cavity, 12 curves of -1/4 and
+        8 of +1/4 meeting in 8 nodes, the radial ones ending on the cavity).
     seed : int
         Varies the resolution n, proportions and deformation.
 
@@ -658,6 +717,14 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         h = 0.9 * p["minor"] / p["n"]
         p["segments"] = int(round(2 * np.pi / (2 * h)))
         V, H = o_grid_torus(p["n"], segments=p["segments"], minor=p["minor"])
+        p["amplitude"] = float(rng.uniform(0.02, 0.05))
+        V = smooth_deformation(V, rng, p["amplitude"], H=H)
+    elif kind == "hollow":
+        p["n"] = _cycle(seed, (6, 7, 8))
+        p["inner"] = float(rng.uniform(0.5, 0.65))
+        p["cavity"] = round(p["inner"] * float(rng.uniform(0.4, 0.6)), 4)
+        p["frame"] = max(1, int(round((1 - p["inner"]) * p["n"] / (2 * p["inner"]))))
+        V, H = hollow_cube(p["n"], p["inner"], p["cavity"], k=p["frame"])
         p["amplitude"] = float(rng.uniform(0.02, 0.05))
         V = smooth_deformation(V, rng, p["amplitude"], H=H)
     else:

@@ -164,10 +164,12 @@ def test_poisson_converges_at_second_order_on_the_ball(solved):
     """A Poisson problem with a manufactured solution, -lap u = f in the ball
     with u given on its boundary, solved with trilinear hexahedra
     (scikit-fem) on SymFrames' hex meshes of one field at three cell sizes:
-    the L2 error falls at order >= 1.8 (the least-squares slope; measured
-    1.92 and 1.99 between the sizes 0.2, 0.14, 0.1, 1.96 over all three;
-    at 0.15, 0.1, 0.075: 1.93 and 2.03, 1.97; at 0.135, 0.09, 0.06: 1.82
-    and 2.02)."""
+    the L2 error falls at order >= 1.8 in the mean cell size (volume /
+    cells)^(1/3), the least-squares slope (measured at the sizes 0.2, 0.14,
+    0.1 on five fields: 1.91-1.92 in it, 1.95-1.96 in the asked size).  In
+    the asked size one CI run read 1.74, its error at 0.2 0.0105 against
+    0.0122 on those five (the other two sizes alike): the cells were not
+    the size asked, so the asked size is no h to measure an order by."""
     import meshio
     from skfem import Basis, BilinearForm, ElementHex1, Functional, LinearForm, condense
     from skfem import solve as fem_solve
@@ -189,6 +191,10 @@ def test_poisson_converges_at_second_order_on_the_ball(solved):
     def error2(w):
         return (w["uh"] - exact(w.x)) ** 2
 
+    @Functional
+    def volume(w):
+        return 1.0 + 0.0 * w.x[0]
+
     res = solved("ball")
     h, err = [], []
     for cell in (0.2, 0.14, 0.1):
@@ -200,7 +206,7 @@ def test_poisson_converges_at_second_order_on_the_ball(solved):
         u[dofs] = exact(mesh.p[:, dofs])
         uh = fem_solve(*condense(laplace.assemble(basis), load.assemble(basis), x=u, D=dofs))
         err.append(np.sqrt(error2.assemble(basis, uh=basis.interpolate(uh))))
-        h.append(hm.report.cell_size)
+        h.append((volume.assemble(basis) / len(hm.hexes)) ** (1.0 / 3.0))
     order = np.polyfit(np.log(h), np.log(err), 1)[0]
     assert order >= 1.8, (h, err, order)
 

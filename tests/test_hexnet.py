@@ -159,15 +159,18 @@ def test_smooth_deformation_keeps_the_hexes_positive():
 # per kind at seed 0: curves, their sigma, and the sharp edges check finds
 # by angle (n: the seed's resolution, layers: its layers)
 def _expected(kind, p):
+    """({sigma: curves}, sharp edges) of a kind's seed-0 input."""
     n = p["n"]
     if kind in ("ball", "ellipsoid", "blob"):
-        return 20, 0.25, 0
+        return {0.25: 20}, 0
     if kind in ("cylinder", "bent bar"):
-        return 4, 0.25, 2 * 4 * n
+        return {0.25: 4}, 2 * 4 * n
     if kind == "torus":
-        return 4, 0.25, 0
+        return {0.25: 4}, 0
+    if kind == "hollow":  # the middle cube's edges and its radial edges; the outer cube's 12 edges are sharp
+        return {-0.25: 12, 0.25: 8}, 12 * (n + 2 * p["frame"])
     nx, ny, holes = (3, 3, 1) if kind == "plate" else (5, 3, 2)
-    return 4 * holes, -0.25, 2 * (2 * (nx + ny) * n + holes * 4 * n) + 4 * p["layers"]
+    return {-0.25: 4 * holes}, 2 * (2 * (nx + ny) * n + holes * 4 * n) + 4 * p["layers"]
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -177,10 +180,11 @@ def test_each_kind_passes_check(kind):
     assert e["name"] == f"{kind} seed 0" and m["kind"] == kind and m["seed"] == 0
     assert scaled_jacobian(m["V"], m["H"]).min() > 0 and m["min_jacobian"] > 0
     assert 1000 <= len(m["H"]) <= 5000 and len(e["F"]) <= 4000
-    curves, sigma, sharp = _expected(kind, m["params"])
+    by_sigma, sharp = _expected(kind, m["params"])
+    curves = sum(by_sigma.values())
     net = e["network"]
-    assert len(net.curves) == curves and {c.sigma for c in net.curves} == {sigma}
-    assert m["curves"] == {round(4 - 4 * sigma): curves}
+    assert {s: sum(c.sigma == s for c in net.curves) for s in by_sigma} == by_sigma and len(net.curves) == curves
+    assert m["curves"] == {round(4 - 4 * s): k for s, k in by_sigma.items()}
     _assert_chains(m["V"], m["H"], net)
     assert _closed_outward(e["V"], e["F"]) > 0
     found = check(e["V"], e["F"], net)
