@@ -300,25 +300,17 @@ def cube_sphere(n: int = 6, m: int | None = None, inner: float = 0.45, axes=(1.0
     axes = np.asarray(axes, float)
     g = np.linspace(-1.0, 1.0, n + 1)
     blocks = [inner * np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1) * axes]
-    uu, vv, tt = np.meshgrid(g, g, np.linspace(0.0, 1.0, m + 1), indexing="ij")
-    t = tt[..., None]
-    for axis in range(3):
-        u, v = [a for a in range(3) if a != axis]
-        for side in (-1.0, 1.0):
-            P_in = np.zeros(uu.shape + (3,))
-            P_in[..., axis], P_in[..., u], P_in[..., v] = side * inner, inner * uu, inner * vv
-            D = np.zeros_like(P_in)
-            D[..., axis], D[..., u], D[..., v] = side, np.tan(uu * np.pi / 4), np.tan(vv * np.pi / 4)
-            D /= np.linalg.norm(D, axis=-1, keepdims=True)
-            P_in, P_out = P_in * axes, D * axes
-            if orthogonal:
-                N = D / axes  # the ellipsoid's normal at D * axes
-                N /= np.linalg.norm(N, axis=-1, keepdims=True)
-                T = P_out - P_in
-                K = np.sum(T * N, axis=-1, keepdims=True) * N - T  # the chord's part across the normal, negated
-                blocks.append((1 - t) * P_in + t * P_out + (t**3 - t**2) * K)
-            else:
-                blocks.append((1 - t) * P_in + t * P_out)
+    t, faces = _cube_to_sphere(n, m, inner)
+    for P_in, D in faces:
+        P_in, P_out = P_in * axes, D * axes
+        if orthogonal:
+            N = D / axes  # the ellipsoid's normal at D * axes
+            N /= np.linalg.norm(N, axis=-1, keepdims=True)
+            T = P_out - P_in
+            K = np.sum(T * N, axis=-1, keepdims=True) * N - T  # the chord's part across the normal, negated
+            blocks.append((1 - t) * P_in + t * P_out + (t**3 - t**2) * K)
+        else:
+            blocks.append((1 - t) * P_in + t * P_out)
     return _assemble(blocks)
 
 
@@ -362,19 +354,29 @@ def hollow_cube(n: int = 4, inner: float = 0.55, cavity: float = 0.3, k: int | N
     spans = [np.linspace(-1.0, -inner, k + 1), np.linspace(-inner, inner, n + 1), np.linspace(inner, 1.0, k + 1)]
     blocks = [np.stack(np.meshgrid(spans[i], spans[j], spans[l], indexing="ij"), axis=-1)
               for i in range(3) for j in range(3) for l in range(3) if (i, j, l) != (1, 1, 1)]
+    t, faces = _cube_to_sphere(n, m, inner)
+    blocks += [(1 - t) * cavity * D + t * P_out for P_out, D in faces]
+    return _assemble(blocks)
+
+
+def _cube_to_sphere(n: int, m: int, inner: float):
+    """The 6 blocks between the faces of the cube [-inner, inner]^3 and the
+    unit sphere: t (n+1, n+1, m+1, 1), the blend parameter from the face
+    (0) to the sphere (1) or back, and per face (P, D), its uniform
+    (n+1, n+1, 3) grid of points on the cube and the matching equiangular
+    grid of unit directions (the points on the unit sphere)."""
     g = np.linspace(-1.0, 1.0, n + 1)
     uu, vv, tt = np.meshgrid(g, g, np.linspace(0.0, 1.0, m + 1), indexing="ij")
-    t = tt[..., None]
+    faces = []
     for axis in range(3):
         u, v = [a for a in range(3) if a != axis]
         for side in (-1.0, 1.0):
-            P_out = np.zeros(uu.shape + (3,))
-            P_out[..., axis], P_out[..., u], P_out[..., v] = side * inner, inner * uu, inner * vv
-            D = np.zeros_like(P_out)
+            P = np.zeros(uu.shape + (3,))
+            P[..., axis], P[..., u], P[..., v] = side * inner, inner * uu, inner * vv
+            D = np.zeros_like(P)
             D[..., axis], D[..., u], D[..., v] = side, np.tan(uu * np.pi / 4), np.tan(vv * np.pi / 4)
-            D *= cavity / np.linalg.norm(D, axis=-1, keepdims=True)
-            blocks.append((1 - t) * D + t * P_out)
-    return _assemble(blocks)
+            faces.append((P, D / np.linalg.norm(D, axis=-1, keepdims=True)))
+    return tt[..., None], faces
 
 
 def o_grid_disk(n: int = 6, m: int | None = None, radius: float = 1.0,
