@@ -48,10 +48,11 @@ case "$cmd" in
             ensure_calculix
             # one BLAS thread per worker: two workers on two cores, not four threads fighting (-15%); and one
             # sparse-product thread (solver/linalg/parallel.py): a 9k-tet solve took 30 s of CPU with one,
-            # 40 s with two, in the same wall time, on a loaded machine
+            # 40 s with two, in the same wall time, on a loaded machine.  Files are dealt whole, the heaviest
+            # first (tests/conftest.py orders them by bench/SUITE.md), not xdist's most-tests-first
             OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}" OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}" \
                 SYMFRAMES_THREADS="${SYMFRAMES_THREADS:-1}" \
-                exec "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile "$@" ;;
+                exec "$VENV/bin/python" -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder "$@" ;;
     lint)   exec "$VENV/bin/ruff" check "$ROOT" "$@" ;;
     bench)  exec "$VENV/bin/python" bench/run_bench.py "$@" ;;
     docs)   exec "$VENV/bin/python" scripts/build_docs.py "$@" ;;

@@ -4,7 +4,8 @@
     python bench/suite_durations.py --write         # also (re)write bench/SUITE.md
     python bench/suite_durations.py --from out.txt  # a saved ``pytest --durations=0`` output
 
-It runs ``pytest -n 2 --dist loadfile --durations=0`` with one BLAS thread
+It runs ``pytest -n 2 --dist loadfile --no-loadscope-reorder --durations=0``
+(the heaviest files first: tests/conftest.py orders them by this table) with one BLAS thread
 and one sparse-product thread per worker (what ``./dev.sh test`` runs) and
 adds up each file's setup, call and teardown seconds.  The sum of a file's
 seconds is the work it costs; on two workers the wall time is about
@@ -62,7 +63,7 @@ def main(argv=None) -> int:
     else:
         t = time.perf_counter()
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "2", "--dist", "loadfile",
-               "--durations=0", "tests", *args.pytest_args]
+               "--no-loadscope-reorder", "--durations=0", "tests", *args.pytest_args]
         # as ./dev.sh test: one BLAS and one sparse-product thread per worker
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "SYMFRAMES_THREADS": "1", **os.environ}
         text = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env).stdout
@@ -81,7 +82,8 @@ def main(argv=None) -> int:
         with open(os.path.join(ROOT, "bench", "SUITE.md"), "w") as fh:
             fh.write("# The test suite's time per file\n\n"
                      f"`python bench/suite_durations.py --write` on {platform.machine()}, "
-                     f"{os.cpu_count()} cores, `pytest -n 2 --dist loadfile` as `./dev.sh test` runs it. "
+                     f"{os.cpu_count()} cores, `pytest -n 2 --dist loadfile --no-loadscope-reorder` "
+                     "(the heaviest files first) as `./dev.sh test` runs it. "
                      "A file's seconds add up its tests' setup, call and teardown; a shared session "
                      "fixture counts for the first file that asks for it.\n\n" + body)
     return 0

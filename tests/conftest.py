@@ -183,6 +183,33 @@ def pytest_sessionfinish(session):
     shutil.rmtree(factory.getbasetemp() / CACHE_FOLDER, ignore_errors=True)
 
 
+SUITE_TIMES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench", "SUITE.md")
+
+
+def _file_seconds() -> dict:
+    """Each test file's seconds of work as bench/SUITE.md records them
+    (``| `tests/x.py` | 12.3 | ...`` rows); empty where it cannot be read."""
+    import re
+
+    try:
+        with open(SUITE_TIMES, encoding="utf-8") as fh:
+            text = fh.read()
+    except OSError:
+        return {}
+    return {m[1]: float(m[2]) for m in re.finditer(r"^\| `(tests/[^`]+\.py)` \| ([\d.]+) \|", text, re.M)}
+
+
+def pytest_collection_modifyitems(config, items):
+    """The heaviest test files first, by their recorded seconds (files not
+    recorded last): ./dev.sh test deals files whole to two workers in
+    collection order (--dist loadfile --no-loadscope-reorder), and a heavy
+    file dealt last keeps one worker busy while the other has nothing left.
+    The sort is stable, so each file's tests keep their order."""
+    seconds = _file_seconds()
+    if seconds:
+        items.sort(key=lambda item: -seconds.get(item.nodeid.split("::")[0], 0.0))
+
+
 def _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume):
     """The memo key of one mesher run: its input rounded far below any
     tolerance of the mesher (the same solid built at another scale or place
