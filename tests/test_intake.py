@@ -76,6 +76,22 @@ def test_tiny_segments_are_neither_a_self_intersection_nor_a_kink(cylinder):
 
 
 # ------------------------------------------------------------------ zig-zag
+def test_close_points_are_dropped_against_the_last_kept_one():
+    """spaced, and merge_close and clean_polyline built on it: a point within
+    tol of the last point kept is dropped (so a run of small steps keeps a
+    point each time the run has gone past tol), the first point stays, and
+    merge_close keeps the last one in place of a kept point within tol."""
+    from solver.network.network import clean_polyline
+    from solver.network.polyline import merge_close, spaced
+
+    P = np.array([[0, 0, 0], [0.04, 0, 0], [0.08, 0, 0], [0.12, 0, 0], [1, 0, 0], [1.01, 0, 0]], float)
+    assert spaced(P, 0.1) == [0, 3, 4]
+    assert np.array_equal(clean_polyline(P, 0.1), P[[0, 3, 4]])
+    assert np.array_equal(merge_close(P, 0.1, False), P[[0, 3, 5]])
+    assert spaced(P, 1e-9) == list(range(6)) and np.array_equal(merge_close(P, 1e-9, False), P)
+    assert spaced(P[:1], 0.1) == [0] and spaced(P[:0], 0.1) == []
+
+
 def test_zigzag_chain_is_faired(cylinder):
     """A chain of edges ~h long zig-zagging 60 degrees at every vertex (as
     the shortest path through a tet mesh does): refused as kinked without
