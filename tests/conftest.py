@@ -227,11 +227,12 @@ def _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume):
 
 @pytest.fixture(scope="session", autouse=True)
 def _shared_mesher_runs():
-    """Each distinct fTetWild (or TetGen) run once per test run: tests that
-    mesh the same solid with the same tubes (the cylinder at 0.4 refined
-    and not, at the metre and at the micrometre) share its output, as they
-    share a solve above.  A run that can be cancelled is made afresh
-    (cancelling is what such a caller checks)."""
+    """Each distinct fTetWild run once per test run: tests that mesh the
+    same solid with the same curve tubes (the cylinder at the metre and at
+    the micrometre: fTetWild gets both in a unit box) share its output, as
+    they share a solve above.  A run that can be cancelled is made afresh
+    (cancelling is what such a caller checks); TetGen runs (mesh/cdt.py,
+    which holds run_tetwild by its own name) are not shared."""
     import solver.mesh.tetwild as tetwild
 
     run = tetwild.run_tetwild
