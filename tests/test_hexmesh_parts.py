@@ -264,6 +264,43 @@ def test_smoothing_moves_the_poor_cells_and_two_rings_and_holds_the_grid():
     assert scaled_jacobian(W, H).min() > 0.95
 
 
+def test_a_chain_is_not_routed_through_a_vertex_of_a_face_another_curve_pierces():
+    """A chain passing within VERTEX_ROUTE of a vertex goes through it, and
+    the tets around that vertex lose its frame.  Where the vertex also holds
+    a face another curve pierces (two curves a cell apart: curve A 0.07 from
+    the grid's vertex column x = y = 2, curve B piercing the faces round that
+    column), B's split tets would keep the frames of only two of the face's
+    three vertices, their transitions could not wind around B, and the hex
+    stage refused the field ("transitions do not close", a generated blob).
+    A is not routed there: every split tet of B keeps each of its old
+    vertices as a frame source."""
+    from solver.hexmesh.curve_edges import curves_on_edges
+    from solver.mesh.embed import TetLocator, trace_curve
+
+    mesh = grid_tets(4, 4, 4)
+    loc = TetLocator(mesh)
+    traces = []
+    for x, y in [(2.06, 2.03), (1.8, 2.5)]:  # A, B
+        P = np.array([[x, y, z] for z in np.r_[np.linspace(0.0, 3.5, 8), 4.001]])
+        t0 = int(loc.locate(P[:1] + [0.0, 0.0, 1e-3])[0])
+        bottom = [f for f in mesh.tet_faces[t0]
+                  if mesh.face_tets[f].min() < 0 and np.all(mesh.vertices[mesh.faces[f], 2] == 0.0)]
+        traces.append(trace_curve(mesh, loc, P, t0, int(bottom[0]), True, "c", 1e-9, strict=False))
+    emb = SimpleNamespace(traces=traces, node_region=[], node_tets=[])
+    net = SimpleNamespace(curves=[SimpleNamespace(sigma=0.25, name="")] * 2, source=[0, 1],
+                          start_kind=["boundary"] * 2, end_kind=["boundary"] * 2, nodes=[])
+    column = {int(i) for i in np.nonzero(np.all(mesh.vertices[:, :2] == 2.0, axis=1))[0]}
+    pierced_b = set(mesh.faces[traces[1].faces].reshape(-1).tolist())
+    assert column & pierced_b  # the set-up: B pierces faces round A's column
+
+    cem = curves_on_edges(mesh, emb, net)
+    routed = set(cem.source_vertex[np.concatenate([c.vertices for c in cem.chains])].tolist()) - {-1}
+    assert not routed & pierced_b
+    b_tets = np.isin(cem.parent, traces[1].tets)
+    old = np.where(cem.mesh.tets < 0, -1, cem.source_vertex[cem.mesh.tets])
+    assert np.array_equal(np.sort(cem.frame_sources[b_tets], axis=1), np.sort(old[b_tets], axis=1))
+
+
 # ------------------------------------------------------------- node balls
 
 

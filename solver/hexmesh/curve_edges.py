@@ -56,7 +56,8 @@ keep at least this fraction of their parent's volume."""
 VERTEX_ROUTE = 0.2
 """A curve passing closer than this fraction of the local edge length to a
 vertex of the field's mesh is routed through the vertex: clamping the pierce
-points of the faces around it would make the chain zig-zag backwards."""
+points of the faces around it would make the chain zig-zag backwards.  Not
+through a vertex of a face another curve pierces (``_piercing_curves``)."""
 
 CONE_HEIGHT_MIN = 0.15
 """A node ball's skin face must be seen from the node at a height of at
@@ -273,6 +274,7 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
     end_node = {e: k for k, nd in enumerate(network.nodes) for e in nd.ends}
     chains = []
     routed: set[int] = set()  # field-mesh vertices a chain passes through
+    piercer = _piercing_curves(mesh, embedding)
     for ci, (c, tr) in enumerate(zip(network.curves, embedding.traces)):
         tets, faces, pts = np.asarray(tr.tets), np.asarray(tr.faces), np.asarray(tr.points)
         n = len(tets)
@@ -335,11 +337,33 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
         x1 = pts[hi] if end_node_ else _end_point(mesh, f1, polyline)
         seq = [f0, *faces[lo:hi].tolist(), f1]  # entry face of inner[j] is seq[j], its exit seq[j + 1]
         xs = [x0, *pts[lo:hi], x1]
-        runs = _vertex_runs(mesh, inner, seq, polyline, routed, boundary_ok=(not start_node, not end_node_))
+        # a vertex of a face another curve pierces keeps its frame: the tets
+        # around that curve's chain need it to wind around the curve
+        others = (piercer != ci) & (piercer != -1)
+        runs = _vertex_runs(mesh, inner, seq, polyline, routed | set(np.nonzero(others)[0].tolist()),
+                            boundary_ok=(not start_node, not end_node_))
         chain = _open_chain(mesh, b, ci, inner, seq, xs, runs, routed)
         chain = ([start_v] if start_node else []) + chain + ([end_v] if end_node_ else [])
         chains.append(Chain(np.array(chain, dtype=np.int64), ci, float(c.sigma), False, polyline))
     return _build(mesh, b, balls, node_vertex, chains, mesh.vertices, routed)
+
+
+def _piercing_curves(mesh: TetMesh, embedding) -> np.ndarray:
+    """Per vertex of the field's mesh, the curve whose pierced faces (and
+    surface end faces) hold it: -1 none, -2 more than one.  A chain routed
+    through a vertex takes away its frame from every tet around it
+    (``_build``), so it must not pass through a vertex of a face another
+    curve pierces: the split tets around that curve would keep the frames
+    of only two of the face's vertices, and their transitions could no
+    longer wind around it."""
+    owner = np.full(mesh.n_vertices, -1, dtype=np.int64)
+    for ci, tr in enumerate(embedding.traces):
+        f = [int(x) for x in np.asarray(tr.faces, dtype=np.int64).tolist()]
+        f += [int(x) for x in (tr.start_face, tr.end_face) if x is not None and int(x) >= 0]
+        v = np.unique(mesh.faces[np.asarray(f, dtype=np.int64)]) if f else np.zeros(0, dtype=np.int64)
+        o = owner[v]
+        owner[v] = np.where((o == -1) | (o == ci), ci, -2)
+    return owner
 
 
 def _node_balls(mesh: TetMesh, embedding, network, b: _Builder):
