@@ -32,6 +32,11 @@ import sys
 import tempfile
 import time
 
+try:
+    import fcntl
+except ImportError:  # Windows: no lock (one process at a time there)
+    fcntl = None
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
@@ -44,6 +49,9 @@ WHEELS = os.path.join(CACHE, "wheels")
 # the numpy each Blender range ships (Blender's own, never bundled); 5.1+:
 # the bpy module requires numpy >= 2.2, < 3 and 2.3.5 stands in for Blender's
 NUMPY = {"4.2": "1.24.3", "4.5": "1.26.4", "5.1": "2.3.5"}
+
+# the other Blender line the test suite installs its zip into (tests/test_extension.py)
+OTHER_BLENDER = "4.2.23"
 
 # (bpy version, mesher forced into the zip or None for the platform's own)
 ROWS = [
@@ -78,7 +86,18 @@ def run(cmd, **kw):
 
 def bpy_venv(bpy_version: str, log=print) -> str:
     """The python of a cached venv with bpy==bpy_version and its Blender's
-    numpy (created on first use: the bpy wheel is downloaded once)."""
+    numpy (created on first use: the bpy wheel is downloaded once).  Safe to
+    call from several processes at once: one creates the venv while the
+    others wait for it (tests/conftest.py starts the 4.2 venv beside the
+    suite)."""
+    os.makedirs(CACHE, exist_ok=True)
+    with open(os.path.join(CACHE, f"bpy-{bpy_version}.lock"), "w") as lock:
+        if fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        return _bpy_venv(bpy_version, log)
+
+
+def _bpy_venv(bpy_version: str, log) -> str:
     variant = build_extension.variant_for(bpy_version)
     numpy = NUMPY[variant.name]
     venv = os.path.join(CACHE, "venvs", f"bpy-{bpy_version}")
@@ -99,7 +118,7 @@ def bpy_venv(bpy_version: str, log=print) -> str:
         shutil.rmtree(venv, ignore_errors=True)
         try:
             run([base, "-m", "venv", venv])
-            run([py, "-m", "pip", "install", "--quiet", wheel, f"numpy=={numpy}"])
+            run([py, "-m", "pip", "install", "--quiet", "--no-compile", wheel, f"numpy=={numpy}"])
             break
         except RuntimeError as ex:
             if attempt == 2:

@@ -183,6 +183,43 @@ def pytest_sessionfinish(session):
     shutil.rmtree(factory.getbasetemp() / CACHE_FOLDER, ignore_errors=True)
 
 
+def _runs_the_blender_4_2_test(config) -> bool:
+    """Whether this run includes test_extension's Blender 4.2 test: the
+    whole tests folder (or that file) named, no -k, and slow tests kept."""
+    if config.getoption("keyword", "") or "slow" in (config.getoption("markexpr", "") or ""):
+        return False
+    here = os.path.dirname(os.path.abspath(__file__))
+    named = [os.path.abspath(str(a).split("::")[0]) for a in (config.args or ["."])]
+    return any(here.startswith(p) or p == os.path.join(here, "test_extension.py") for p in named)
+
+
+def pytest_sessionstart(session):
+    """The controller (the one process of a run without workers) starts the
+    Blender 4.2 venv of test_extension (a 335 MB bpy wheel downloaded and
+    installed, 30-40 s on a fresh clone, spent mostly waiting on the
+    network) in a thread, beside the tests; scripts/matrix.py's lock makes
+    the test wait for it, or make it itself should this fail."""
+    if os.environ.get("PYTEST_XDIST_WORKER") or not _runs_the_blender_4_2_test(session.config):
+        return
+    import sys
+    import threading
+
+    scripts = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scripts")
+    sys.path.insert(0, scripts)
+    try:
+        import matrix
+    finally:
+        sys.path.remove(scripts)
+
+    def prefetch():
+        try:
+            matrix.bpy_venv(matrix.OTHER_BLENDER, log=lambda msg: None)
+        except Exception:  # the test makes it itself and reports what failed
+            pass
+
+    threading.Thread(target=prefetch, name="bpy-4.2-venv", daemon=True).start()
+
+
 SUITE_TIMES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench", "SUITE.md")
 
 

@@ -33,7 +33,7 @@ import build_extension  # noqa: E402
 import matrix  # noqa: E402
 
 # the Blender release run besides the venv's (CI budget: docs/platforms.md, Supported versions)
-OTHER_BLENDER = "4.2.23"
+OTHER_BLENDER = matrix.OTHER_BLENDER
 
 
 def venv_site_packages() -> list[str]:
