@@ -623,10 +623,12 @@ def _far_from_solution(final) -> bool:
 
 def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None, cancel=None) -> Result:
     """``problem.solve()``; where the edge length was automatic and LM
-    stopped at a structure penalty above the discretisation level (the
+    stopped at a minimum that is not a solution (``_unresolved``: a
+    structure penalty above the discretisation level, or frames more than
+    ``report.ADAPTATION_DEG`` off the curves or the surface on average; the
     network not resolved at that mesh: short curves reaching the surface
     well off its normal, whose repaired ends bend over most of their
-    length), the solve again on a uniform mesh: at the same edge length
+    length, a small cavity the curves end on), the solve again on a uniform mesh: at the same edge length
     where the first mesh was graded (and every curve is ``SHORT_UNIFORM``
     edges long, and the grading made ``GRADED_SHARE`` of its tets), then
     ``FINER`` times as fine, each if
@@ -697,8 +699,7 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
         if res2.report.converged:
             break
     why = (f"at the automatic edge length {problem.edge_length:.4g} ({problem.mesh.n_tets:,} tets"
-           f"{', graded' if problem.meshed.stats.graded_tets else ''}) the structure penalty stayed at "
-           f"{res.report.lm.final.penalty:.3g}, above the discretisation level")
+           f"{', graded' if problem.meshed.stats.graded_tets else ''}) {_why_unresolved(res)}")
     best.report.notes.append("; ".join(tried) + ("" if best is res else " (kept)") + ": " + why)
     return best
 
@@ -760,10 +761,26 @@ def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | No
 
 
 def _unresolved(res: Result) -> bool:
-    """LM stopped at a structure penalty above the discretisation level."""
+    """LM stopped at a minimum that is not a solution: a structure penalty
+    above the discretisation level, or frames off the curves' tangents or
+    the surface normals (``report.adaptation_status``); both say the mesh
+    does not resolve the network there."""
     rep = res.report
-    return (not rep.converged and rep.lm is not None and rep.lm.converged
-            and "discretisation level" in rep.status_reason)
+    if rep.converged or rep.lm is None or not rep.lm.converged:
+        return False
+    return "discretisation level" in rep.status_reason or adaptation_status(rep.metrics) is not None
+
+
+def _why_unresolved(res: Result) -> str:
+    """What ``_unresolved`` found, for the notes."""
+    rep = res.report
+    if "discretisation level" in rep.status_reason:
+        return f"the structure penalty stayed at {rep.lm.final.penalty:.3g}, above the discretisation level"
+    m = rep.metrics
+    for key, what in (("tangent_adaptation", "the curves' tangents"), ("normal_adaptation", "the surface normals")):
+        if adaptation_status({f"{key}_mean_deg": m.get(f"{key}_mean_deg", 0.0)}):
+            return f"the frames stayed {m[f'{key}_mean_deg']:.3g} degrees off {what} on average"
+    return rep.status_reason
 
 
 def solve(V, F, network: Network, options: Options | None = None, progress=None, cancel=None, **kw) -> Result:

@@ -344,13 +344,17 @@ def test_the_default_spends_what_the_network_asks_and_converges(monkeypatch):
     assert held.tets <= 1.5 * 10_000
 
 
-def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch):
+@pytest.mark.parametrize("failure", ["penalty", "adaptation"])
+def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
     """solve_resolved's ladder: a graded automatic mesh whose LM stopped
     above the discretisation level gives way first to a uniform mesh at
     its own bulk edge length (a generated ellipsoid: penalty 31 graded at
     28.5k tets, 0.14 uniform at 9.2k), then to one FINER times as fine;
-    the first that converges is kept and the notes say what was done.
-    The solves are stand-ins: the ladder is what is tested."""
+    the first that converges is kept and the notes say what was done.  So
+    does one whose LM stopped at the level but with the frames off the
+    curves (a generated cube with a small cavity: penalty 8.4, the level
+    passed, frames 13 degrees off the curves; it went to the hex stage
+    unsolved).  The solves are stand-ins: the ladder is what is tested."""
     import types
 
     import solver.pipeline as pl
@@ -367,8 +371,14 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch):
             ok = len(made) == want_converged_at
             lm = types.SimpleNamespace(final=types.SimpleNamespace(penalty=0.5 if ok else 9.0 - len(made)),
                                        converged=True)
-            rep = types.SimpleNamespace(converged=ok, lm=lm, notes=[], status_reason=(
-                "ok" if ok else "the structure penalty is above the discretisation level"))
+            if ok:
+                why, metrics = "ok", {}
+            elif failure == "penalty":
+                why, metrics = "the structure penalty is above the discretisation level", {}
+            else:
+                why = "the frames are 13 degrees off the curves' tangents on average"
+                metrics = {"tangent_adaptation_mean_deg": 13.1, "normal_adaptation_mean_deg": 1.5}
+            rep = types.SimpleNamespace(converged=ok, lm=lm, notes=[], status_reason=why, metrics=metrics)
             return types.SimpleNamespace(report=rep)
 
     monkeypatch.setattr(pl, "FieldProblem", Fake)
@@ -387,6 +397,8 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch):
         assert made[1:] == pytest.approx(lengths)
         note = res.report.notes[-1]
         assert "uniform mesh at edge length 0.2" in note and "graded" in note
+        assert ("above the discretisation level" if failure == "penalty" else
+                "13.1 degrees off the curves' tangents") in note, note
         assert res.report.converged == (want_converged_at <= 3)
     # a curve shorter than SHORT_UNIFORM edges, a uniform first mesh, or
     # one the grading made less than GRADED_SHARE of: straight to the finer one
