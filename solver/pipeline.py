@@ -32,7 +32,7 @@ from .field.root import default_root, node_region_edges
 from .field.solved import SolvedField
 from .field.volume3d import VolumeProblem
 from .mesh.embed import Embedding, embed_network
-from .mesh.meshing import MeshOutcome, MeshSettings, mesh_domain, node_edge_length, node_radius
+from .mesh.meshing import MeshOutcome, MeshSettings, mesh_domain, node_radius
 from .mesh.resolution import (
     CEILING_FACTOR,
     DEFAULT_TARGET_TETS,
@@ -324,8 +324,7 @@ class FieldProblem:
         self.meshed: MeshOutcome = mesh
         self.mesh = mesh = self.meshed.mesh
         self.report.edge_length, self.report.mesher = self.edge_length, self.meshed.stats.mesher
-        node_r = node_radius(self.network, node_edge_length(self.plan, self.network, self.edge_length),
-                             opts.node_radius)
+        node_r = node_radius(self.network, self.edge_length, opts.node_radius)
         self.embedding: Embedding = st.run("embed", embed_network, mesh, self.network, node_r)
         self.boundary: BoundaryField = st.run("boundary2d", meshed_boundary_field, mesh, self.embedding,
                                               self.network, self.checked.features, self.edge_length)

@@ -303,3 +303,28 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     print(f"tube faces {len(faces)}: wrong per vertex {before}, settled {after}")
     # the settling must cut the faces the per-vertex measure gets wrong (8 -> 3 here)
     assert before >= 6 and after <= 0.5 * before, (before, after)
+
+
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_node_regions_of_a_graded_mesh_reach_where_the_tubes_start():
+    """The curves' tubes stop node_radius(bulk edge length) from a node,
+    and the node regions must reach as far: sized by the graded mesh's
+    finer edge length at the nodes, they left a stretch of each curve
+    constrained to turn about itself alone next to the node, where the
+    node's other curves still turn the field (a generated cube with a
+    cavity: penalty 46.7 against 10.8, the frames 17-35 degrees off the
+    curves; 1.5 with the regions this large).  A budget of 6,000 tets
+    grades this input: bulk edge length 0.34, 0.17 at the nodes."""
+    from solver import FieldProblem, Options
+    from solver.mesh.meshing import node_radius
+    from testkit.hexnet import hexnet_input
+
+    d = hexnet_input("hollow", 17)  # meshed here: its own input, the only graded one with nodes
+    p = FieldProblem(d["V"], d["F"], d["network"], Options(target_tets=6000))
+    assert p.plan.graded and p.plan.finest < 0.75 * p.edge_length
+    r = node_radius(p.network, p.edge_length, p.options.node_radius)
+    m = p.mesh
+    for region, node in zip(p.embedding.node_region, p.network.nodes):
+        reach = np.linalg.norm(m.vertices[m.tets[region]].mean(axis=1) - np.asarray(node.position), axis=1).max()
+        assert reach >= 0.8 * r > 1.5 * p.plan.finest, (reach, r, p.plan.finest)
