@@ -7,6 +7,7 @@ testkit/hexnet.py family, default options, each run in a fresh process.
     ./dev.sh python bench/bench_hexnet.py --kinds ball cylinder plate genus2 torus --seeds 0 1 --tet-edge \
         --write --json hexnet_tetedge.json                      # the tet-edge variants too
     ./dev.sh python bench/bench_hexnet.py --seeds 13 --transform turn --scale 1000   # turned, moved, scaled
+    ./dev.sh python bench/bench_hexnet.py --table               # bench/RESULTS.md's table of bench/hexnet.json
 
 Each input is the boundary and the irregular edges of a hex mesh deformed by
 a smooth random map (an O-grid, a cube-sphere, plates with holes, a torus,
@@ -154,6 +155,36 @@ def run_one(kind: str, seed: int, tet_edge: bool, how: str = "none", scale: floa
     return row
 
 
+HEADER = ("| input | curves | tets | LM its | penalty | field | cells | min / mean SJ | raw min | irregular edges vs "
+          "given curves: far / max distance (cells) / least covered | cells within 20 % of the cell size | Hausdorff | "
+          "s field + hex | bars missed |\n|---|---:|---:|---:|---:|---|---:|---|---:|---|---:|---:|---|---|")
+
+
+def table(rows: list) -> str:
+    """The Markdown table of bench/RESULTS.md ("Networks read off hex
+    meshes") from the rows run_one wrote."""
+    out = [HEADER]
+    for r in rows:
+        name = f"{r['kind']} {r['seed']}" + (" tet-edge" if r.get("variant") == "tet-edge" else "")
+        missed = ", ".join(r.get("missed") or []) or "—"
+        if "error" in r or "status" not in r:
+            out.append(f"| {name} | {r.get('curves', '')} | | | | {r.get('error_kind', '')} | | | | | | | "
+                       f"{r.get('total_s', '')} | {missed} |")
+            continue
+        again = any("solved again" in n for n in r.get("field_notes", []))
+        field = r["status"] + (" (solved again)" if again else "")
+        if r.get("hex_error"):
+            out.append(f"| {name} | {r['curves']} | {r['tets']:,} | {r['iterations']} | {r['penalty']} | {field} | "
+                       f"| | | | | | {r['field_s']} + – | {missed} |")
+            continue
+        out.append(
+            f"| {name} | {r['curves']} | {r['tets']:,} | {r['iterations']} | {r['penalty']} | {field} | "
+            f"{r['hexes']:,} | {r['sj_min']:.3f} / {r['sj_mean']:.3f} | {r['sj_min_raw']:.2f} | "
+            f"{r['given_extra']} / {r['given_distance_cells']:.2f} / {100 * r['given_covered']:.0f}% | "
+            f"{100 * r['size_within']:.0f}% | {r['hausdorff_pct']:.2f}% | {r['field_s']} + {r['hex_s']} | {missed} |")
+    return "\n".join(out)
+
+
 def main() -> None:
     from testkit.hexnet import KINDS
 
@@ -167,8 +198,14 @@ def main() -> None:
                     "or stretched (TRANSFORMS)")
     ap.add_argument("--scale", type=float, default=1.0, help="each input scaled by this (with --transform turn: "
                     "after the turn)")
+    ap.add_argument("--table", action="store_true", help="print the Markdown table of bench/hexnet.json (or --json) "
+                    "and stop")
     ap.add_argument("--one", nargs=3, metavar=("KIND", "SEED", "VARIANT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.table:
+        with open(os.path.join(ROOT, "bench", a.json)) as fh:
+            print(table(json.load(fh)))
+        return
     if a.one:
         print(json.dumps(run_one(a.one[0], int(a.one[1]), a.one[2] == "tet-edge", a.transform, a.scale)))
         return

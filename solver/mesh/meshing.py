@@ -468,8 +468,8 @@ def node_radius(network: PreparedNetwork, h: float, factor: float) -> float:
     tubes stop there (``build_tubes``), and so must the tube constraints: a
     region sized by the finer edge length left a stretch of curve between
     it and the tube whose tets were constrained to turn about the curve
-    alone, where the node's other curves still turn the field (on generated
-    cube with a cavity: penalty 46.7 against a level of 10.8 at 21k graded
+    alone, where the node's other curves still turn the field (on a
+    generated cube with a cavity: penalty 46.7 against a level of 10.8 at 21k graded
     tets, the frames along the curves 17-35 degrees off them; with the
     regions at the bulk edge length, 1.58 and 1.50 on two fresh meshes, the
     frames 0.8 and 0.7 degrees off).
