@@ -358,6 +358,7 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
     import types
 
     import solver.pipeline as pl
+    from solver.report import adaptation_status
 
     made = []
 
@@ -376,8 +377,8 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
             elif failure == "penalty":
                 why, metrics = "the structure penalty is above the discretisation level", {}
             else:
-                why = "the frames are 13 degrees off the curves' tangents on average"
                 metrics = {"tangent_adaptation_mean_deg": 13.1, "normal_adaptation_mean_deg": 1.5}
+                why = adaptation_status(metrics)
             rep = types.SimpleNamespace(converged=ok, lm=lm, notes=[], status_reason=why, metrics=metrics)
             return types.SimpleNamespace(report=rep)
 

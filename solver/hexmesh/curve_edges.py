@@ -339,9 +339,8 @@ def curves_on_edges(mesh: TetMesh, embedding, network) -> CurveEdgeMesh:
         xs = [x0, *pts[lo:hi], x1]
         # a vertex of a face another curve pierces keeps its frame: the tets
         # around that curve's chain need it to wind around the curve
-        others = (piercer != ci) & (piercer != -1)
-        runs = _vertex_runs(mesh, inner, seq, polyline, routed | set(np.nonzero(others)[0].tolist()),
-                            boundary_ok=(not start_node, not end_node_))
+        runs = _vertex_runs(mesh, inner, seq, polyline, routed, boundary_ok=(not start_node, not end_node_),
+                            keep=(piercer != ci) & (piercer != -1))
         chain = _open_chain(mesh, b, ci, inner, seq, xs, runs, routed)
         chain = ([start_v] if start_node else []) + chain + ([end_v] if end_node_ else [])
         chains.append(Chain(np.array(chain, dtype=np.int64), ci, float(c.sigma), False, polyline))
@@ -441,13 +440,14 @@ def _polyline_distance(P: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 def _vertex_runs(mesh: TetMesh, inner: np.ndarray, seq: list, polyline: np.ndarray, routed: set,
-                 boundary_ok: tuple) -> dict:
+                 boundary_ok: tuple, keep: np.ndarray) -> dict:
     """Where the chain goes through a vertex of the field's mesh instead of
     piercing the faces around it: {first crossed tet j: (vertex v, last tet
     k)}, the tets inner[j..k] all holding v.  A vertex qualifies when the
     curve passes within VERTEX_ROUTE of an edge length of it, it is inside
-    the solid (or the curve ends at it on the surface), and no other chain
-    goes through it."""
+    the solid (or the curve ends at it on the surface), no other chain goes
+    through it and ``keep`` (a mask over the vertices: those of faces other
+    curves pierce, ``_piercing_curves``) does not hold it."""
     T, X = mesh.tets, mesh.vertices
     n = len(inner)
     V = T[inner]
@@ -461,7 +461,7 @@ def _vertex_runs(mesh: TetMesh, inner: np.ndarray, seq: list, polyline: np.ndarr
         best = None
         for c in range(4):
             v = int(V[j, c])
-            if d[j, c] > VERTEX_ROUTE * h[j] or v in routed or v in used:
+            if d[j, c] > VERTEX_ROUTE * h[j] or v in routed or v in used or keep[v]:
                 continue
             if j > 0 and v in V[j - 1]:
                 continue  # the block of tets around v starts earlier
