@@ -345,9 +345,10 @@ def prism_example():
     corners.py makes the 133-degree one smooth: the smaller rounding, and
     the one a field without singular curves can follow (two sharp edges
     there; see corners.py).  With sharp_angle 30 (the 47-degree edge sharp
-    too) a smooth corner would end a crease in a flat cap and with 60 the
-    128-degree corner would be a corner between smooth walls: LM ended at
-    its cap with penalties of 3.0e3 and 5.0e3."""
+    too) the smooth corner would end that crease, which is then treated as
+    smooth as well (corners.py); with 60 the 128-degree corner would be a
+    corner between smooth walls: LM ended at its cap with a penalty of
+    5.0e3."""
     V, F = prism_surface(house_outline(), 0.8)
     return V, F, Network(curves=[], sharp_angle=50.0)
 

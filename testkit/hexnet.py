@@ -10,7 +10,10 @@ such inputs the way they arise:
    the same disk swept around a circle; ``plate_with_holes``: a grid of
    squares, some with a round hole in an O-grid ring of 4 blocks, extruded;
    ``hollow_cube``: a cube with a spherical cavity, 26 blocks round a middle
-   cube and 6 from its faces to the sphere);
+   cube and 6 from its faces to the sphere; ``triangle_prism``: a triangle
+   split into 3 quads at its centroid, extruded; ``hexagon_prism``: a
+   hexagon split into 3 quads at its centre, extruded; ``plate_with_holes`` with
+   ``missing`` cells: an L-shaped part);
 2. deformed by a smooth random map (``smooth_deformation``: a few
    low-frequency Fourier modes kept well inside the diffeomorphisms, an
    optional twist and bend; ``radial_blob``: a random radius on the ball's
@@ -34,7 +37,8 @@ import numpy as np
 from solver.hexmesh.quality import boundary_quads, edge_valences, scaled_jacobian
 from solver.network.network import Curve, Network, cluster_points
 
-KINDS = ("ball", "ellipsoid", "blob", "cylinder", "bent bar", "torus", "plate", "genus2", "hollow")
+KINDS = ("ball", "ellipsoid", "blob", "cylinder", "bent bar", "torus", "plate", "genus2", "hollow", "prism",
+         "hex prism", "L-part")
 """The kinds ``hexnet_input`` makes."""
 
 MIRROR = np.array([0, 3, 2, 1, 4, 7, 6, 5])  # a VTK hex's corners with x and y swapped: the orientation flipped
@@ -503,6 +507,58 @@ def plate_with_holes(nx: int = 3, ny: int = 3, holes=((1, 1),), n: int = 4, thic
     return V, _orient(V, H)
 
 
+def triangle_prism(corners, n: int = 4, thickness: float = 1.0, layers: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """A triangular prism: the triangle ``corners`` (3, 2) split into 3
+    quads (each corner, the midpoints of its two sides and the centroid;
+    n x n cells each), extruded over [-thickness/2, thickness/2] in
+    ``layers`` layers.  The centroid has valence 3: one +1/4 curve through
+    the thickness, ending on the two flat faces; each corner is one cell
+    corner, its sharp edge as acute as the triangle's angle there.
+
+    Returns
+    -------
+    V : (k, 3) float array
+    H : (m, 8) int array
+        VTK hexes, positively oriented.
+    """
+    C = np.asarray(corners, float)
+    O = C.mean(axis=0)
+    g = np.linspace(0.0, 1.0, n + 1)
+    s, t = np.meshgrid(g, g, indexing="ij")
+    s, t = s[..., None], t[..., None]
+    blocks = []
+    for k in range(3):
+        a, prev, nxt = C[k], C[k - 1], C[(k + 1) % 3]
+        p0, p1, p2, p3 = a, 0.5 * (a + nxt), O, 0.5 * (a + prev)  # the quad, bilinear
+        blocks.append((1 - s) * (1 - t) * p0 + s * (1 - t) * p1 + s * t * p2 + (1 - s) * t * p3)
+    V2, Q = _assemble(blocks)
+    V, H = extrude(V2, Q, np.linspace(-thickness / 2, thickness / 2, layers + 1))
+    return V, _orient(V, H)
+
+
+def hexagon_prism(corners, n: int = 8, thickness: float = 0.8, layers: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """A hexagonal prism: the hexagon ``corners`` (6, 2), counter-clockwise
+    round the origin, split into 3 quads (the origin and corners 2k, 2k+1,
+    2k+2; n x n cells each), extruded over [-thickness/2, thickness/2] in
+    ``layers`` layers.  The centre has valence 3: one +1/4 curve through
+    the thickness.  Its corners of about 120 degrees are alternately a cell
+    corner (odd corners) and flat (even ones, two cells): the ambiguous
+    corners of a CAD outline, rounded one way or the other by the mesh.
+    """
+    C = np.asarray(corners, float)
+    O = np.zeros(2)
+    g = np.linspace(0.0, 1.0, n + 1)
+    s, t = np.meshgrid(g, g, indexing="ij")
+    s, t = s[..., None], t[..., None]
+    blocks = []
+    for k in range(3):
+        p0, p1, p2, p3 = O, C[2 * k], C[2 * k + 1], C[(2 * k + 2) % 6]
+        blocks.append((1 - s) * (1 - t) * p0 + s * (1 - t) * p1 + s * t * p2 + (1 - s) * t * p3)
+    V2, Q = _assemble(blocks)
+    V, H = extrude(V2, Q, np.linspace(-thickness / 2, thickness / 2, layers + 1))
+    return V, _orient(V, H)
+
+
 def l_prism_with_hole(n: int = 4) -> tuple[np.ndarray, np.ndarray, Network]:
     """An L-shaped prism with a round hole through it (issue 51's second
     part to simulate on): 2 x 2 with a 1 x 1 corner block cut out, 0.5
@@ -667,7 +723,13 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         (plate_with_holes, 3 x 3 with one hole: 4 curves of -1/4),
         ``'genus2'`` (5 x 3 with two holes: 8 curves of -1/4), ``'hollow'``
         (hollow_cube: a cube with a spherical cavity, 12 curves of -1/4 and
-        8 of +1/4 meeting in 8 nodes, the radial ones ending on the cavity).
+        8 of +1/4 meeting in 8 nodes, the radial ones ending on the cavity),
+        ``'prism'`` (triangle_prism of a random triangle, angles 45-80
+        degrees: one +1/4 curve, sharp edges of those angles), ``'hex
+        prism'`` (hexagon_prism of a hexagon with corners of about 120
+        degrees: one +1/4 curve; three of its corners flat), ``'L-part'``
+        (plate_with_holes on 5 x 5 cells without the 2 x 2 corner block: a
+        concave sharp edge, two holes, 8 curves of -1/4).
     seed : int
         Varies the resolution n, proportions and deformation.
 
@@ -729,14 +791,44 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         V, H = hollow_cube(p["n"], p["inner"], p["cavity"], k=p["frame"])
         p["amplitude"] = float(rng.uniform(0.02, 0.05))
         V = smooth_deformation(V, rng, p["amplitude"], H=H)
+    elif kind == "prism":
+        p["n"] = _cycle(seed, (8, 9, 10))
+        while True:  # a triangle whose angles are 45-80 degrees
+            ang = rng.uniform(45.0, 80.0, 2)
+            if 45.0 <= 180.0 - ang.sum() <= 80.0:
+                break
+        p["angles"] = [round(float(a), 2) for a in (*ang, 180.0 - ang.sum())]
+        a, b = np.radians(ang)
+        # corners (0, 0), (2, 0) and the third by the angles at the first two
+        x = 2.0 * np.tan(b) / (np.tan(a) + np.tan(b))
+        corners = np.array([[0.0, 0.0], [2.0, 0.0], [x, x * np.tan(a)]])
+        p["thickness"] = float(rng.uniform(0.8, 1.3))
+        p["layers"] = max(2, int(round(p["thickness"] * p["n"])))
+        V, H = triangle_prism(corners, p["n"], p["thickness"], p["layers"])
+        p["amplitude"] = float(rng.uniform(0.02, 0.05))
+        V = smooth_deformation(V, rng, p["amplitude"], H=H)
+    elif kind == "hex prism":
+        p["n"] = _cycle(seed, (8, 9, 10))
+        ang = np.radians(np.arange(6) * 60.0 + rng.uniform(-6.0, 6.0, 6))
+        rad = rng.uniform(0.9, 1.1, 6)
+        p["corners"] = np.round(np.c_[rad * np.cos(ang), rad * np.sin(ang)], 4).tolist()
+        p["thickness"] = float(rng.uniform(0.6, 1.0))
+        p["layers"] = max(2, int(round(p["thickness"] * p["n"])))
+        V, H = hexagon_prism(p["corners"], p["n"], p["thickness"], p["layers"])
+        p["amplitude"] = float(rng.uniform(0.01, 0.03))
+        V = smooth_deformation(V, rng, p["amplitude"], H=H)
     else:
-        holes = ((1, 1),) if kind == "plate" else ((1, 1), (3, 1))
-        nx, ny = (3, 3) if kind == "plate" else (5, 3)
-        p["n"] = _cycle(seed, (6, 7) if kind == "plate" else (5, 6))
+        holes = {"plate": ((1, 1),), "genus2": ((1, 1), (3, 1))}.get(kind)
+        nx, ny = {"plate": (3, 3), "genus2": (5, 3)}.get(kind, (5, 5))
+        missing = ()
+        if kind == "L-part":
+            holes = ((1, 1), ((1, 3), (3, 1))[int(rng.integers(2))])
+            missing = ((3, 3), (3, 4), (4, 3), (4, 4))
+        p["n"] = _cycle(seed, (6, 7) if kind == "plate" else (4, 5) if kind == "L-part" else (5, 6))
         p["thickness"] = float(rng.uniform(0.4, 0.6))
         p["hole_radius"] = float(rng.uniform(0.25, 0.35))
-        p["layers"] = max(2, int(np.ceil(p["thickness"] * p["n"])))
-        V, H = plate_with_holes(nx, ny, holes, p["n"], p["thickness"], p["layers"], p["hole_radius"])
+        p["layers"] = max(3 if kind == "L-part" else 2, int(np.ceil(p["thickness"] * p["n"])))
+        V, H = plate_with_holes(nx, ny, holes, p["n"], p["thickness"], p["layers"], p["hole_radius"], missing=missing)
         p["amplitude"] = float(rng.uniform(0.02, 0.05))
         V = smooth_deformation(V, rng, p["amplitude"], H=H)
     Vs, Fs, net = network_from_hexmesh(V, H, name=kind)

@@ -169,8 +169,14 @@ def _expected(kind, p):
         return {0.25: 4}, 0
     if kind == "hollow":  # the middle cube's edges and its radial edges; the outer cube's 12 edges are sharp
         return {-0.25: 12, 0.25: 8}, 12 * (n + 2 * p["frame"])
-    nx, ny, holes = (3, 3, 1) if kind == "plate" else (5, 3, 2)
-    return {-0.25: 4 * holes}, 2 * (2 * (nx + ny) * n + holes * 4 * n) + 4 * p["layers"]
+    if kind == "prism":  # the triangle's outline on both faces (two half sides of n each), its 3 corners
+        return {0.25: 1}, 2 * 6 * n + 3 * p["layers"]
+    if kind == "hex prism":  # the hexagon's outline on both faces, 3 of its 6 corners: the creases of the 3
+        return {0.25: 1}, 2 * 6 * n + 3 * p["layers"]  # corners chosen flat are smooth (corners.py)
+    # the outline on both faces, each hole's ring on both, the vertical corners (5 convex and
+    # 1 concave for the L)
+    nx, ny, holes, corners = {"plate": (3, 3, 1, 4), "genus2": (5, 3, 2, 4), "L-part": (5, 5, 2, 6)}[kind]
+    return {-0.25: 4 * holes}, 2 * (2 * (nx + ny) * n + holes * 4 * n) + corners * p["layers"]
 
 
 @pytest.mark.parametrize("kind", KINDS)

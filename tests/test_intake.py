@@ -563,6 +563,51 @@ def test_ambiguous_corners_are_chosen_to_satisfy_poincare_hopf(prism):
     assert "chosen for Poincare-Hopf" in corners_text(checked.corners)
 
 
+def test_a_flat_corner_ending_a_crease_smooths_the_crease(prism):
+    """With sharp_angle 30 the house prism's 47-degree wall-top edge is a
+    crease too, so the 133-degree corners chosen flat would end a crease: a
+    vertex no axis-aligned surface has (three sharp edges, four quarters),
+    which LM could not follow (it ended at its cap, penalty 3e3).  That
+    crease, ambiguous itself, is treated as smooth; nothing else changes."""
+    from solver.surface.corners import _unrealisable, corners_text
+
+    V, F, _ = prism
+    checked = check_input(V, F, Network(curves=[], sharp_angle=30.0))
+    S, G = checked.surface, checked.features
+    assert _unrealisable(G) == 0
+    for z in (0.0, 0.8):
+        c = corner_at(checked, (2.0, 1.0, z))
+        assert c.turn == 0 and c.smoothed_crease > 0 and len(c.quarters) == 2, c.text()
+        assert corner_at(checked, (0.0, 1.0, z)).smoothed_crease == 0
+    assert "treated as smooth" in corners_text(checked.corners)
+    # the crease is the vertical edge at (2, 1); the others stay sharp
+    E = S.edges[G.sharp]
+    mid = S.V[E].mean(axis=1)
+    assert not np.any(np.all(np.abs(mid[:, :2] - (2.0, 1.0)) < 1e-9, axis=1))
+    rounded = check_input(V, F, Network(curves=[], sharp_angle=50.0))  # that edge was never sharp
+    assert np.array_equal(G.sharp, rounded.features.sharp)
+
+
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_a_hexagonal_prism_whose_corners_are_alternately_flat_meshes():
+    """A hexagonal prism meshed as three quads round a valence-3 centre
+    (testkit/hexnet.py 'hex prism'): its corners of about 120 degrees are
+    ambiguous and three of them must be flat, each ending a vertical crease.
+    Before, LM ended at its cap (penalty 1e4); the creases of the corners
+    chosen flat are now smooth, and the field converges and meshes."""
+    from solver import hexmesh
+    from testkit.hexnet import hexnet_input
+
+    e = hexnet_input("hex prism", 0)
+    r = solve(e["V"], e["F"], e["network"])
+    assert r.report.converged, r.report.status_reason
+    flat = [c for c in r.report.corners if c.smoothed_crease]
+    assert len(flat) == 6 and all(c.turn == 0 for c in flat)  # three per cap
+    h = hexmesh(r).report
+    assert h.valid and h.structure_exact and h.irregular == {3: h.irregular[3]}, h.summary()
+
+
 def test_corner_turns_override_the_choice(prism):
     """Fixing the 133-degree corners as convex corners (turn +1) makes the
     128-degree ones the smooth ones; by position or by vertex index alike."""

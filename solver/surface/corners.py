@@ -31,6 +31,12 @@ takes it to 90 degrees (a corner), another tool to 180 (smooth).  Here
   128-degree corner rounded to 90 between smooth walls: residual quarter
   turns and a penalty of 5e3), so a change that makes a vertex realisable
   goes first and one that makes it unrealisable last;
+* a flat corner that still ends a crease (Poincare-Hopf left no other
+  choice: a hexagonal prism's 120-degree corners, three of which must be
+  flat) makes that crease, where its own dihedral angle is ambiguous, a
+  smooth bend of the wall: its edges are no longer sharp and the corners
+  are quantised again (``_creases_to_smooth``; a hex mesh puts two cells
+  round such a crease);
 * what was chosen is reported per corner (``CornerChoice``), and a failure
   names the corners and the amount missing.
 """
@@ -40,6 +46,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from ..errors import NetworkError, TopologyError
@@ -68,6 +76,7 @@ class CornerChoice:
     rounded_turn: int
     how: str
     ambiguous: bool
+    smoothed_crease: int = 0  # sharp edges of the crease it ended, treated as smooth (``_creases_to_smooth``)
 
     def text(self) -> str:
         secs = ", ".join(f"{a:.1f}" for a in self.sector_deg)
@@ -80,6 +89,9 @@ class CornerChoice:
             s += " (fixed by corner_turns)"
         elif self.ambiguous:
             s += " (ambiguous)"
+        if self.smoothed_crease:
+            s += (f"; the crease it ended ({self.smoothed_crease} sharp edges) is treated as smooth, as a flat "
+                  "corner needs")
         return s
 
 
@@ -155,7 +167,105 @@ def user_corner_vertices(S: TriSurface, G: FeatureGraph, corner_turns) -> dict:
 def resolve_corners(S: TriSurface, G: FeatureGraph, face_sigma: np.ndarray, corner_turns=None):
     """Quantise every sharp sector (module docstring).  Returns (FeatureGraph
     with the chosen ``quarters``, list of CornerChoice).  Raises
-    TopologyError naming the corners when no choice satisfies Poincare-Hopf."""
+    TopologyError naming the corners when no choice satisfies Poincare-Hopf.
+
+    Where the choice leaves flat corners that end a crease (three sharp
+    edges, sectors summing to four quarters: unrealisable), the ambiguous
+    crease each ends is treated as smooth (``_creases_to_smooth``) and the
+    corners are quantised again without it; kept where that leaves fewer
+    unrealisable vertices."""
+    G2, choices = _resolve(S, G, face_sigma, corner_turns)
+    drop = _creases_to_smooth(G2)
+    if drop is None:
+        return G2, choices
+    G3, again = _resolve(S, FeatureGraph(S, G.sharp & ~drop), face_sigma, corner_turns)
+    if _unrealisable(G3) >= _unrealisable(G2):
+        return G2, choices
+    E = S.edges[drop]
+    ends = np.nonzero(np.bincount(E.reshape(-1), minlength=len(S.V)) == 1)[0]  # each crease's two ends
+    count = _crease_sizes(E, len(S.V))
+    for c in again:
+        if c.vertex in ends:
+            c.smoothed_crease = int(count.get(c.vertex, 0))
+    return G3, again
+
+
+def _unrealisable(G: FeatureGraph) -> int:
+    """Feature vertices no axis-aligned surface has (``_realisable``)."""
+    ksum = np.bincount(G.sector_vertex, weights=G.sector_quarters, minlength=len(G.S.V)).astype(int)
+    feat = G.degree > 0
+    return int(np.sum(feat & ~_realisable(G.degree, ksum)))
+
+
+def _crease_sizes(E: np.ndarray, nv: int) -> dict:
+    """{end vertex: number of edges} of the chains (paths) of the edges E."""
+    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nv, nv))
+    _, lab = csgraph.connected_components(A, directed=False)
+    size = np.bincount(lab[E[:, 0]], minlength=lab.max() + 1)
+    deg = np.bincount(E.reshape(-1), minlength=nv)
+    return {int(v): int(size[lab[v]]) for v in np.nonzero(deg == 1)[0]}
+
+
+def _creases_to_smooth(G: FeatureGraph) -> np.ndarray | None:
+    """Sharp edges to treat as smooth, or None: at each flat corner that ends
+    a crease (three sharp edges, sectors summing to 4 quarters: a vertex no
+    axis-aligned surface has, which the field could only follow with a
+    singular curve ending there), the crease whose two sectors there merge
+    into a sector of their summed quarters with the least rounding error
+    (within ``AMBIGUOUS``), followed through its flat vertices to its other
+    end, where its dihedral angle is ambiguous too (its faces' normals more
+    than ``AMBIGUOUS`` from a right angle: a crease a hex mesh may round
+    either way).  A triangular prism whose caps' 120-degree corners are
+    alternately a corner and flat (a triangle split into three quads,
+    meshed so) has such corners: its flat corners' vertical creases are
+    then bends of the wall, one cell column round each (issue 48)."""
+    S = G.S
+    ns, lab = G.sectors
+    sv, theta, k = G.sector_vertex, G.sector_angle, G.sector_quarters
+    ksum = np.bincount(sv, weights=k, minlength=len(S.V)).astype(int)
+    bad = np.nonzero((G.degree == 3) & (ksum == 4))[0]
+    if not len(bad):
+        return None
+    E, ef = S.edges, S.edge_faces
+    ids = np.nonzero(G.sharp)[0]
+    inc: dict[int, list] = {}
+    for e in ids:
+        for v in E[e]:
+            inc.setdefault(int(v), []).append(int(e))
+    N = S.face_normals
+    bend = np.degrees(np.arccos(np.clip(np.sum(N[ef[:, 0]] * N[ef[:, 1]], axis=1), -1.0, 1.0)))
+
+    def corner(f, v):
+        return 3 * int(f) + int(np.nonzero(S.F[f] == v)[0][0])
+
+    def chain(v, e):
+        out, u = [e], int(E[e, 0] if E[e, 1] == v else E[e, 1])
+        while G.degree[u] == 2 and u != v:
+            nxt = [x for x in inc[u] if x != out[-1]]
+            if not nxt or nxt[0] in out:
+                break
+            out.append(nxt[0])
+            u = int(E[nxt[0], 0] if E[nxt[0], 1] == u else E[nxt[0], 1])
+        return out
+
+    drop = np.zeros(len(E), bool)
+    for v in bad:
+        best, best_err = None, np.radians(AMBIGUOUS)
+        for e in inc[int(v)]:
+            s1, s2 = lab[corner(ef[e, 0], v)], lab[corner(ef[e, 1], v)]
+            if s1 == s2 or drop[e]:
+                continue
+            err = abs(theta[s1] + theta[s2] - (k[s1] + k[s2]) * np.pi / 2)
+            c = chain(int(v), e)
+            if err <= best_err and abs(np.mean(bend[c]) - 90.0) > AMBIGUOUS:
+                best, best_err = c, err
+        if best is not None:
+            drop[best] = True
+    return drop if drop.any() else None
+
+
+def _resolve(S: TriSurface, G: FeatureGraph, face_sigma: np.ndarray, corner_turns=None):
+    """resolve_corners' quantisation of the sharp sectors of G, as given."""
     if not np.any(G.sharp):
         return G, []
     ns, slab = G.sectors
