@@ -11,7 +11,8 @@ testkit/hexnet.py family, default options, each run in a fresh process.
 
 Each input is the boundary and the irregular edges of a hex mesh deformed by
 a smooth random map (an O-grid, a cube-sphere, plates with holes, a torus,
-a genus-2 part, a cube with a spherical cavity), so a valid hex mesh with exactly these curves exists.  A
+a genus-2 part, a cube with a spherical cavity, triangular and hexagonal prisms, an L-shaped part), so a
+valid hex mesh with exactly these curves exists.  A
 run solves the field and meshes it with the defaults, as
 ``python -m solver NET.json --hex out.vtu`` does, and is judged by the bars
 of issue 48: converged; 100 % hexes, 0 inverted, min scaled Jacobian >= 0.5,
