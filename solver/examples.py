@@ -347,8 +347,9 @@ def prism_example():
     there; see corners.py).  With sharp_angle 30 (the 47-degree edge sharp
     too) the smooth corner would end that crease, which is then treated as
     smooth as well (corners.py); with 60 the 128-degree corner would be a
-    corner between smooth walls: LM ended at its cap with a penalty of
-    5.0e3."""
+    corner between smooth walls, which no field follows without a singular
+    curve ending there: refused before meshing (LM used to end at its cap
+    with a penalty of 5.0e3)."""
     V, F = prism_surface(house_outline(), 0.8)
     return V, F, Network(curves=[], sharp_angle=50.0)
 

@@ -724,7 +724,7 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         ``'genus2'`` (5 x 3 with two holes: 8 curves of -1/4), ``'hollow'``
         (hollow_cube: a cube with a spherical cavity, 12 curves of -1/4 and
         8 of +1/4 meeting in 8 nodes, the radial ones ending on the cavity),
-        ``'prism'`` (triangle_prism of a random triangle, angles 45-80
+        ``'prism'`` (triangle_prism of a random triangle, angles 30-80
         degrees: one +1/4 curve, sharp edges of those angles), ``'hex
         prism'`` (hexagon_prism of a hexagon with corners of about 120
         degrees: one +1/4 curve; three of its corners flat), ``'L-part'``
@@ -793,9 +793,9 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         V = smooth_deformation(V, rng, p["amplitude"], H=H)
     elif kind == "prism":
         p["n"] = _cycle(seed, (8, 9, 10))
-        while True:  # a triangle whose angles are 45-80 degrees
-            ang = rng.uniform(45.0, 80.0, 2)
-            if 45.0 <= 180.0 - ang.sum() <= 80.0:
+        while True:  # a triangle whose angles are 30-80 degrees
+            ang = rng.uniform(30.0, 80.0, 2)
+            if 30.0 <= 180.0 - ang.sum() <= 80.0:
                 break
         p["angles"] = [round(float(a), 2) for a in (*ang, 180.0 - ang.sum())]
         a, b = np.radians(ang)

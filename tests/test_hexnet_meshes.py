@@ -37,3 +37,29 @@ def test_a_network_read_off_a_hex_mesh_gives_a_hex_mesh_with_every_bar(kind, mes
     assert h.given_extra == 0 and h.given_covered == 1.0, h.summary()
     assert h.given_distance <= h.cell_size, h.summary()
     assert h.hausdorff_relative <= 0.01
+
+
+def test_a_prism_with_an_acute_corner_converges_and_meshes():
+    """A triangular prism whose 35-degree corner is one cell corner (a
+    triangle split into three quads at its centroid).  The frame at that
+    crease and at its ends was fitted freely to the walls' normals, which
+    reads two walls 145 degrees apart as one axis (the flat reading, closer
+    below 45 degrees): it contradicted the corner's quarter, and LM ended at
+    its cap with a penalty of 6e3.  Now the walls go to perpendicular axes
+    (boundary2d: _acute_crease_frame, _cube_corner_frame); the cell at such
+    a corner cannot be better than about sin 35 degrees."""
+    import numpy as np
+
+    from testkit.hexnet import network_from_hexmesh, smooth_deformation, triangle_prism
+
+    a, b = np.radians([35.0, 75.0])
+    x = 2.0 * np.tan(b) / (np.tan(a) + np.tan(b))
+    V, H = triangle_prism([[0.0, 0.0], [2.0, 0.0], [x, x * np.tan(a)]], n=8, thickness=0.8, layers=6)
+    V = smooth_deformation(V, np.random.default_rng(0), 0.02, H=H)
+    Vs, Fs, net = network_from_hexmesh(V, H)
+    r = solve(Vs, Fs, net)
+    assert r.report.converged and r.report.lm.final.penalty < 1.0, r.report.status_reason
+    h = hexmesh(r).report
+    assert h.status == "valid" and h.inverted == 0 and h.sj_min > 0.3, h.summary()
+    assert set(h.irregular) == {3} and h.given_extra == 0 and h.given_covered == 1.0, h.summary()
+    assert h.hausdorff_relative <= 0.01

@@ -608,20 +608,48 @@ def test_a_hexagonal_prism_whose_corners_are_alternately_flat_meshes():
     assert h.valid and h.structure_exact and h.irregular == {3: h.irregular[3]}, h.summary()
 
 
+def test_a_corner_between_smoothly_joined_walls_is_refused_before_meshing(prism):
+    """With sharp_angle 60 the house prism's wall tops (47 and 52 degrees)
+    are smooth, so its 128-degree corners join two sharp edges with a turn:
+    no field follows that without a singular curve ending there (LM ended
+    at its cap, penalty 5e3, after 50 iterations).  It is refused before any
+    meshing, naming the corners, the bend and the fixes; the sharp_angle
+    the message asks for solves."""
+    from solver import TopologyError
+    from solver.network.topology import check_topology
+
+    V, F, _ = prism
+    for run in (lambda n: check_input(V, F, n), lambda n: check_topology(TriSurface(V, F), n)):
+        with pytest.raises(TopologyError) as info:
+            run(Network(curves=[], sharp_angle=60.0))
+        msg = str(info.value)
+        assert "(0, 1, 0)" in msg and "(0, 1, 0.8)" in msg and "turn of +1/4" in msg, msg
+        assert "bending by up to 52 degrees" in msg and "sharp_angle below 52" in msg, msg
+    checked = check_input(V, F, Network(curves=[], sharp_angle=51.0))
+    assert corner_at(checked, (0.0, 1.0, 0.0)).turn == 1
+
+
 def test_corner_turns_override_the_choice(prism):
     """Fixing the 133-degree corners as convex corners (turn +1) makes the
-    128-degree ones the smooth ones; by position or by vertex index alike."""
+    128-degree ones the smooth ones; by position or by vertex index alike.
+    (With sharp_angle 30, so that both wall tops are creases: at 50 the
+    fixed corners would join smoothly bending walls, which is refused.)"""
     V, F, net = prism
-    net2 = Network(curves=[], sharp_angle=50.0, corner_turns={(2.0, 1.0, 0.0): 1, (2.0, 1.0, 0.8): 1})
+    net2 = Network(curves=[], sharp_angle=30.0, corner_turns={(2.0, 1.0, 0.0): 1, (2.0, 1.0, 0.8): 1})
     checked = check_input(V, F, net2)
     for z in (0.0, 0.8):
         assert corner_at(checked, (2.0, 1.0, z)).how == "fixed"
         assert corner_at(checked, (2.0, 1.0, z)).turn == 1
         c128 = corner_at(checked, (0.0, 1.0, z))
         assert c128.how == "chosen" and c128.turn == 0, c128.text()
-    v = corner_at(checked, (2.0, 1.0, 0.8)).vertex
-    net3 = Network(curves=[], sharp_angle=50.0, corner_turns={v: 1})
-    assert corner_at(check_input(V, F, net3), (2.0, 1.0, 0.8)).how == "fixed"
+    ids = {corner_at(checked, (2.0, 1.0, z)).vertex: 1 for z in (0.0, 0.8)}
+    net3 = Network(curves=[], sharp_angle=30.0, corner_turns=ids)
+    assert all(corner_at(check_input(V, F, net3), (2.0, 1.0, z)).how == "fixed" for z in (0.0, 0.8))
+    # one cap's alone: each wall-top crease would be flat at one end and a corner at the other
+    from solver import TopologyError
+
+    with pytest.raises(TopologyError, match="flat corner at the end of a crease"):
+        check_input(V, F, Network(curves=[], sharp_angle=30.0, corner_turns={list(ids)[1]: 1}))
 
 
 def test_impossible_corner_turns_name_the_corners_and_the_amount(prism):

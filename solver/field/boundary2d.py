@@ -658,10 +658,78 @@ def _adapt_feature_frames(S: TriSurface, G: FeatureGraph, E0: np.ndarray) -> Non
         # initialise from the data (a sector normal and the next direction):
         # starting from the averaged vertex normal would sit halfway between
         # two face normals of a sharp edge, a saddle of the fit
-        Ea = best_adapted_frame(dirs_by_v[int(v)])
+        Ea = None
+        if G.degree[v] == 2:
+            Ea = _acute_crease_frame(dirs_by_v[int(v)])
+        elif G.degree[v] == 3 and np.all(G.sector_quarters[sv == v] == 1):
+            Ea = _cube_corner_frame(dirs_by_v[int(v)])
+        if Ea is None:
+            Ea = best_adapted_frame(dirs_by_v[int(v)])
         M = E0[v].T @ Ea
         tr = np.einsum("ij,kji->k", M, CUBE_GROUP)
         E0[v] = Ea @ CUBE_GROUP[np.argmax(tr)]
+
+
+def _acute_crease_frame(dirs: list) -> np.ndarray | None:
+    """The frame at a vertex inside a crease whose walls meet at less than 45
+    degrees (their normals n1, n2 more than 135 apart), or None for other
+    creases.  ``dirs``: the two sector normals, then the two edge
+    directions out of the vertex.  The crease is one cell corner (a sector
+    of one quarter, corners.py), so n1 and n2 go to perpendicular axes:
+    the frame has the crease as an axis and n1 turned towards n2 by half
+    their excess over 90 degrees as another, each normal (angle - 90) / 2
+    off.  The free fit (``best_adapted_frame``) would put them on one axis
+    there, the closer fit of a flat crease, which contradicts the corner's
+    quarter: a triangular prism with a 40-degree corner, split into three
+    quads, ended LM at its cap (penalty 6e3) with 45 degrees converging."""
+    if len(dirs) != 4:
+        return None
+    n1, n2, e1, e2 = (np.asarray(x, float) for x in dirs)
+    d = e1 - e2
+    if np.linalg.norm(d) < 1e-12:
+        return None
+    d /= np.linalg.norm(d)
+    p1, p2 = n1 - (n1 @ d) * d, n2 - (n2 @ d) * d
+    if min(np.linalg.norm(p1), np.linalg.norm(p2)) < 1e-9:
+        return None
+    p1, p2 = p1 / np.linalg.norm(p1), p2 / np.linalg.norm(p2)
+    beta = float(np.arccos(np.clip(p1 @ p2, -1.0, 1.0)))
+    if beta <= 0.75 * np.pi:
+        return None
+    axis = np.cross(p1, p2)
+    axis /= np.linalg.norm(axis)
+    t = 0.5 * (beta - 0.5 * np.pi)
+    x = np.cos(t) * p1 + np.sin(t) * np.cross(axis, p1)
+    return frame_from_axes(x[None], d[None])[0]
+
+
+def _cube_corner_frame(dirs: list) -> np.ndarray | None:
+    """The frame at a convex corner of three sharp edges, each sector one
+    quarter: the rotation taking the three axes to the three edges (out of
+    the vertex) and each sector normal to minus the axis of the edge it
+    does not touch, in the least-squares sense (orthogonal Procrustes with
+    that assignment).  ``dirs``: the three sector normals, then the three
+    edge directions.  The free fit may pair an acute corner's edges with one
+    axis (the flat reading), which contradicts its quarters (the
+    triangular prism of ``_acute_crease_frame``)."""
+    if len(dirs) != 6:
+        return None
+    D = np.asarray(dirs, float)
+    N, Ed = D[:3], D[3:]
+    # the edges to x, y and z, right-handed
+    T = np.eye(3)[[0, 1, 2] if np.linalg.det(Ed) > 0 else [1, 0, 2]]  # the target axis of each edge
+    # a sector's normal is perpendicular to its two edges: minus the third's axis
+    side = np.argmax(np.abs(N @ Ed.T), axis=1)
+    if len(set(side.tolist())) != 3:
+        return None
+    Tn = -T[side]
+    B = Ed.T @ T + N.T @ Tn
+    U, _, Vt = np.linalg.svd(B)
+    R = U @ Vt
+    if np.linalg.det(R) < 0:
+        U[:, -1] *= -1
+        R = U @ Vt
+    return R
 
 
 def _extrinsic_omega(S, G: FeatureGraph, E0, omega2d, edge_normals):

@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from .. import checks
 from ..errors import NetworkError, TopologyError
-from ..surface.corners import explain_failure, resolve_corners
+from ..surface.corners import check_realisable, explain_failure, resolve_corners
 from ..surface.features import (
     FeatureGraph,
     check_poincare_hopf,
@@ -145,6 +145,7 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
         G.check_patches(face_sigma)
     except TopologyError as e:
         explain_failure(S, G, corners, e, face_sigma)
+    check_realisable(G, face_sigma, corners)
     size = network_feature_size(S, pn)
     return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners, intake.scales)
 

@@ -190,6 +190,63 @@ def resolve_corners(S: TriSurface, G: FeatureGraph, face_sigma: np.ndarray, corn
     return G3, again
 
 
+def check_realisable(G: FeatureGraph, face_sigma: np.ndarray, choices: list[CornerChoice]) -> None:
+    """Refuse, before any meshing, a sharp corner no field can follow without
+    a singular curve ending there that the network does not have
+    (``_realisable``): two sharp edges meeting with a turn (a corner between
+    smoothly joined walls), or three with none (a flat corner ending a
+    crease that is not ambiguous).  LM would end at its iteration cap (the
+    house prism with sharp_angle 55-80: 50 iterations, penalty 5e3).  A
+    curve ending on a triangle within two rings of the vertex exempts it;
+    so do crease ends (one sharp edge) and vertices of four or more.
+    The message names each corner, the bend of the smooth edges there, and
+    the three fixes."""
+    S = G.S
+    ksum = np.bincount(G.sector_vertex, weights=G.sector_quarters, minlength=len(S.V)).astype(int)
+    bad = (G.degree >= 2) & (G.degree <= 3) & ~_realisable(G.degree, ksum)
+    if not bad.any():
+        return
+    # vertices within two rings of a curve end
+    ends = np.unique(S.F[np.abs(face_sigma) > 1e-9].reshape(-1))
+    if len(ends):
+        E = S.edges
+        A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
+                          shape=(len(S.V), len(S.V))).tocsr()
+        near = np.zeros(len(S.V), bool)
+        near[ends] = True
+        for _ in range(2):
+            near |= (A @ near.astype(float)) > 0
+        bad &= ~near
+    verts = np.nonzero(bad)[0]
+    if not len(verts):
+        return
+    ef, N = S.edge_faces, S.face_normals
+    bend = np.degrees(np.arccos(np.clip(np.sum(N[ef[:, 0]] * N[ef[:, 1]], axis=1), -1.0, 1.0)))
+    by_vertex = {c.vertex: c for c in choices}
+    lines = []
+    for v in verts[:6]:
+        at = np.nonzero(np.any(S.edges == v, axis=1) & ~G.sharp)[0]
+        b = float(bend[at].max()) if len(at) else 0.0
+        pos = ", ".join(f"{x:.4g}" for x in S.V[v])
+        turn = 4 - int(ksum[v])
+        c = by_vertex.get(int(v))
+        how = " (fixed by corner_turns)" if c is not None and c.how == "fixed" else ""
+        if G.degree[v] == 2:
+            what = (f"two sharp edges meet at a turn of {turn:+d}/4{how}, and the walls beside them join smoothly "
+                    f"(bending by up to {b:.0f} degrees at an edge from there)")
+        else:
+            what = f"three sharp edges meet with no turn{how} (a flat corner at the end of a crease)"
+        lines.append(f"vertex {int(v)} at ({pos}): {what}")
+    more = f"; and {len(verts) - 6} more" if len(verts) > 6 else ""
+    sharpest = [float(bend[np.nonzero(np.any(S.edges == v, axis=1) & ~G.sharp)[0]].max(initial=0.0)) for v in verts]
+    hint = (f"a sharp_angle below {min(sharpest):.0f} degrees (making the bend a crease), " if
+            min(sharpest) > 1.0 else "")
+    raise TopologyError(
+        "no field can follow these sharp corners without a singular curve ending at each, which the network does "
+        f"not have: {'; '.join(lines)}{more}. Fix with {hint}a singular curve ending at the corner, or, where "
+        "Poincare-Hopf allows another choice, corner_turns={vertex: quarter turns} (0 = smooth, 1 = convex)")
+
+
 def _unrealisable(G: FeatureGraph) -> int:
     """Feature vertices no axis-aligned surface has (``_realisable``)."""
     ksum = np.bincount(G.sector_vertex, weights=G.sector_quarters, minlength=len(G.S.V)).astype(int)
@@ -246,8 +303,9 @@ def _creases_to_smooth(G: FeatureGraph) -> np.ndarray | None:
                 break
             out.append(nxt[0])
             u = int(E[nxt[0], 0] if E[nxt[0], 1] == u else E[nxt[0], 1])
-        return out
+        return out, u
 
+    bad_set = set(bad.tolist())
     drop = np.zeros(len(E), bool)
     for v in bad:
         best, best_err = None, np.radians(AMBIGUOUS)
@@ -256,8 +314,11 @@ def _creases_to_smooth(G: FeatureGraph) -> np.ndarray | None:
             if s1 == s2 or drop[e]:
                 continue
             err = abs(theta[s1] + theta[s2] - (k[s1] + k[s2]) * np.pi / 2)
-            c = chain(int(v), e)
-            if err <= best_err and abs(np.mean(bend[c]) - 90.0) > AMBIGUOUS:
+            c, w = chain(int(v), e)
+            # its other end must stay a vertex a field can follow without it
+            # (the sectors there merge: same sum, one sharp edge fewer)
+            keeps = w in bad_set or w == v or bool(_realisable(G.degree[w] - 1, ksum[w])) or G.degree[w] == 1
+            if keeps and err <= best_err and abs(np.mean(bend[c]) - 90.0) > AMBIGUOUS:
                 best, best_err = c, err
         if best is not None:
             drop[best] = True
