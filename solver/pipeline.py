@@ -534,7 +534,7 @@ class Result:
             f = SolvedField(mesh, np.asarray(self.frames), np.asarray(self.omega), p.embedding, p.network,
                             p.checked.surface, np.asarray(p.checked.features.sharp, bool), feature,
                             tube.astype(np.int64), np.asarray(cons.tube_curve[tube], np.int64), int(self.root),
-                            self.report.status, given)
+                            self.report.status, given, p.checked.bends)
         elif f.status != self.report.status:
             f = replace(f, status=self.report.status)
         self._field = f

@@ -38,6 +38,18 @@ def test_the_arrays_round_trip_exactly(solved, example):
     assert g.root == res.root and g.status == res.report.status
 
 
+def test_a_field_stored_without_bends_reads_with_none(solved):
+    """Fields stored before the bends were kept lack 'surface_bends': they
+    read back with none; a wrong one is refused with its name."""
+    f = solved("cylinder").field
+    arrays = f.to_arrays()
+    assert f.bends is None and not arrays["surface_bends"].any()
+    del arrays["surface_bends"]
+    assert SolvedField.from_arrays(arrays).bends is None
+    with pytest.raises(OptionsError, match="bends"):
+        dataclasses.replace(f, bends=np.zeros(3, bool))
+
+
 def test_a_changed_field_is_not_equal(solved):
     f = solved("cylinder").field
     assert dataclasses.replace(f, root=f.root + 1) != f

@@ -174,13 +174,15 @@ def read_field(z: ArraySource) -> dict:
     SF = z.indices("surface_faces", len(SV), "surface vertex ids", (None, 3))
     S = TriSurface(SV, SF)
     sharp = z.array("surface_sharp", "b", (len(S.edges),))
+    # (fields stored before bends were kept have none)
+    bends = z.array("surface_bends", "b", (len(S.edges),)) if z._header("surface_bends") is not None else None
     feature = z.array("feature_vertices", "b", (len(V),))
     tube_edges = z.indices("tube_edges", mesh.n_edges, "edge ids", (None,))
     tube_curve = z.indices("tube_curve", max(len(net.curves), 1), "curve ids", (len(tube_edges),))
     given = _given(z, meta)
     return dict(mesh=mesh, frames=frames, omega=omega, embedding=emb, network=net, surface=S, sharp=sharp,
                 feature_vertices=feature, tube_edges=tube_edges, tube_curve=tube_curve, root=root,
-                status=_status(z, meta), given=given)
+                status=_status(z, meta), given=given, bends=bends)
 
 
 def _meta(z: ArraySource) -> dict:

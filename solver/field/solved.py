@@ -40,6 +40,8 @@ The arrays (flat per-curve data come with ``<name>_offsets``):
 ``feature_vertices``       (#V,) bool: boundary vertices on sharp features
 ``surface_vertices``,      the input surface, and ``surface_sharp`` its
 ``surface_faces``          sharp edges
+``surface_bends``          creases of the input surface made smooth bends
+                           (corners.py; optional, none where absent)
 ``given_points``           the singular curves as the user gave them
 ``meta``                   JSON: the curves' sigma, role, name, ends; the
                            nodes; the status; the given curves' ids
@@ -101,6 +103,10 @@ class SolvedField:
         the singular curves as the user gave them, before the intake
         repaired them: (points (n, 3), sigma, curve id, name) each; None
         where unknown (the repaired curves are then taken)
+    bends : (#surface edges,) bool array or None
+        creases of the input surface the corner quantisation made smooth
+        bends (surface/corners.py), which the hex boundary still follows;
+        None: none
     """
 
     mesh: TetMesh
@@ -116,6 +122,7 @@ class SolvedField:
     root: int = 0
     status: str = "converged"
     given: list | None = None
+    bends: np.ndarray | None = None
 
     def __post_init__(self):
         """Each part of the type and size the others say (cheap checks: the
@@ -146,6 +153,11 @@ class SolvedField:
         if self.status not in STATUSES:
             raise OptionsError(f"SolvedField: its status is {_shown(self.status)}, not 'converged' or "
                                "'not converged'")
+        b = self.bends
+        if b is not None and (not isinstance(b, np.ndarray) or b.dtype.kind != "b" or
+                              b.shape != (len(self.surface.edges),)):
+            raise OptionsError(f"SolvedField: its bends is {_shown(b)}, not None or an array of shape "
+                               f"({len(self.surface.edges)},) (booleans)")
         if self.given is not None and not _given_ok(self.given):
             raise OptionsError(f"SolvedField: its given = {_shown(self.given)}: must be None or a list of "
                                "(points (n, 3), sigma, curve id, name) per singular curve as the user gave it")
@@ -211,6 +223,8 @@ class SolvedField:
         out["surface_vertices"] = np.asarray(self.surface.V, float)
         out["surface_faces"] = np.asarray(self.surface.F, np.int64)
         out["surface_sharp"] = np.asarray(self.sharp, bool)
+        out["surface_bends"] = (np.zeros(len(self.surface.edges), bool) if self.bends is None
+                                else np.asarray(self.bends, bool))
         meta = {"curves": [{"sigma": float(c.sigma), "name": c.name, "role": c.role.value, "source": int(s),
                             "start": k0, "end": k1, "closed": bool(c.closed)}
                            for c, s, k0, k1 in zip(net.curves, net.source, net.start_kind, net.end_kind)],

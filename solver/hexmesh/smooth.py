@@ -32,6 +32,8 @@ from __future__ import annotations
 import copy
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
 
 from ..linalg.lbfgs import lbfgs
 from .quality import (
@@ -303,7 +305,9 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
                  rel: np.ndarray | None = None) -> np.ndarray:
     """Untangle and improve the vertex positions (``optimise``): interior
     vertices freely, boundary vertices along the input surface, vertices of
-    sharp edges and of the network's feature curves along them, vertices of
+    sharp edges and of the network's feature curves along them (and the
+    line of vertices nearest each of the field's bends, ``bend_edges``,
+    first put onto it, its ends held), vertices of
     singular curves held by a spring (the weakest of SPRING, 3, 10 and 100
     times it that keeps them within 0.9 of a cell of their curves); kept
     only if the minimum scaled Jacobian does not drop.
@@ -333,21 +337,20 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
     on_curve = curve_vertices(V, cem, cell)
     q, _ = boundary_quads(H)
     S = inp.surface
-    sharp = S.edges[inp.sharp]
-    segs_a, segs_b = [S.V[sharp[:, 0]]], [S.V[sharp[:, 1]]]
-    # creases of the hex boundary that follow the input's sharp edges (a
-    # crease the cells make on a smooth bend is smoothed like the surface)
-    fe = feature_edges(q, V)
-    if len(fe) and len(sharp):
-        d = segments_distance(0.5 * (V[fe[:, 0]] + V[fe[:, 1]]), segs_a[0], segs_b[0])
-        fe = fe[d <= 0.25 * cell]
-    else:
-        fe = fe[:0]
-    lines = [fe]
+    fe, sa, sb = sharp_lines(V, q, S, inp.sharp, cell)
+    segs_a, segs_b, lines = [sa], [sb], [fe]
+    V0 = V
+    V, be, bend_ends = snap_to_bends(V, q, inp, cell)
+    if len(be):
+        B = S.edges[inp.bends]
+        lines.append(be)
+        segs_a.append(S.V[B[:, 0]])
+        segs_b.append(S.V[B[:, 1]])
     # hex edges along each curve (singular or feature), and the curve itself
     E = np.sort(H[:, HEX_EDGES].reshape(-1, 2), axis=1)
     E = np.unique(E, axis=0)
     fixed = np.zeros(len(V), bool)
+    fixed[bend_ends] = True  # where a bend meets an outline: the corner it ends at
     onb = np.zeros(len(V), bool)
     onb[np.unique(q)] = True
     anchor = np.zeros(len(V), bool)
@@ -367,7 +370,7 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
         segs_a.append(c.points[:-1])
         segs_b.append(c.points[1:])
     sj = scaled_jacobian(V, H)
-    best_min = float(sj.min())
+    best_min = float((sj if V is V0 else scaled_jacobian(V0, H)).min())  # the extracted mesh's
     free = active_vertices(len(V), H, sj, ACTIVE_BELOW, ACTIVE_RINGS)
     cells = free[H].any(axis=1)  # the cells whose energy changes
     motion = BoundaryMotion(V, q, np.vstack(lines), S, (np.vstack(segs_a), np.vstack(segs_b)), fixed).held(free)
@@ -408,7 +411,9 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
         Wa = V + a * (W - V)
         if moved(Wa) <= 0.9 * cell and float(scaled_jacobian(Wa, H).min()) >= best_min:
             return Wa
-    return V
+    if V is not V0 and moved(V) <= 0.9 * cell and float(scaled_jacobian(V, H).min()) >= best_min:
+        return V  # the bends' vertices snapped, nothing else moved
+    return V0
 
 
 def active_vertices(n: int, H: np.ndarray, sj: np.ndarray, below: float = ACTIVE_BELOW,
@@ -421,6 +426,80 @@ def active_vertices(n: int, H: np.ndarray, sj: np.ndarray, below: float = ACTIVE
     for _ in range(rings):
         free[H[free[H].any(axis=1)]] = True
     return free
+
+
+def sharp_lines(V: np.ndarray, quads: np.ndarray, S, sharp: np.ndarray, cell: float):
+    """The creases of the hex boundary that follow the input's sharp edges
+    (a crease the cells make on a smooth bend is smoothed like the surface):
+    ((k, 2) their edges, and the sharp edges' segments A, B)."""
+    E = S.edges[sharp]
+    A, B = S.V[E[:, 0]], S.V[E[:, 1]]
+    fe = feature_edges(quads, V)
+    if len(fe) and len(E):
+        fe = fe[segments_distance(0.5 * (V[fe[:, 0]] + V[fe[:, 1]]), A, B) <= 0.25 * cell]
+    return (fe if len(E) else fe[:0]), A, B
+
+
+def snap_to_bends(V: np.ndarray, quads: np.ndarray, inp, cell: float):
+    """The creases the corner quantisation made smooth bends of the wall
+    (``inp.bends``, corners.py): the line of boundary vertices that runs
+    along each (``bend_edges``) put onto it.  Returns (positions, (k, 2)
+    those lines' edges, the vertices where they end: at the corners)."""
+    none = np.zeros((0, 2), np.int64)
+    if inp.bends is None or not np.any(inp.bends):
+        return V, none, none[:, 0]
+    S = inp.surface
+    B = S.edges[np.asarray(inp.bends, bool)]
+    ba, bb = S.V[B[:, 0]], S.V[B[:, 1]]
+    be = bend_edges(quads, V, ba, bb, cell)
+    if not len(be):
+        return V, none, none[:, 0]
+    V = V.copy()
+    vb = np.unique(be)
+    V[vb] = _closest_on_segments(V[vb], ba, bb)
+    return V, be, np.nonzero(np.bincount(be.reshape(-1), minlength=len(V)) == 1)[0]
+
+
+def bend_edges(quads: np.ndarray, V: np.ndarray, A: np.ndarray, B: np.ndarray, cell: float) -> np.ndarray:
+    """(k, 2) edges of the quad boundary that run along the segments (A, B)
+    (creases of the surface the cells would cut): per crease (a connected
+    chain of segments), the chain of boundary edges nearest it whose ends
+    lie within a cell of it and whose projection onto it keeps at
+    least 0.7 of their length (an edge across it projects to about a
+    point); one chain per crease, so that two grid lines never both go
+    onto it."""
+    E = np.unique(np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    dist = segments_distance(V, A, B)
+    E = E[(dist[E[:, 0]] <= cell) & (dist[E[:, 1]] <= cell)]
+    if not len(E):
+        return E
+    P0, P1 = _closest_on_segments(V[E[:, 0]], A, B), _closest_on_segments(V[E[:, 1]], A, B)
+    E = E[np.linalg.norm(P1 - P0, axis=1) >= 0.7 * np.linalg.norm(V[E[:, 1]] - V[E[:, 0]], axis=1)]
+    if not len(E):
+        return E
+    # the creases: chains of segments sharing end points
+    X = np.vstack([A, B])
+    _, key = np.unique(np.round(X / (1e-9 + 1e-6 * cell)).astype(np.int64), axis=0, return_inverse=True)
+    ns = len(A)
+    G = sp.coo_matrix((np.ones(ns), (key[:ns], key[ns:])), shape=(key.max() + 1,) * 2)
+    _, crease_of_point = csgraph.connected_components(G, directed=False)
+    crease = crease_of_point[key[:ns]]
+    # the chains of hex edges, each on the crease nearest its middle
+    nv = len(V)
+    C = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(nv, nv))
+    _, chain_of = csgraph.connected_components(C, directed=False)
+    chain = chain_of[E[:, 0]]
+    mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]])
+    seg = np.argmin(np.stack([segments_distance(mid, A[i:i + 1], B[i:i + 1]) for i in range(ns)], axis=1), axis=1) \
+        if ns <= 256 else np.zeros(len(E), np.int64)
+    on = crease[seg]
+    keep = np.zeros(len(E), bool)
+    for c in np.unique(on):
+        mine = on == c
+        chains = np.unique(chain[mine])
+        mean = [float(np.mean(dist[E[mine & (chain == k)]])) for k in chains]
+        keep |= mine & (chain == chains[int(np.argmin(mean))])
+    return E[keep]
 
 
 def feature_edges(quads: np.ndarray, V: np.ndarray) -> np.ndarray:

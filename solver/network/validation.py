@@ -51,6 +51,9 @@ class CheckedInput:
     # `scale`, or finer where an end bend needed it (intake.py); the
     # automatic resolution meshes that fine around it (mesh/resolution.py)
     curve_scales: np.ndarray | None = None
+    # (#surface edges,) bool: sharp edges the corner quantisation made smooth
+    # bends (corners.py), which the hex boundary still follows; None: none
+    bends: np.ndarray | None = None
 
 
 def _label(net_curves, k):
@@ -139,7 +142,9 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
     _check_crossings(pn, label, CROSSING_TOLERANCE * h)
     _check_end_points(S, G, end_points, label)
     # -------------------------------------------------------- Poincare-Hopf
+    sharp_given = G.sharp
     G, corners = resolve_corners(S, G, face_sigma, net.corner_turns)
+    bends = sharp_given & ~G.sharp
     try:
         check_poincare_hopf(S, G, face_sigma, "the boundary")
         G.check_patches(face_sigma)
@@ -147,7 +152,8 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
         explain_failure(S, G, corners, e, face_sigma)
     check_realisable(G, face_sigma, corners)
     size = network_feature_size(S, pn)
-    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners, intake.scales)
+    return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners, intake.scales,
+                        bends if bends.any() else None)
 
 
 def _boundary_end(S: TriSurface, P: np.ndarray, end: int, label: str, btol: float, h: float):
