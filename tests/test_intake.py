@@ -623,11 +623,10 @@ def test_a_corner_between_smoothly_joined_walls_is_refused_before_meshing(prism)
     at its cap, penalty 5e3, after 50 iterations).  It is refused before any
     meshing, naming the corners, the bend and the fixes; the sharp_angle
     the message asks for solves."""
-    from solver import TopologyError
-    from solver.network.topology import check_topology
+    from solver import TopologyError, check
 
     V, F, _ = prism
-    for run in (lambda n: check_input(V, F, n), lambda n: check_topology(TriSurface(V, F), n)):
+    for run in (lambda n: check_input(V, F, n), lambda n: check(V, F, n)):
         with pytest.raises(TopologyError) as info:
             run(Network(curves=[], sharp_angle=60.0))
         msg = str(info.value)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import TopologyError
-from ..surface.corners import check_realisable, explain_failure, resolve_corners
+from ..surface.corners import explain_failure, resolve_corners
 from ..surface.features import check_poincare_hopf
 from ..surface.trisurface import TriSurface
 from .network import Network, prepare_network
@@ -43,4 +43,3 @@ def check_topology(S: TriSurface, net: Network) -> None:
         G.check_patches(face_sigma)
     except TopologyError as e:
         explain_failure(S, G, corners, e, face_sigma)
-    check_realisable(G, face_sigma, corners)

@@ -150,7 +150,7 @@ def check_input(V, F, net: Network, check_intersections: bool = True, scale: flo
         G.check_patches(face_sigma)
     except TopologyError as e:
         explain_failure(S, G, corners, e, face_sigma)
-    check_realisable(G, face_sigma, corners)
+    check_realisable(G, np.array([q for _, q in end_points]).reshape(-1, 3), h, corners)
     size = network_feature_size(S, pn)
     return CheckedInput(S, pn, G, face_sigma, size, repairs, h, corners, intake.scales,
                         bends if bends.any() else None)

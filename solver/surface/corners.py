@@ -190,15 +190,16 @@ def resolve_corners(S: TriSurface, G: FeatureGraph, face_sigma: np.ndarray, corn
     return G3, again
 
 
-def check_realisable(G: FeatureGraph, face_sigma: np.ndarray, choices: list[CornerChoice]) -> None:
+def check_realisable(G: FeatureGraph, ends: np.ndarray, radius: float, choices: list[CornerChoice]) -> None:
     """Refuse, before any meshing, a sharp corner no field can follow without
     a singular curve ending there that the network does not have
     (``_realisable``): two sharp edges meeting with a turn (a corner between
     smoothly joined walls), or three with none (a flat corner ending a
     crease that is not ambiguous).  LM would end at its iteration cap (the
     house prism with sharp_angle 55-80: 50 iterations, penalty 5e3).  A
-    curve ending on a triangle within two rings of the vertex exempts it;
-    so do crease ends (one sharp edge) and vertices of four or more.
+    curve end (``ends``, (k, 3) points on the surface) within ``radius`` of
+    the vertex exempts it; so do crease ends (one sharp edge) and vertices
+    of four or more.
     The message names each corner, the bend of the smooth edges there, and
     the three fixes."""
     S = G.S
@@ -206,17 +207,10 @@ def check_realisable(G: FeatureGraph, face_sigma: np.ndarray, choices: list[Corn
     bad = (G.degree >= 2) & (G.degree <= 3) & ~_realisable(G.degree, ksum)
     if not bad.any():
         return
-    # vertices within two rings of a curve end
-    ends = np.unique(S.F[np.abs(face_sigma) > 1e-9].reshape(-1))
-    if len(ends):
-        E = S.edges
-        A = sp.coo_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
-                          shape=(len(S.V), len(S.V))).tocsr()
-        near = np.zeros(len(S.V), bool)
-        near[ends] = True
-        for _ in range(2):
-            near |= (A @ near.astype(float)) > 0
-        bad &= ~near
+    if len(ends):  # a curve ending near the corner may carry its index
+        cand = np.nonzero(bad)[0]
+        d, _ = cKDTree(np.asarray(ends, float)).query(S.V[cand])
+        bad[cand[d <= radius]] = False
     verts = np.nonzero(bad)[0]
     if not len(verts):
         return
