@@ -769,8 +769,7 @@ def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | No
 def _stalled(res: Result) -> bool:
     """LM ran to its iteration cap far from a solution (``_far_from_solution``)."""
     lm = res.report.lm
-    return lm is not None and bool(getattr(lm, "capped", False)) and not res.report.converged and \
-        _far_from_solution(lm.final)
+    return lm is not None and lm.capped and not res.report.converged and _far_from_solution(lm.final)
 
 
 def _fresh_mesh(problem: FieldProblem, res: Result, root, progress, cancel) -> tuple[Result, FieldProblem]:

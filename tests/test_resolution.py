@@ -420,7 +420,7 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
         def solve(self, root=None, progress=None, cancel=None):
             ok = len(made) == want_converged_at
             lm = types.SimpleNamespace(final=types.SimpleNamespace(penalty=0.5 if ok else 9.0 - len(made)),
-                                       converged=True)
+                                       converged=True, capped=False)
             if ok:
                 why, metrics = "ok", {}
             elif failure == "penalty":

@@ -34,6 +34,7 @@ import copy
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
 
 from ..linalg.lbfgs import lbfgs
 from .quality import (
@@ -139,8 +140,6 @@ def corner_energy(V: np.ndarray, H: np.ndarray, cell, eps: float, with_grad: boo
 
 def _closest_on_segments(X: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Closest point to each X (k, 3) on the segment set A -> B (s, 3)."""
-    from scipy.spatial import cKDTree
-
     if not len(A):
         return X.copy()
     mid = 0.5 * (A + B)
@@ -490,8 +489,7 @@ def bend_edges(quads: np.ndarray, V: np.ndarray, A: np.ndarray, B: np.ndarray, c
     _, chain_of = csgraph.connected_components(C, directed=False)
     chain = chain_of[E[:, 0]]
     mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]])
-    seg = np.argmin(np.stack([segments_distance(mid, A[i:i + 1], B[i:i + 1]) for i in range(ns)], axis=1), axis=1) \
-        if ns <= 256 else np.zeros(len(E), np.int64)
+    _, seg = cKDTree(0.5 * (A + B)).query(mid)  # the segment with the nearest middle: its crease
     on = crease[seg]
     keep = np.zeros(len(E), bool)
     for c in np.unique(on):

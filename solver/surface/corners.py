@@ -216,11 +216,15 @@ def check_realisable(G: FeatureGraph, ends: np.ndarray, radius: float, choices: 
         return
     ef, N = S.edge_faces, S.face_normals
     bend = np.degrees(np.arccos(np.clip(np.sum(N[ef[:, 0]] * N[ef[:, 1]], axis=1), -1.0, 1.0)))
+    # the largest bend of a smooth edge at each vertex
+    smooth_bend = np.zeros(len(S.V))
+    soft = ~G.sharp
+    for k in range(2):
+        np.maximum.at(smooth_bend, S.edges[soft, k], bend[soft])
     by_vertex = {c.vertex: c for c in choices}
     lines = []
     for v in verts[:6]:
-        at = np.nonzero(np.any(S.edges == v, axis=1) & ~G.sharp)[0]
-        b = float(bend[at].max()) if len(at) else 0.0
+        b = float(smooth_bend[v])
         pos = ", ".join(f"{x:.4g}" for x in S.V[v])
         turn = 4 - int(ksum[v])
         c = by_vertex.get(int(v))
@@ -232,9 +236,8 @@ def check_realisable(G: FeatureGraph, ends: np.ndarray, radius: float, choices: 
             what = f"three sharp edges meet with no turn{how} (a flat corner at the end of a crease)"
         lines.append(f"vertex {int(v)} at ({pos}): {what}")
     more = f"; and {len(verts) - 6} more" if len(verts) > 6 else ""
-    sharpest = [float(bend[np.nonzero(np.any(S.edges == v, axis=1) & ~G.sharp)[0]].max(initial=0.0)) for v in verts]
-    hint = (f"a sharp_angle below {min(sharpest):.0f} degrees (making the bend a crease), " if
-            min(sharpest) > 1.0 else "")
+    least = float(smooth_bend[verts].min())
+    hint = f"a sharp_angle below {least:.0f} degrees (making the bend a crease), " if least > 1.0 else ""
     raise TopologyError(
         "no field can follow these sharp corners without a singular curve ending at each, which the network does "
         f"not have: {'; '.join(lines)}{more}. Fix with {hint}a singular curve ending at the corner, or, where "
