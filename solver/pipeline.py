@@ -23,7 +23,7 @@ from dataclasses import field as dc_field
 import numpy as np
 
 from . import checks
-from .errors import MeshingError, OptionsError
+from .errors import MeshingError, NetworkError, OptionsError
 from .field.boundary2d import BoundaryField
 from .field.constraints import TUBE, AffineOmega, build_constraints, tube_curvature
 from .field.develop import develop
@@ -47,7 +47,7 @@ from .mesh.resolution import (
 )
 from .mesh.tetmesh import TetMesh
 from .network.network import Network, PreparedNetwork
-from .network.validation import CheckedInput, check_input
+from .network.validation import CheckedInput, LocalScaleError, check_input
 from .report import PENALTY_ABS, PENALTY_REL, Report, adaptation_status, solution_status
 from .stages import Stages
 
@@ -691,15 +691,16 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
             progress("validate", 0.0, f"not resolved at edge length {best_problem.edge_length:.4g}: solving again "
                                       f"on a uniform mesh at {h:.4g} (~{tets:,.0f} tets)")
         try:
-            again = FieldProblem(problem.checked.surface.V, problem.checked.surface.F, problem.given,
-                                 Options(**{**asdict(opts), "edge_length": h}), progress=progress, cancel=cancel)
-        except MeshingError as e:  # past the memory limit, or the mesh lost the boundary's topology
+            again, how = _meshed_again(problem, h, progress, cancel)
+        except (MeshingError, NetworkError) as e:
+            # past the memory limit, the mesh lost the boundary's topology, or
+            # the intake at h (a finer scale) found what the first did not:
+            # the first field stands, never a refusal of the network it took
             tried.append(f"not solved again at edge length {h:.4g}: {e}")
             continue
         res2 = again.solve(root=root, progress=progress, cancel=cancel)
         p0, p2 = best.report.lm.final.penalty, res2.report.lm.final.penalty
-        tried.append(f"solved again on a uniform mesh at edge length {h:.4g} ({again.mesh.n_tets:,} tets): "
-                     f"penalty {p2:.3g}")
+        tried.append(f"solved again on {how} ({again.mesh.n_tets:,} tets): penalty {p2:.3g}")
         if res2.report.converged or p2 < p0:
             best, best_problem = res2, again
         if res2.report.converged:
@@ -754,16 +755,39 @@ def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | No
     if progress is not None:
         progress("validate", 0.0, f"solving again on a uniform mesh at edge length {h:.4g} (~{tets:,.0f} tets)")
     try:
-        again = FieldProblem(problem.checked.surface.V, problem.checked.surface.F, problem.given,
-                             Options(**{**asdict(opts), "edge_length": h}), progress=progress,
-                             cancel=cancel)
-    except MeshingError as e:
+        again, how = _meshed_again(problem, h, progress, cancel)
+    except (MeshingError, NetworkError) as e:
         return None, f"not solved again finer at edge length {h:.4g}: {e}"
     res = again.solve(progress=progress, cancel=cancel)
-    res.report.notes.append(f"solved again on a uniform mesh at edge length {h:.4g} ({again.mesh.n_tets:,} tets), "
+    res.report.notes.append(f"solved again on {how} ({again.mesh.n_tets:,} tets), "
                             f"{FINER} times the {problem.edge_length:.4g} of the first field, for the hex mesh")
-    return res, (f"solved again on a uniform mesh at edge length {h:.4g} ({again.mesh.n_tets:,} tets): "
-                 f"{res.report.status}")
+    return res, f"solved again on {how} ({again.mesh.n_tets:,} tets): {res.report.status}"
+
+
+def _meshed_again(problem: FieldProblem, h: float, progress, cancel) -> tuple[FieldProblem, str]:
+    """The problem's input meshed again at the uniform edge length h, for
+    SymFrames' own solves at an edge length of its choosing (the ladder of
+    solve_resolved, solve_finer), and how, in words.  Where a curve's end
+    repair needs a finer local scale than h (validation.LocalScaleError:
+    a uniform mesh would not follow its bend, refused where the user gave
+    the edge length), the mesh is graded instead, for as many tets as the
+    uniform one would have, finer around that curve (a tet-edge ellipsoid's
+    radial curve, bent 46 degrees at a tip, asked for 0.5 h: the hex
+    stage's finer field was refused as if the user's network were at
+    fault)."""
+    V, F, opts = problem.checked.surface.V, problem.checked.surface.F, problem.options
+    try:
+        return (FieldProblem(V, F, problem.given, Options(**{**asdict(opts), "edge_length": h}), progress=progress,
+                             cancel=cancel), f"a uniform mesh at edge length {h:.4g}")
+    except LocalScaleError as e:
+        tets = int(uniform_tets(solid_volume(problem.checked.surface), h))
+        if progress is not None:
+            progress("validate", 0.0, f"a uniform mesh at {h:.4g} would not follow a curve's end ({e}); graded "
+                                      f"for ~{tets:,} tets instead")
+        again = FieldProblem(V, F, problem.given, Options(**{**asdict(opts), "edge_length": None, "target_tets": tets}),
+                             progress=progress, cancel=cancel)
+        return again, (f"a mesh graded for ~{tets:,} tets (bulk edge length {again.edge_length:.4g}, finer round a "
+                       f"curve's end bend that a uniform mesh at {h:.4g} would not follow)")
 
 
 def _stalled(res: Result) -> bool:

@@ -358,3 +358,34 @@ def test_extraction_follows_a_rotated_chart_across_a_cut():
     raw = extract_hexes(mesh, SimpleNamespace(faces=faces, tets=ab, transition=M), U, cell)
     assert len(raw.hexes) == 8 * 4 * 4 and raw.lost_corners == 0 and raw.duplicate_cells == 0
     assert np.allclose(scaled_jacobian(raw.vertices, raw.hexes), 1.0)
+
+
+def test_a_singular_edge_turns_about_the_curve_even_where_the_frames_lag_its_tangent():
+    """The holonomy around a singular chain edge must be a turn about the
+    curve: about the frame axis nearest its tangent, or one within
+    AXIS_SLACK of it (where a curve's end bends faster than its tets
+    resolve, the frames lag: a tet-edge ellipsoid's tip had the turn's axis
+    50 degrees off the tangent and another axis 46).  A turn about an axis
+    across the curve, or none, is still refused."""
+    import importlib
+
+    tr = importlib.import_module("solver.hexmesh.transitions")
+    quarter_about = {}
+    for g in range(len(CUBE_GROUP)):
+        axis, q = tr.rotation_axis_angle(np.array([g]))
+        if q[0] == 1:
+            quarter_about[int(axis[0])] = g
+    frame = np.eye(3)
+
+    def tangent(deg_from_x, toward):  # a unit vector deg_from_x off x, towards axis `toward`
+        t = np.zeros(3)
+        t[0], t[toward] = np.cos(np.radians(deg_from_x)), np.sin(np.radians(deg_from_x))
+        return t
+
+    assert tr.turns_about_curve(quarter_about[0], frame, tangent(10.0, 2))
+    # the lagging tip: 50 degrees off x, so z is nearer, but within the slack
+    assert tr.turns_about_curve(quarter_about[0], frame, tangent(50.0, 2))
+    assert not tr.turns_about_curve(quarter_about[0], frame, tangent(tr.AXIS_SLACK + 5.0, 2))
+    # a turn about an axis across an aligned curve, and no turn at all
+    assert not tr.turns_about_curve(quarter_about[1], frame, tangent(0.0, 2))
+    assert not tr.turns_about_curve(0, frame, tangent(0.0, 2))

@@ -349,6 +349,55 @@ def test_the_default_spends_what_the_network_asks_and_converges(monkeypatch):
     assert held.tets <= 1.5 * 10_000
 
 
+def test_a_finer_solve_grades_round_a_curve_a_uniform_mesh_would_not_follow(monkeypatch):
+    """SymFrames' own solves at an edge length of its choosing (the ladder,
+    solve_finer for the hex stage) mesh uniformly at it; where a curve's end
+    bend needs a finer local scale than that (validation.LocalScaleError,
+    a refusal only where the user gave the edge length: a tet-edge
+    ellipsoid's finer field was refused as if its network were at fault),
+    the mesh is graded for as many tets instead, and the words say so.  A
+    finer solve that the intake refuses otherwise leaves the first field
+    standing, said, never a refusal.  The meshings are stand-ins."""
+    import types
+
+    import solver.pipeline as pl
+    from solver.errors import NetworkError
+    from solver.mesh.resolution import solid_volume, uniform_tets
+    from solver.network.validation import LocalScaleError
+
+    V, F, _ = cube_example()
+    from solver.surface.trisurface import TriSurface
+
+    S = TriSurface(V, F)
+    made = []
+
+    class Fake:
+        def __init__(self, V, F, net, opts, progress=None, cancel=None):
+            made.append(opts)
+            if opts.edge_length is not None:
+                raise LocalScaleError("curve 3 'tip' is too short to bend its oblique end(s) onto the normal")
+            self.edge_length = 0.21
+
+    monkeypatch.setattr(pl, "FieldProblem", Fake)
+    problem = types.SimpleNamespace(checked=types.SimpleNamespace(surface=S), options=Options(), given=Network())
+    said = []
+    again, how = pl._meshed_again(problem, 0.1, lambda stage, frac, msg: said.append(msg), None)
+    assert isinstance(again, Fake) and made[0].edge_length == 0.1 and made[1].edge_length is None
+    assert made[1].target_tets == int(uniform_tets(solid_volume(S), 0.1))
+    assert how.startswith("a mesh graded for") and "0.21" in how and "would not follow" in how
+    assert any("too short to bend" in m for m in said)
+
+    def refused(*a, **kw):
+        raise NetworkError("curve 0 kinks at the finer scale")
+
+    monkeypatch.setattr(pl, "_meshed_again", refused)
+    first = types.SimpleNamespace(edge_length=0.15, options=Options(), checked=problem.checked)
+    result = types.SimpleNamespace(problem=first)
+    monkeypatch.setattr(pl.checks, "instance", lambda *a, **kw: None)
+    none, why = pl.solve_finer(result)
+    assert none is None and why.startswith("not solved again finer at edge length") and "kinks" in why
+
+
 def test_a_stalled_lm_is_solved_again_on_a_fresh_mesh(monkeypatch):
     """LM that ran to its cap far from a solution on an fTetWild mesh (the
     O-grid torus, 2 of 29 meshes; a holed block with a singular pair, once)

@@ -35,7 +35,9 @@ curves (each once), or two loose ends of curves with the same index,
 role and torsion (strokes of one curve, then joined into one by
 network.prepare_network); all move to the node the others already
 form, or to their mean.  And a hand-drawn curve rarely ends
-exactly on the surface.  A boundary end up to ``END_GAP * h`` outside
+exactly on the surface.  A chain whose last stretch runs along the surface (up to
+``END_GAP * h``) is cut where it first reached it (``cut_surface_run``).
+A boundary end up to ``END_GAP * h`` outside
 the solid is cut back to where the curve crosses the surface; one up to
 ``END_GAP * h`` inside is extended along its last chord (of length h) to
 the surface.  Farther ends are left for validation to refuse, with the
@@ -58,6 +60,7 @@ BEND_LENGTH = 3.0  # bent stretch, in units of h ...
 BEND_FRACTION = 0.5  # ... and at most this fraction of the curve's length where both its ends are bent,
 BEND_FRACTION_ONE_END = 0.8  # ... or this fraction where only one end is (its other end a node)
 END_GAP = 2.0  # boundary ends at most this many h outside or inside the surface are cut back or extended onto it
+ON_SURFACE = 1e-3  # a stretch within this much of the bounding box diagonal runs along the surface
 NODE_GAP = 1.0  # loose curve ends within this many h of (the centre of) others join them at a node
 
 
@@ -71,11 +74,12 @@ class EndBend:
     position: tuple = ()
     input_angle_deg: float = 0.0  # the same for the curve as given (its last edge's angle can be larger)
     slid_h: float = 0.0  # how far the end moved along the surface while faired, in units of h
-    gap: str = ""  # 'cut back' (the end was outside the solid) or 'extended' (inside), else ''
-    gap_h: float = 0.0  # how far the given end was from the surface, in units of h
+    gap: str = ""  # 'cut back' (the end was outside the solid), 'extended' (inside) or 'cut back along the surface'
+    gap_h: float = 0.0  # how far the given end was from the surface (along it: the stretch cut), in units of h
 
     def text(self) -> str:
-        how = [f"{self.gap} {self.gap_h:.2f} h to the surface"] if self.gap else []
+        along = self.gap == "cut back along the surface"
+        how = [f"{self.gap} {self.gap_h:.2f} h" + ("" if along else " to the surface")] if self.gap else []
         if self.slid_h > 1e-3:
             how.append(f"slid {self.slid_h:.2f} h along the surface")
         if self.length_h > 0:
@@ -255,6 +259,34 @@ def _surface_crossing(S: TriSurface, a: np.ndarray, b: np.ndarray) -> np.ndarray
         else:
             b = m
     return 0.5 * (a + b)
+
+
+def cut_surface_run(S: TriSurface, P: np.ndarray, limit: float):
+    """P without a last stretch that runs along the surface (step 0 of the
+    module docstring): a chain of tet edges routed to a boundary vertex can
+    reach the surface one vertex early and follow a boundary edge to its
+    end (the cube-sphere stretched into an ellipsoid, its radial curves
+    36-50 degrees off the normal, routed through an independent mesh: its
+    last edge on the surface, 78 degrees off the normal, and partly
+    outside, refused).  A singular curve carries no meaning along the
+    boundary, and the chain's end is where it first reached it.  Returns
+    (points, 'cut back along the surface' or '', the stretch's length): cut
+    where the points and the segments' middles all lie within
+    ``ON_SURFACE`` of the bounding box diagonal of the surface (fTetWild's
+    envelope: a mesh's boundary vertices lie within it), from the end back,
+    when that stretch is no longer than limit."""
+    if len(P) < 3:
+        return P, "", 0.0
+    tol = ON_SURFACE * S.bbox_diagonal
+    d, _, _ = S.closest_points(P)
+    m, _, _ = S.closest_points(0.5 * (P[1:] + P[:-1]))
+    k = len(P) - 1
+    while k > 1 and d[k - 1] <= tol and m[k - 1] <= tol:
+        k -= 1
+    run = float(np.linalg.norm(np.diff(P[k:], axis=0), axis=1).sum())
+    if k == len(P) - 1 or run <= tol or run > limit:
+        return P, "", 0.0
+    return P[: k + 1], "cut back along the surface", run
 
 
 def close_end_gap(S: TriSurface, P: np.ndarray, h: float, tol: float, limit: float):

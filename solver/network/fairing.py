@@ -38,8 +38,9 @@ fairs it at a length tied to the mesh, never to the bounding box:
    mesh edges, a fifth of h for a smooth curve -- and near a boundary end
    as far as the end may slide: the least sum of
    |P_(i-1) - 2 P_i + P_(i+1)|^2 (a discrete cubic spline) with nodes and corners held, boundary ends
-   free to move in their tangent plane (by at most ``SLIDE_MAX * l`` from
-   the input end) and the curve meeting the surface along the normal
+   free to move in their tangent plane (by at most ``SLIDE_MAX`` h from the
+   input end for a smooth curve, ``SLIDE_MAX`` l for a chain of mesh
+   edges) and the curve meeting the surface along the normal
    (each end's neighbour against its mirror image in that plane); points
    beyond the band are pulled back to its edge by a penalty that grows
    from faint round by round.  A shape smaller than an edge of the chain
@@ -50,11 +51,12 @@ fairs it at a length tied to the mesh, never to the bounding box:
    tangent plane (the curve continued by reflection, which crosses the
    surface at right angles), so it moves towards the foot of the curve
    and the last stretch turns onto the normal smoothly, over the fairing
-   width (by at most ``SLIDE_MAX * l``, half an edge of the chain's mesh:
-   the hex cells of the default size are 0.8-0.9 h, and ends slid a whole
-   h left the given radial curves of ellipsoids 50-85 % within a cell of
-   the hex mesh's irregular edges, 100 % at half; the plane follows the
-   surface).  What the slide leaves of the end's angle is bent within the
+   width (by at most ``SLIDE_MAX`` times what the input leaves uncertain
+   there: half an edge of a chain's mesh, h/2 for a smooth curve, however
+   long its segments; the hex cells of the default size are 0.8-0.9 h, and
+   ends slid a whole h left the given radial curves of ellipsoids 50-85 %
+   within a cell of the hex mesh's irregular edges, 100 % at half; the
+   plane follows the surface).  What the slide leaves of the end's angle is bent within the
    curve.
 """
 
@@ -77,8 +79,9 @@ BAND = 1.0  # least bending keeps every point within BAND * l of the input, at m
 ROUGH = 3.0  # ... and within ROUGH times the input's own roughness (roughness())
 SMOOTH_BAND = 0.2  # ... but never closer than SMOOTH_BAND * h: a smooth input is kept to a fifth of an edge
 END_REACH = 4.0  # ... and near a boundary end within its slide, over END_REACH * l
-SLIDE_MAX = 0.5  # a boundary end slides along the surface by at most this many l while faired ...
+SLIDE_MAX = 0.5  # a boundary end slides along the surface by at most this many h (a smooth curve) or l ...
 FREE_SLIDE_MAX = 1.0  # ... this many where no slide limit is given (an end far off the normal)
+SMOOTH_ROUGH = 0.05  # a polyline straying less than this much of a segment at its median vertex is smooth
 
 
 def _corner_knots(P: np.ndarray, ell: float, closed: bool) -> np.ndarray:
@@ -184,6 +187,20 @@ def roughness(P: np.ndarray, reach: int = 2) -> np.ndarray:
     return np.max(np.lib.stride_tricks.sliding_window_view(pad, 2 * reach + 1), axis=1)
 
 
+def _smooth(P: np.ndarray) -> bool:
+    """Whether the polyline P is a smooth curve rather than a chain of mesh
+    edges: at least three inner vertices, and at its median one it strays
+    from the middle of its neighbours (``roughness``) by less than
+    ``SMOOTH_ROUGH`` of its median segment.  A chain of tet edges zig-zags
+    by 0.3-0.5 of an edge at most of its vertices; a curve read off a hex
+    mesh or drawn smooth by a few thousandths, and by more only at its real
+    corners.  (A chain of one or two edges reads as a chain.)"""
+    if len(P) < 5:
+        return False
+    seg = float(np.median(np.linalg.norm(np.diff(P, axis=0), axis=1)))
+    return float(np.median(roughness(P, reach=0)[1:-1])) < SMOOTH_ROUGH * seg
+
+
 def _laplacian_fair(P: np.ndarray, fixed: np.ndarray, closed: bool, iterations: int,
                     slide: dict | None = None, slide_max: dict | None = None, project=None) -> np.ndarray:
     """Explicit Laplacian smoothing (step 1/2) with the fixed vertices held.
@@ -239,8 +256,9 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
                slide_limit: dict | None = None):
     """Steps 1-5 of the module docstring.  slide: {0 or -1: outward normal}
     of boundary ends that may slide along the surface (``_laplacian_fair``;
-    by at most ``SLIDE_MAX * l``, or by slide_limit[end] (a length) where
-    given and smaller; with no slide_limit, by ``FREE_SLIDE_MAX * l``, every
+    by at most ``SLIDE_MAX`` h for a smooth curve (``_smooth``), l for a
+    chain, or by slide_limit[end] (a length) where given and smaller; with
+    no slide_limit, by ``FREE_SLIDE_MAX`` h or l, every
     point within ``BAND * l``; project: its surface projection).
     Returns (points, merged count, fairing length l, corner count, fixed
     mask)."""
@@ -280,11 +298,21 @@ def fair_curve(P: np.ndarray, h: float, closed: bool, slide: dict | None = None,
         # the chain's own uncertainty allows, a whole edge (a radial curve
         # bowed by 0.45 of its length, 69 degrees off, held to its roughness
         # and half an edge, kinked by 66 degrees at every local scale)
+        # (a smooth curve's end by as many h: its points are where they were put)
         band_at = np.full(len(Pm), BAND * ell)
-        lim = {e: FREE_SLIDE_MAX * ell for e in slide}
+        lim = {e: FREE_SLIDE_MAX * (h if _smooth(Pm) else ell) for e in slide}
     else:
         band_at = np.clip(ROUGH * roughness(Pm), SMOOTH_BAND * h, BAND * ell)
-        lim = {e: min(SLIDE_MAX * ell, float((slide_limit or {}).get(e, np.inf))) for e in (slide or {})}
+        # an end slides by at most SLIDE_MAX times what the input leaves
+        # uncertain: an edge of a chain of mesh edges, h for a smooth curve,
+        # whose points are where the user put them however long its
+        # segments (a cube-sphere stretched into an ellipsoid, its radial
+        # curves 1.4 h per segment and 36-50 degrees off the normal: ends
+        # slid 0.72 h, 1.04 cells of the finer size the Hausdorff distance
+        # steps down to, 6-8 irregular edges more than a cell off the given
+        # curves; held to h/2, 0.73 cells and none, at the same penalty)
+        unc = h if _smooth(Pm) else ell
+        lim = {e: min(SLIDE_MAX * unc, float((slide_limit or {}).get(e, np.inf))) for e in (slide or {})}
     # near a boundary end the curve turns onto the normal: there it may
     # move as far as the end may slide, less and less over END_REACH l (a
     # bow reaching the caps 32 degrees off, held to its roughness, turned

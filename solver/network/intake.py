@@ -9,8 +9,9 @@ that will carry the field it is a smooth curve.  So every interior curve is
 cleaned and faired at a length tied to the mesh, never to the bounding box:
 
 0. *loose node ends* and *end gaps*: ends drawn to meet at a node join it,
-   ends near the surface are cut back or extended onto it
-   (curve_ends.join_loose_ends, close_end_gap);
+   ends near the surface are cut back or extended onto it, a last stretch
+   running along the surface is cut (curve_ends.join_loose_ends,
+   close_end_gap, cut_surface_run);
 1-5. merge close points, find real corners, resample, fair and bend as
    little as the chain's own uncertainty allows, the boundary ends
    sliding along the surface (fairing.fair_curve);
@@ -37,6 +38,7 @@ from .curve_ends import (
     EndBend,
     bend_end,
     close_end_gap,
+    cut_surface_run,
     end_chord_angle,
     surface_normal_at,
 )
@@ -171,7 +173,8 @@ def slide_limit(S: TriSurface, P: np.ndarray, h: float) -> float:
     """How far the boundary end P[-1] may slide along the surface while its
     curve is faired: ``SLIDE_PER_TAN * h * tan`` of its chord's angle to the
     normal (an end 4 degrees off slides at most 0.42 h), within
-    fairing.SLIDE_MAX l.  Sliding costs the field far less than
+    fairing.SLIDE_MAX times the input's uncertainty there (h/2 for a smooth
+    curve, half an edge for a chain of mesh edges).  Sliding costs the field far less than
     bending (on the cube-sphere networks of testkit/hexnet.py, whose short
     radial curves reach the sphere 1-4 degrees off, ends held to 3 h tan
     were bent over most of their length and left penalties of 3-6; at
@@ -278,6 +281,9 @@ def repair_network(S: TriSurface, pn: PreparedNetwork, h: float, names: list,
                 if kind == "boundary":
                     R, how, d = close_end_gap(S, P0 if end == 1 else P0[::-1], h, boundary_tolerance,
                                               END_GAP * h)
+                    if not how:
+                        R, how, run = cut_surface_run(S, R, END_GAP * h)
+                        d = run
                     if how:
                         P0 = R if end == 1 else R[::-1]
                         gaps[end] = (how, d / h)

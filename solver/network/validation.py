@@ -369,6 +369,13 @@ def _check_kinks(P, closed, label, h, corners=None, repaired=None):
     )
 
 
+class LocalScaleError(NetworkError):
+    """A NetworkError: a curve's end repair needs a finer local scale than
+    the edge length given (``_check_local_scales``).  SymFrames' own solves
+    at an edge length of its choosing (pipeline.solve_resolved's ladder,
+    solve_finer) grade the mesh around that curve instead."""
+
+
 def _check_local_scales(scales: np.ndarray, h: float, repairs: list, label) -> None:
     """With the edge length given, a curve whose end repair needs a finer
     local scale than h (intake.py) is refused with that scale: the mesh is
@@ -378,7 +385,7 @@ def _check_local_scales(scales: np.ndarray, h: float, repairs: list, label) -> N
     if len(bad):
         ci = int(bad[np.argmin(scales[bad])])
         ends = "; ".join(b.text() for b in repairs[ci].ends) if ci < len(repairs) else ""
-        raise NetworkError(
+        raise LocalScaleError(
             f"{label(ci)} is too short to bend its oblique end(s) onto the normal at the edge length {h:.4g}: the "
             f"bend turns by more than {MAX_KINK:.0f} degrees over h, and stays within it at {scales[ci]:.3g} "
             f"({scales[ci] / h:.2g} h)" + (f" ({ends})" if ends else "") + f". Use an edge length of at most "
