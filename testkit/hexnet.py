@@ -38,7 +38,7 @@ from solver.hexmesh.quality import boundary_quads, edge_valences, scaled_jacobia
 from solver.network.network import Curve, Network, cluster_points
 
 KINDS = ("ball", "ellipsoid", "blob", "cylinder", "bent bar", "torus", "plate", "genus2", "hollow", "prism",
-         "hex prism", "L-part")
+         "hex prism", "L-part", "polygon cylinder")
 """The kinds ``hexnet_input`` makes."""
 
 MIRROR = np.array([0, 3, 2, 1, 4, 7, 6, 5])  # a VTK hex's corners with x and y swapped: the orientation flipped
@@ -405,6 +405,34 @@ def o_grid_disk(n: int = 6, m: int | None = None, radius: float = 1.0,
     return _assemble(blocks)
 
 
+def polygon_disk(k: int, n: int = 4, m: int = 4, radius: float = 1.0,
+                 inner: float = 0.45) -> tuple[np.ndarray, np.ndarray]:
+    """The quad mesh of a disk around a regular k-gon of circumradius
+    ``inner * radius``: the k-gon split into k quads at its centre (n x n
+    each: centre, edge middle, corner, edge middle) and k blocks of 2n x m
+    quads from its sides to the circle.  The centre has valence k (index
+    (4 - k) / 4: -1/4, -1/2, -3/4 for k = 5, 6, 7), the k-gon's corners
+    valence 3 (+1/4); the indices sum to 1, the disk's.
+    Returns (V2 (p, 2), Q (q, 4) counter-clockwise)."""
+    th = np.pi / 2 + 2 * np.pi * np.arange(k) / k
+    C = inner * radius * np.c_[np.cos(th), np.sin(th)]
+    g = np.linspace(0.0, 1.0, n + 1)
+    s, t = (a[..., None] for a in np.meshgrid(g, g, indexing="ij"))
+    blocks = []
+    for j in range(k):
+        a, nxt, prev = C[j], C[(j + 1) % k], C[j - 1]
+        p1, p3 = 0.5 * (a + prev), 0.5 * (a + nxt)
+        blocks.append(s * (1 - t) * p1 + s * t * a + (1 - s) * t * p3)  # the centre is the origin
+    ss, tt = np.meshgrid(np.linspace(0.0, 1.0, 2 * n + 1), np.linspace(0.0, 1.0, m + 1), indexing="ij")
+    for j in range(k):
+        a, b = C[j], C[(j + 1) % k]
+        side = a + (b - a) * ss[..., None]  # the k-gon's side, its middle a grid line (n segments each half)
+        ang = th[j] + ss * (2 * np.pi / k)
+        arc = radius * np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+        blocks.append((1 - tt[..., None]) * side + tt[..., None] * arc)
+    return _assemble(blocks)
+
+
 def o_grid_cylinder(n: int = 6, m: int | None = None, layers: int = 12, radius: float = 1.0, height: float = 2.0,
                     inner: float = 0.45) -> tuple[np.ndarray, np.ndarray]:
     """The 5-block disk (``o_grid_disk``) extruded along z over
@@ -729,7 +757,9 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         prism'`` (hexagon_prism of a hexagon with corners of about 120
         degrees: one +1/4 curve; three of its corners flat), ``'L-part'``
         (plate_with_holes on 5 x 5 cells without the 2 x 2 corner block: a
-        concave sharp edge, two holes, 8 curves of -1/4).
+        concave sharp edge, two holes, 8 curves of -1/4), ``'polygon
+        cylinder'`` (polygon_disk extruded: an axis of valence 5, 6 or 7 --
+        index -1/4, -1/2, -3/4 -- in a ring of k curves of +1/4).
     seed : int
         Varies the resolution n, proportions and deformation.
 
@@ -775,6 +805,17 @@ def hexnet_input(kind: str, seed: int = 0) -> dict:
         p["amplitude"] = float(rng.uniform(0.01, 0.03)) if bar else float(rng.uniform(0.02, 0.05))
         V = smooth_deformation(V, rng, p["amplitude"], bend=p.get("bend", 0.0), twist=p.get("twist", 0.0), H=H,
                                axis=2)
+    elif kind == "polygon cylinder":
+        p["k"] = _cycle(seed, (5, 6, 7))
+        p["n"] = _cycle(seed // 3, (3, 4))
+        p["inner"] = float(rng.uniform(0.4, 0.5))
+        p["height"] = float(rng.uniform(1.5, 2.5))
+        p["layers"] = max(4, int(round(p["height"] / (1.2 * p["inner"] / p["n"]))))
+        V2, Q = polygon_disk(p["k"], p["n"], p["n"], 1.0, p["inner"])
+        V, H = extrude(V2, Q, np.linspace(-p["height"] / 2, p["height"] / 2, p["layers"] + 1))
+        H = _orient(V, H)
+        p["amplitude"] = float(rng.uniform(0.02, 0.05))
+        V = smooth_deformation(V, rng, p["amplitude"], H=H, axis=2)
     elif kind == "torus":
         p["n"] = _cycle(seed, (4, 5))
         p["minor"] = float(rng.uniform(0.35, 0.45))

@@ -27,6 +27,30 @@ def test_kinds_name_whose_limit_it_is(solved):
     with pytest.raises(HexMeshError, match="valence 2") as e:
         hexmesh(inp)
     assert e.value.kind == "network"
+    # index -1 (valence 8): whole turns, a limit of SymFrames' map, said before any hex work
+    inp = with_curve(res.field, 0, sigma=-1.0)
+    with pytest.raises(HexMeshError, match="valence 8.*whole turns.*a limit of SymFrames") as e:
+        hexmesh(inp)
+    assert e.value.kind == "map" and e.value.report is None
+
+
+def test_a_whole_turn_curve_is_refused_before_the_solve(tmp_path, capsys):
+    """The command line checks the indices before any work: a curve of index
+    -1 with --hex is exit 4, said as a limit of SymFrames, nothing solved."""
+    from solver import Curve, Network
+    from solver.examples import load_example
+
+    V, F, net = load_example("cylinder")
+    curves = [Curve(c.points, -1.0 if i == 0 else c.sigma, c.role, c.torsion, c.name)
+              for i, c in enumerate(net.curves)]
+    net_path = str(tmp_path / "net.json")
+    io.write_obj(str(tmp_path / "c.obj"), V, F)
+    io.write_network(net_path, Network(curves, sharp_angle=net.sharp_angle), surface="c.obj")
+    out = str(tmp_path / "c.vtu")
+    assert main([net_path, "--hex", out, "-q"]) == EXIT_NO_HEX_MESH
+    err = capsys.readouterr().err
+    assert "limit of SymFrames" in err and "valence 8" in err and "nothing was solved" in err
+    assert not os.path.exists(out)
 
 
 @pytest.mark.slow

@@ -173,6 +173,8 @@ def _expected(kind, p):
         return {0.25: 1}, 2 * 6 * n + 3 * p["layers"]
     if kind == "hex prism":  # the hexagon's outline on both faces, 3 of its 6 corners: the creases of the 3
         return {0.25: 1}, 2 * 6 * n + 3 * p["layers"]  # corners chosen flat are smooth (corners.py)
+    if kind == "polygon cylinder":  # the axis of valence k in a ring of k +1/4 curves; the two rims (2 n k each)
+        return {(4 - p["k"]) / 4: 1, 0.25: p["k"]}, 2 * 2 * n * p["k"]
     # the outline on both faces, each hole's ring on both, the vertical corners (5 convex and
     # 1 concave for the L)
     nx, ny, holes, corners = {"plate": (3, 3, 1, 4), "genus2": (5, 3, 2, 4), "L-part": (5, 5, 2, 6)}[kind]

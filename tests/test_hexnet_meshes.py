@@ -20,9 +20,11 @@ pytestmark = [pytest.mark.slow, pytest.mark.mesher]
 # ladder (docs/limitations.md); 1 (mesh, cell size) pair in 81 is still
 # folded after rounding, which is SymFrames' limit, said as such, but not a
 # bar this test may depend on.
-@pytest.mark.parametrize("kind, mesher", [("cylinder", None), ("plate", None), ("genus2", "TetGen")])
-def test_a_network_read_off_a_hex_mesh_gives_a_hex_mesh_with_every_bar(kind, mesher):
-    d = hexnet_input(kind, 0)
+# (the polygon cylinder of seed 1: an axis of index -1/2, valence 6, in a ring of six +1/4 curves)
+@pytest.mark.parametrize("kind, mesher, seed", [("cylinder", None, 0), ("plate", None, 0), ("genus2", "TetGen", 0),
+                                                ("polygon cylinder", None, 1)])
+def test_a_network_read_off_a_hex_mesh_gives_a_hex_mesh_with_every_bar(kind, mesher, seed):
+    d = hexnet_input(kind, seed)
     r = solve(d["V"], d["F"], d["network"], **({"mesher": mesher} if mesher else {}))
     assert r.report.converged, r.report.status_reason
     hm = hexmesh(r)

@@ -12,7 +12,12 @@ from ..field.solved import SolvedField, as_field, field_fault
 def check_indices(curves, sources=None, error=None) -> None:
     """Refuse a network no hex mesh can have, from the network alone: a
     curve of index sigma becomes hex edges of valence 4 - 4 sigma, and
-    valence 2 or less means cells meeting flat, which no valid hex mesh has.
+    valence 2 or less means cells meeting flat, which no valid hex mesh has
+    (kind 'network').  Also a curve of index -1, -2, ... (valence 8, 12,
+    ...), which SymFrames' map cannot make (kind 'map': the frames turn by
+    whole turns about it, which the cube group cannot tell from none; an
+    8-gon O-grid cylinder's index -1 axis, its field converged, gave a
+    mesh with no edge of valence 8 and the wrong boundary).
 
     Parameters
     ----------
@@ -20,22 +25,29 @@ def check_indices(curves, sources=None, error=None) -> None:
         the network's curves (a Network's or a PreparedNetwork's)
     sources : list of int, optional
         the number of each curve as the user gave it (default: its position)
-    error : callable(message) -> exception, optional
-        default: a HexMeshError of kind 'network'
+    error : callable(message, kind) -> exception, optional
+        default: a HexMeshError of that kind
 
     Raises
     ------
     HexMeshError (or what ``error`` makes)
-        naming the first curve of index +1/2 or more
+        naming the first curve of index +1/2 or more, or -1, -2, ...
     """
-    fail = error or (lambda msg: HexMeshError(msg, kind="network"))
+    fail = error or (lambda msg, kind="network": HexMeshError(msg, kind=kind))
     for i, c in enumerate(curves):
+        name = f" '{c.name}'" if c.name else ""
         if float(c.sigma) >= 0.5:
-            name = f" '{c.name}'" if c.name else ""
             raise fail(f"curve {i if sources is None else sources[i]}{name} has index {float(c.sigma):+g}: its hex "
                        f"edges would have valence {int(round(4 - 4 * float(c.sigma)))}, cells meeting flat, which "
                        "no valid hex mesh has; use curves of index +1/4 (valence 3) or negative indices (valence 5, "
                        "6, ...)")
+        if float(c.sigma) < 0 and round(4 * float(c.sigma)) % 4 == 0:
+            raise fail(f"curve {i if sources is None else sources[i]}{name} has index {float(c.sigma):+g} (hex edges "
+                       f"of valence {int(round(4 - 4 * float(c.sigma)))}): the frames turn by whole turns around it, "
+                       "which SymFrames' map cannot tell from no turn at all, so it cannot make those edges (a limit "
+                       "of SymFrames, not of the network: such hex meshes exist; indices -1/4, -1/2 and -3/4 are "
+                       "meshed). The field itself solves; split the curve's turn between nearby curves of smaller "
+                       "index to hex mesh it", kind="map")
 
 
 def hex_input(field, what: str) -> SolvedField:
