@@ -139,3 +139,24 @@ def test_a_mesh_clear_of_the_curves_and_the_skipped_balls_stay_as_they_are():
     assert moved > 0
     near = np.linalg.norm(mesh.vertices - 0.5, axis=1) <= 0.1
     assert np.array_equal(out.vertices[near], mesh.vertices[near])
+
+
+def test_a_clustered_surface_that_is_not_manifold_is_cleared_too():
+    """A dense surface clustered for the mesher (decimate.py) need not be
+    manifold where a thin part collapsed (a collared shaft: 2 edges of 4
+    triangles); the sharp vertices were found with the dihedral angles of a
+    manifold surface, and an IndexError reached the user.  Two spheres
+    glued along one edge (the second the first mirrored in a plane through
+    that edge): a curve end on a vertex is cleared, and the glued edge's
+    vertices (on an edge of 4 triangles) stay where they are."""
+    V1, F1 = icosphere(2)
+    a, b = TriSurface(V1, F1).edges[0]
+    n = (V1[a] + V1[b]) / np.linalg.norm(V1[a] + V1[b])
+    V2 = V1 - 2.0 * np.outer((V1 - V1[a]) @ n, n)  # mirrored: a and b stay
+    F2 = np.where(np.isin(F1, [a, b]), F1, F1 + len(V1))[:, ::-1]  # turned over, a and b shared
+    S = TriSurface(np.vstack([V1, V2]), np.vstack([F1, F2]))
+    assert np.bincount(S.face_edges.reshape(-1)).max() == 4
+    far = int(np.argmin(V1 @ n))  # the vertex opposite the glued edge
+    out, moved = clear_curve_ends(S, V1[[far]], 0.3)
+    assert moved == 1 and not np.allclose(out.V[far], V1[far])
+    assert np.array_equal(out.V[[a, b]], V1[[a, b]])

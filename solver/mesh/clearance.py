@@ -39,6 +39,28 @@ MAX_TURN = 8.0  # degrees a triangle may turn when one of its vertices moves
 MIN_AREA = 0.3  # ... and the fraction of its area it keeps
 
 
+def _crease_vertices(surface: TriSurface, angle: float) -> np.ndarray:
+    """(#V,) bool: the vertices of the edges whose two triangles turn by
+    more than ``angle`` degrees, and of the edges not shared by exactly two
+    triangles.  A clustered surface (decimate.py) need not be manifold where
+    a part thinner than its cell collapsed (a collared shaft's cluster: 2
+    edges of 4 triangles), and TriSurface.dihedral_angles assumes it is
+    (an IndexError reached the user)."""
+    fe = surface.face_edges.reshape(-1)
+    count = np.bincount(fe, minlength=len(surface.edges))
+    order = np.argsort(fe, kind="stable")
+    faces = np.repeat(np.arange(len(surface.F)), 3)[order]
+    start = np.r_[0, np.cumsum(count)[:-1]]
+    two = np.nonzero(count == 2)[0]
+    n = surface.face_normals
+    cos = np.einsum("ij,ij->i", n[faces[start[two]]], n[faces[start[two] + 1]])
+    crease = np.ones(len(count), bool)
+    crease[two] = cos < np.cos(np.radians(angle))
+    fixed = np.zeros(len(surface.V), bool)
+    fixed[surface.edges[crease].reshape(-1)] = True
+    return fixed
+
+
 def clear_curve_ends(surface: TriSurface, ends: np.ndarray, h: float, fixed: np.ndarray | None = None,
                      rounds: int = 2) -> tuple[TriSurface, int]:
     """The surface the mesher gets, with the curve ends off its vertices and
@@ -69,8 +91,7 @@ def clear_curve_ends(surface: TriSurface, ends: np.ndarray, h: float, fixed: np.
     if not len(ends):
         return surface, 0
     if fixed is None:
-        fixed = np.zeros(len(surface.V), bool)
-        fixed[surface.edges[np.degrees(surface.dihedral_angles) > 30.0].reshape(-1)] = True
+        fixed = _crease_vertices(surface, 30.0)
     V = surface.V.copy()
     F = surface.F
     vf = _vertex_faces(F, len(V))

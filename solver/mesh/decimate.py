@@ -24,9 +24,10 @@ projected back onto the input.
 The clustering is a simplicial map, so the result is a closed 2-chain like
 the input: fTetWild (which takes triangle soups) and the winding numbers
 of the inside test see the same solid.  It need not be manifold where a
-part thinner than the cell collapses; the mesh's boundary is checked
-against the input's topology after meshing (meshing.topology_change), as
-always.  Its chords may cut into curved parts: how deep is measured and
+part thinner than the cell collapses: then it is made again with clusters
+half as large (twice at most), and else the input is meshed as it is; the
+mesh's boundary is checked against the input's topology after meshing
+(meshing.topology_change), as always.  Its chords may cut into curved parts: how deep is measured and
 reported, and checked against the mesher's envelope (simplify_for_meshing).
 The input surface stays the reference for everything else (snapping onto
 sharp features, the curves, the measures).
@@ -54,6 +55,9 @@ MIN_DENSE_TRIANGLES = 2_000
 # cut deeper than the mesher's envelope (simplify_for_meshing): fTetWild on
 # the input itself would take minutes (an 81,920-triangle sphere: over 600 s)
 ALWAYS_TRIANGLES = 10_000
+# where the clustering is not manifold, it is made again with clusters half as large, at most this many
+# times, before the input is meshed as it is
+MANIFOLD_TRIES = 2
 # grid cell of the clustering, as a fraction of the mesh's edge length h:
 # coarser meshes faster, finer keeps the field (docs/performance.md, *Clustering a dense surface*)
 CELL_FRACTION = 0.6
@@ -246,6 +250,20 @@ def simplify_for_meshing(surface: TriSurface, h: float, say=None, features: Feat
         feature, corners = features.degree > 0, features.corners
     cell = CELL_FRACTION * h
     out = _clustered(surface, cell, feature, corners)
+    for _ in range(MANIFOLD_TRIES):
+        if _manifold(out):
+            break
+        # a part thinner than the cell collapsed onto itself (a collared
+        # shaft at h = 0.127: 2 edges of 4 triangles, and fTetWild's
+        # boundary then lost the input's topology): finer clusters, else
+        # the input as it is
+        cell *= 0.5
+        out = _clustered(surface, cell, feature, corners)
+    else:
+        if say is not None:
+            say(f"tetmesh: the surface kept as it is ({len(surface.F):,} triangles): clustered at the mesh scale a "
+                "part thinner than the clusters collapsed")
+        return None
     deviation = _deviation(surface, out)
     if envelope is not None and deviation > envelope and len(surface.F) < ALWAYS_TRIANGLES:
         if say is not None:
@@ -258,6 +276,11 @@ def simplify_for_meshing(surface: TriSurface, h: float, say=None, features: Feat
     if say is not None:
         say(f"tetmesh: {res.text()}")
     return res
+
+
+def _manifold(surface: TriSurface) -> bool:
+    """Whether every edge of the surface has exactly two triangles."""
+    return bool(np.all(np.bincount(surface.face_edges.reshape(-1)) == 2))
 
 
 def _clustered(surface: TriSurface, cell: float, feature, corners) -> TriSurface:
