@@ -94,8 +94,9 @@ def transformed(d: dict, how: str, scale: float, seed: int) -> dict:
 
 
 def run_one(kind: str, seed: int, tet_edge: bool, how: str = "none", scale: float = 1.0) -> dict:
-    from solver import HexMeshError, SymFramesError, hexmesh, solve
+    from solver import HexMeshError, SymFramesError, solve
     from testkit.hexnet import hexnet_input
+    from testkit.runs import hexmesh_as_cli
 
     d = transformed(hexnet_input(kind, seed), how, scale, seed)
     V, F, net = d["V"], d["F"], d["network"]
@@ -122,21 +123,10 @@ def run_one(kind: str, seed: int, tet_edge: bool, how: str = "none", scale: floa
                field_notes=list(rep.notes))
     t1 = time.perf_counter()
     try:
-        try:
-            hm = hexmesh(r)
-        except HexMeshError as e:
-            if e.kind != "map":
-                raise
-            # as the command line does: where the map fails, the field solved
-            # again finer (pipeline.solve_finer), and that one meshed
-            from solver.pipeline import solve_finer
-
-            again, what = solve_finer(r)
-            row.update(finer=what, first_hex_error=str(e)[:300])
-            if again is None or not again.report.converged:
-                raise
-            hm = hexmesh(again)
+        hm, finer = hexmesh_as_cli(r)  # where the map fails, the field solved again finer, as the CLI does
+        row.update({k: v for k, v in finer.items() if k != "tets"})
     except HexMeshError as e:
+        row.update({k: v for k, v in getattr(e, "retry", {}).items() if k != "tets"})
         row.update(hex_error=str(e), hex_kind=e.kind, total_s=round(time.perf_counter() - t0, 1))
         return row
     h = hm.report

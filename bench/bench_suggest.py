@@ -224,8 +224,9 @@ def _hand(name: str):
 
 
 def run_one(name: str, hand: bool = False) -> dict:
-    from solver import HexMeshError, SymFramesError, hexmesh, solve, solve_finer
+    from solver import HexMeshError, SymFramesError, solve
     from solver.suggest import suggest_network
+    from testkit.runs import hexmesh_as_cli
 
     V, F = solids()[name]()
     row = dict(solid=name + (" (hand-made network)" if hand else ""), triangles=int(len(F)))
@@ -254,19 +255,10 @@ def run_one(name: str, hand: bool = False) -> dict:
     row.update(status=rep.status, tets=int(rep.sizes.get("tets", 0)), field_s=round(t_f, 1))
     t1 = time.perf_counter()
     try:
-        try:
-            hm = hexmesh(r)
-        except HexMeshError as e:
-            if e.kind != "map":
-                raise
-            # as the command line does: the field solved again finer where the map failed on it
-            again, what = solve_finer(r)
-            row.update(finer=what, first_hex_error=str(e)[:300])
-            if again is None or not again.report.converged:
-                raise
-            row.update(tets=int(again.report.sizes.get("tets", 0)))
-            hm = hexmesh(again)
+        hm, finer = hexmesh_as_cli(r)  # the field solved again finer where the map failed on it, as the CLI does
+        row.update(finer)
     except HexMeshError as e:
+        row.update(getattr(e, "retry", {}))
         row.update(hex_error=str(e)[:300], hex_kind=e.kind, hex_s=round(time.perf_counter() - t1, 1),
                    total_s=round(time.perf_counter() - t0, 1))
         return row
