@@ -691,7 +691,7 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
             progress("validate", 0.0, f"not resolved at edge length {best_problem.edge_length:.4g}: solving again "
                                       f"on a uniform mesh at {h:.4g} (~{tets:,.0f} tets)")
         try:
-            again, how = _meshed_again(problem, h, progress, cancel)
+            again, how = _meshed_again(problem, h, tets, progress, cancel)
         except (MeshingError, NetworkError) as e:
             # past the memory limit, the mesh lost the boundary's topology, or
             # the intake at h (a finer scale) found what the first did not:
@@ -755,7 +755,7 @@ def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | No
     if progress is not None:
         progress("validate", 0.0, f"solving again on a uniform mesh at edge length {h:.4g} (~{tets:,.0f} tets)")
     try:
-        again, how = _meshed_again(problem, h, progress, cancel)
+        again, how = _meshed_again(problem, h, tets, progress, cancel)
     except (MeshingError, NetworkError) as e:
         return None, f"not solved again finer at edge length {h:.4g}: {e}"
     res = again.solve(progress=progress, cancel=cancel)
@@ -764,8 +764,9 @@ def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | No
     return res, f"solved again on {how} ({again.mesh.n_tets:,} tets): {res.report.status}"
 
 
-def _meshed_again(problem: FieldProblem, h: float, progress, cancel) -> tuple[FieldProblem, str]:
-    """The problem's input meshed again at the uniform edge length h, for
+def _meshed_again(problem: FieldProblem, h: float, tets: float, progress, cancel) -> tuple[FieldProblem, str]:
+    """The problem's input meshed again at the uniform edge length h (about
+    ``tets`` tets: resolution.uniform_tets), for
     SymFrames' own solves at an edge length of its choosing (the ladder of
     solve_resolved, solve_finer), and how, in words.  Where a curve's end
     repair needs a finer local scale than h (validation.LocalScaleError:
@@ -780,7 +781,7 @@ def _meshed_again(problem: FieldProblem, h: float, progress, cancel) -> tuple[Fi
         return (FieldProblem(V, F, problem.given, Options(**{**asdict(opts), "edge_length": h}), progress=progress,
                              cancel=cancel), f"a uniform mesh at edge length {h:.4g}")
     except LocalScaleError as e:
-        tets = int(uniform_tets(solid_volume(problem.checked.surface), h))
+        tets = int(tets)
         if progress is not None:
             progress("validate", 0.0, f"a uniform mesh at {h:.4g} would not follow a curve's end ({e}); graded "
                                       f"for ~{tets:,} tets instead")

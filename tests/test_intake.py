@@ -294,9 +294,9 @@ def test_a_long_oblique_stretch_is_slid_then_bent(cylinder, per_leg):
     """45 degrees off the normal over the whole curve: sliding alone
     (capped at SLIDE_MAX h for a smooth curve) cannot turn it, so the rest
     is bent.  The cap is h/2 however long the segments (here about h, and
-    2 h): a smooth curve's points are where the user put them, and only a
-    chain of mesh edges is as uncertain as its edges (before, segments of
-    1.4 h let the ellipsoid's ends slide 0.72 h, more than a cell)."""
+    3.2 h): a smooth curve's points are where the user put them, and only a
+    chain of mesh edges is as uncertain as its edges (before, the 3.2 h
+    segments let the end slide 1.6 h)."""
     from solver.network.fairing import SLIDE_MAX
 
     V, F, net = cylinder

@@ -381,7 +381,8 @@ def test_a_finer_solve_grades_round_a_curve_a_uniform_mesh_would_not_follow(monk
     monkeypatch.setattr(pl, "FieldProblem", Fake)
     problem = types.SimpleNamespace(checked=types.SimpleNamespace(surface=S), options=Options(), given=Network())
     said = []
-    again, how = pl._meshed_again(problem, 0.1, lambda stage, frac, msg: said.append(msg), None)
+    again, how = pl._meshed_again(problem, 0.1, uniform_tets(solid_volume(S), 0.1),
+                                  lambda stage, frac, msg: said.append(msg), None)
     assert isinstance(again, Fake) and made[0].edge_length == 0.1 and made[1].edge_length is None
     assert made[1].target_tets == int(uniform_tets(solid_volume(S), 0.1))
     assert how.startswith("a mesh graded for") and "0.21" in how and "would not follow" in how
