@@ -16,10 +16,11 @@ from solver.hexmesh.quality import (
     euler_characteristic,
     hausdorff_distance,
     scaled_jacobian,
+    surface_left,
 )
 from solver.hexmesh.quantize import greedy_round
 from solver.hexmesh.seamless import AffineUnionFind, IntegerSpace
-from solver.hexmesh.smooth import BoundaryMotion, active_vertices, foldover_free, optimise
+from solver.hexmesh.smooth import BoundaryMotion, active_vertices, foldover_free, optimise, surface_lost
 from solver.linalg.rotations import CUBE_GROUP
 from solver.mesh.tetmesh import TetMesh
 from solver.surface.trisurface import TriSurface, closest_point_on_triangles
@@ -183,6 +184,45 @@ def test_hausdorff_distance_in_chunks_is_the_exact_one(radius, spike):
         assert abs(hausdorff_distance(S, V, q, chunk=chunk) - exact) <= 1e-12 * diag
     assert abs(_hausdorff_before(S, V, q) - exact) <= 1e-12 * diag
     assert hausdorff_distance(S, V, q[:0]) == np.inf
+
+
+def test_smoothing_that_pulls_the_grid_off_a_tip_is_told_where():
+    """The boundary of a coarse cube-sphere on a finely tessellated ellipsoid
+    (semi-axes 1.5, 1, 0.7), its grid lines beside the +x tip pushed a cell
+    away along the surface, as smoothing evened out the cells there:
+    surface_left finds the tip's samples off the new boundary (exactly,
+    as the exhaustive measure does), and surface_lost marks the boundary
+    vertices around that tip only (the -x tip and the rest kept); with the
+    grid as extracted, or moved where the boundary stays as close, nothing
+    is marked."""
+    from testkit.hexnet import boundary_surface, cube_sphere
+
+    axes = np.array([1.5, 1.0, 0.7])
+    Vf, Hf = cube_sphere(10, axes=axes)
+    Vs, Fs, _ = boundary_surface(Vf, Hf)
+    S = TriSurface(Vs, Fs)
+    V0, H = cube_sphere(6, axes=axes)
+    q, _ = boundary_quads(H)
+    onb = np.unique(q)
+    # beside the +x tip, the grid spread away from it, back onto the ellipsoid
+    W = V0.copy()
+    near = onb[(V0[onb, 0] > 1.35) & (np.linalg.norm(V0[onb, 1:], axis=1) > 1e-6)]  # the tip's two rings
+    W[near, 1:] *= 1.6
+    W[near, 0] = axes[0] * np.sqrt(np.maximum(0.0, 1.0 - np.sum((W[near, 1:] / axes[1:]) ** 2, axis=1)))
+    tol = 1.05 * hausdorff_distance(S, V0, q)  # the extracted grid's own chords are within it
+    X, d, quad = surface_left(S, W, q, tol)
+    assert len(X) and np.all(X[:, 0] > 1.2) and np.all(d > tol)  # about the +x tip
+    tri = np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+    exact = _distances_brute(np.vstack([Vs, Vs[Fs].mean(axis=1)]), W, tri)  # every sample, every triangle
+    assert np.sum(exact > tol) == len(X) and abs(d.max() - exact.max()) <= 1e-12 * S.bbox_diagonal
+    lost = surface_lost(V0, W, q, S, tol)
+    assert lost.any() and np.all(V0[lost, 0] > 0.9) and not lost[~np.isin(np.arange(len(V0)), onb)].any()
+    assert not surface_lost(V0, V0, q, S, tol).any()
+    # a small move along the surface that keeps the boundary as close
+    Wk = V0.copy()
+    Wk[near, 1:] *= 1.02
+    assert not surface_lost(V0, Wk, q, S, tol).any()
+
 
 
 # ------------------------------------------------------------------ rounding

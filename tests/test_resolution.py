@@ -443,7 +443,7 @@ def test_a_stalled_lm_is_solved_again_on_a_fresh_mesh(monkeypatch):
                 in note, note
 
 
-@pytest.mark.parametrize("failure", ["penalty", "adaptation"])
+@pytest.mark.parametrize("failure", ["penalty", "adaptation", "capped"])
 def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
     """solve_resolved's ladder: a graded automatic mesh whose LM stopped
     above the discretisation level gives way first to a uniform mesh at
@@ -453,7 +453,10 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
     does one whose LM stopped at the level but with the frames off the
     curves (a generated cube with a small cavity: penalty 8.4, the level
     passed, frames 13 degrees off the curves; it went to the hex stage
-    unsolved).  The solves are stand-ins: the ladder is what is tested."""
+    unsolved), and one whose LM ran to its default cap above the level but
+    not far from a solution (a generated ellipsoid: penalty 17.4 after 50
+    iterations; other meshes of it converged in 10-19); not where the user
+    set the cap.  The solves are stand-ins: the ladder is what is tested."""
     import types
 
     import solver.pipeline as pl
@@ -469,12 +472,16 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
 
         def solve(self, root=None, progress=None, cancel=None):
             ok = len(made) == want_converged_at
-            lm = types.SimpleNamespace(final=types.SimpleNamespace(penalty=0.5 if ok else 9.0 - len(made)),
-                                       converged=True, capped=False)
+            capped = failure == "capped" and not ok
+            lm = types.SimpleNamespace(final=types.SimpleNamespace(penalty=0.5 if ok else 9.0 - len(made),
+                                                                   smoothness=4.0),
+                                       converged=not capped, capped=capped, n_iterations=50 if capped else 9)
             if ok:
                 why, metrics = "ok", {}
             elif failure == "penalty":
                 why, metrics = "the structure penalty is above the discretisation level", {}
+            elif failure == "capped":
+                why, metrics = "Levenberg-Marquardt reached max_iterations", {}
             else:
                 metrics = {"tangent_adaptation_mean_deg": 13.1, "normal_adaptation_mean_deg": 1.5}
                 why = adaptation_status(metrics)
@@ -497,8 +504,8 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
         assert made[1:] == pytest.approx(lengths)
         note = res.report.notes[-1]
         assert "uniform mesh at edge length 0.2" in note and "graded" in note
-        assert ("above the discretisation level" if failure == "penalty" else
-                "13.1 degrees off the curves' tangents") in note, note
+        assert {"penalty": "above the discretisation level", "capped": "ran to its cap of 50 iterations",
+                "adaptation": "13.1 degrees off the curves' tangents"}[failure] in note, note
         assert res.report.converged == (want_converged_at <= 3)
     # a curve shorter than SHORT_UNIFORM edges, a uniform first mesh, or
     # one the grading made less than GRADED_SHARE of: straight to the finer one
@@ -511,3 +518,9 @@ def test_unresolved_graded_solve_tries_uniform_then_finer(monkeypatch, failure):
         want_converged_at = 2
         pl.solve_resolved(first)
         assert made[1:] == pytest.approx([pl.FINER * 0.2])
+    if failure == "capped":  # a cap the user set: the report says how close it came, no solve again
+        first.options = Options(max_iterations=40)
+        made.clear()
+        made.append(None)
+        pl.solve_resolved(first)
+        assert made == [None]

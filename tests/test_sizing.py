@@ -81,8 +81,9 @@ def _thickness(hm, patch: int) -> float:
 
 def test_cells_on_a_chosen_patch_are_thinner_and_the_rest_as_before(plate):
     """Half the cell size asked for at the hole's wall: the layers of cells
-    around the hole thin to 0.5-0.75 of the cell size (measured 0.61; 1.2
-    without), the solid's other sides keep theirs (0.94-1.05), with the same
+    around the hole thin to 0.5-0.8 of the cell size (measured 0.56-0.76
+    over fTetWild's meshes; 1.0-1.23 without), the solid's other sides keep
+    theirs (0.94-1.05), with the same
     singular structure and cells as good.  Sizes across the wall cannot
     follow (a grid line around the hole has as many cells as the ring it
     closes), so the cells there are thin, not small: sizing.py."""
@@ -95,7 +96,7 @@ def test_cells_on_a_chosen_patch_are_thinner_and_the_rest_as_before(plate):
     assert rep.hexes > plain.report.hexes
     assert f"finer near patch {hole}" in rep.summary()
     assert _thickness(plain, hole) >= 0.9
-    assert 0.5 <= _thickness(hm, hole) <= 0.75, _thickness(hm, hole)
+    assert 0.5 <= _thickness(hm, hole) <= 0.8, _thickness(hm, hole)
     sides = [p for p in np.unique(hm.patches.patch) if p != hole]
     for p in sides:
         assert 0.8 <= _thickness(hm, p) <= 1.25, (p, _thickness(hm, p))

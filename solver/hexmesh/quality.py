@@ -173,8 +173,11 @@ def _surface_samples(S: TriSurface, rows: np.ndarray) -> np.ndarray:
     return out
 
 
-def _surface_to_boundary(S: TriSurface, B: TriSurface, chunk: int) -> float:
-    """Largest distance from the samples of S to the triangle surface B."""
+def _bounds(S: TriSurface, B: TriSurface, chunk: int) -> np.ndarray:
+    """Per sample of S (its vertices, then its triangles' centroids), an
+    upper bound of its distance to the triangle surface B: the distance to
+    the triangle of B with the nearest centroid (k-d tree), ``chunk``
+    samples at a time."""
     T, _, _, tree = B.face_tree
     n = len(S.V) + len(S.F)
     chunk = max(1, int(chunk))
@@ -184,6 +187,28 @@ def _surface_to_boundary(S: TriSurface, B: TriSurface, chunk: int) -> float:
         Y = _surface_samples(S, rows)
         _, i = tree.query(Y, k=1)
         bound[rows] = np.linalg.norm(closest_point_on_triangles(Y, T[i]) - Y, axis=1)
+    return bound
+
+
+def surface_left(S: TriSurface, V: np.ndarray, q: np.ndarray, tol: float, chunk: int = HAUSDORFF_CHUNK):
+    """The samples of S (as ``hausdorff_distance`` takes them) farther than
+    tol from the quad boundary q (k, 4) of a hex mesh with vertices V:
+    (their points (s, 3), their distances (s,), the quad nearest each (s,)).
+    Exact distances are computed only where the nearest-centroid bound
+    exceeds tol."""
+    B = TriSurface(V, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]))
+    rows = np.nonzero(_bounds(S, B, chunk) > tol)[0]
+    X = _surface_samples(S, rows)
+    d, f, _ = B.closest_points(X)
+    far = d > tol
+    return X[far], d[far], f[far] % len(q)
+
+
+def _surface_to_boundary(S: TriSurface, B: TriSurface, chunk: int) -> float:
+    """Largest distance from the samples of S to the triangle surface B."""
+    bound = _bounds(S, B, chunk)
+    n = len(bound)
+    chunk = max(1, int(chunk))
     order = np.argsort(-bound, kind="stable")
     best = 0.0
     # a few of the largest bounds first: the best found then prunes the rest
