@@ -278,12 +278,18 @@ def cut_surface_run(S: TriSurface, P: np.ndarray, limit: float):
     if len(P) < 3:
         return P, "", 0.0
     tol = ON_SURFACE * S.bbox_diagonal
-    d, _, _ = S.closest_points(P)
-    m, _, _ = S.closest_points(0.5 * (P[1:] + P[:-1]))
+    # only the points within limit of the end (and the one before them) can
+    # start a stretch short enough: a curve of 1e5 points is not measured whole
+    back = np.r_[np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1)[::-1])[::-1], 0.0]
+    lo = max(1, int(np.argmax(back <= limit)) - 1)
+    d = np.full(len(P), np.inf)
+    m = np.full(len(P) - 1, np.inf)
+    d[lo - 1:] = S.closest_points(P[lo - 1:])[0]
+    m[lo - 1:] = S.closest_points(0.5 * (P[lo:] + P[lo - 1:-1]))[0]
     k = len(P) - 1
     while k > 1 and d[k - 1] <= tol and m[k - 1] <= tol:
         k -= 1
-    run = float(np.linalg.norm(np.diff(P[k:], axis=0), axis=1).sum())
+    run = float(back[k])
     if k == len(P) - 1 or run <= tol or run > limit:
         return P, "", 0.0
     return P[: k + 1], "cut back along the surface", run
