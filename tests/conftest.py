@@ -268,14 +268,19 @@ def _shared_mesher_runs():
     same solid with the same curve tubes (the cylinder at the metre and at
     the micrometre: fTetWild gets both in a unit box) share its output, as
     they share a solve above.  A run that can be cancelled is made afresh
-    (cancelling is what such a caller checks); TetGen runs (mesh/cdt.py,
-    which holds run_tetwild by its own name) are not shared."""
+    (cancelling is what such a caller checks), and so is the fresh mesh
+    SymFrames asks for itself where a mesh left LM short of a solution
+    (pipeline._fresh_mesh: the shared run would hand back the mesh it
+    replaces); TetGen runs (mesh/cdt.py, which holds run_tetwild by its own
+    name) are not shared."""
+    import inspect
+
     import solver.mesh.tetwild as tetwild
 
     run = tetwild.run_tetwild
 
     def shared(V, F, edge_length, epsilon, cancel=None, simplify=True, tetgen_volume=None):
-        if cancel is not None:
+        if cancel is not None or any(f.function == "_fresh_mesh" for f in inspect.stack(0)):
             return run(V, F, edge_length, epsilon, cancel=cancel, simplify=simplify, tetgen_volume=tetgen_volume)
         key = _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume)
         P, T = _SESSION._get("mesher", key, lambda: run(V, F, edge_length, epsilon, simplify=simplify,

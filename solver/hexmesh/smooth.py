@@ -74,7 +74,8 @@ lines beside a tip 0.15 (1.3 cells) away from it: a cap 1.6% of the
 diagonal off the surface, 0.84% before smoothing, so that the ladder
 stepped the cells down twice and the curves' ends slid over a cell.
 Holding the 77 of 434 boundary vertices there keeps 0.84% (mean scaled
-Jacobian 0.927 against 0.936); at half the bar 155 were held (0.924)."""
+Jacobian 0.927 against 0.936; 0.930 once the ring around the 33 nearest
+is let go again); at half the bar 155 were held (0.924)."""
 SURFACE_ROUNDS = 2
 """Runs of the smoothing made again, each holding the vertices near the
 stretches of surface the last left (``surface_lost``)."""
@@ -349,7 +350,8 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
     (a surface sample farther than KEEP_SURFACE of the Hausdorff bar from
     it, and farther than the extracted mesh had it), the boundary vertices
     there are held at their extracted places and the run is made again
-    (``surface_lost``).
+    (``surface_lost``); then the ring of them around the vertices nearest
+    those samples is let go again, kept where the surface stays as close.
 
     Returns
     -------
@@ -360,19 +362,39 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
     W = _smoothed(V, H, cell, inp, cem, callback, rel, held)
     q, _ = boundary_quads(H)
     tol = KEEP_SURFACE * HAUSDORFF_BAR * inp.surface.bbox_diagonal
+    core = np.zeros(len(V), bool)
     for _ in range(SURFACE_ROUNDS):
         lost = surface_lost(V, W, q, inp.surface, tol)
         if not np.any(lost & ~held):
             break
+        core |= surface_lost(V, W, q, inp.surface, tol, rings=0)
         held |= lost
         W = _smoothed(V, H, cell, inp, cem, callback, rel, held)
+    if held.any():
+        # hold no more than keeps the surface: the ring released, from
+        # where the held run left it, and kept if the surface stays as close
+        W2 = _smoothed(V, H, cell, inp, cem, callback, rel, core, start=W)
+        if W2 is not W and not surface_lost(V, W2, q, inp.surface, tol).any() \
+                and _farthest(inp.surface, W2, q, tol) <= _farthest(inp.surface, W, q, tol):
+            W = W2
     return W
 
 
-def _smoothed(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback, rel, held: np.ndarray) -> np.ndarray:
+def _farthest(S, W: np.ndarray, q: np.ndarray, tol: float) -> float:
+    """The farthest sample of S from the quad boundary q of W, or tol if none
+    is farther."""
+    d = surface_left(S, W, q, tol)[1]
+    return float(d.max()) if len(d) else tol
+
+
+def _smoothed(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback, rel, held: np.ndarray,
+              start: np.ndarray | None = None) -> np.ndarray:
     """One run of ``smooth_hexes``, the vertices in `held` (n,) bool not
-    moving."""
+    moving; from `start` (the positions of a run before) where given, the
+    curves' vertices those of V."""
     on_curve = curve_vertices(V, cem, cell)
+    if start is not None:
+        V = start
     q, _ = boundary_quads(H)
     S = inp.surface
     fe, sa, sb = sharp_lines(V, q, S, inp.sharp, cell)
@@ -454,23 +476,24 @@ def _smoothed(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback, rel
     return V0
 
 
-def surface_lost(V0: np.ndarray, W: np.ndarray, q: np.ndarray, S, tol: float) -> np.ndarray:
+def surface_lost(V0: np.ndarray, W: np.ndarray, q: np.ndarray, S, tol: float, rings: int = 1) -> np.ndarray:
     """(n,) bool: the boundary vertices near the stretches of the surface S
     that the smoothed positions W leave: its samples farther than tol from
-    the quad boundary q of W and farther (by a fifth) than from that of the
+    the quad boundary q of W and farther (by 5 %) than from that of the
     extracted positions V0 (a cap of a tip cut off when the cells around it
     were evened out).  Marked: the vertices of the quads nearest those
-    samples and of one ring of quads around them."""
+    samples and of `rings` rings of quads around them."""
     out = np.zeros(len(W), bool)
     X, d, near = surface_left(S, W, q, tol)
     if not len(X):
         return out
     d0 = TriSurface(V0, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])).closest_points(X)[0]
-    near = near[d > 1.2 * d0]
+    near = near[d > 1.05 * d0]
     if not len(near):
         return out
     out[q[near]] = True
-    out[q[out[q].any(axis=1)]] = True
+    for _ in range(rings):
+        out[q[out[q].any(axis=1)]] = True
     return out
 
 
