@@ -667,11 +667,12 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
     opts = problem.options
     if opts.edge_length is not None or not problem.meshed.stats.mesher:
         return res
-    fresh = problem.meshed.stats.mesher == "fTetWild" and opts.max_iterations == Options().max_iterations
+    default_cap = opts.max_iterations == Options().max_iterations
+    fresh = problem.meshed.stats.mesher == "fTetWild" and default_cap
     if _stalled(res) and fresh:
         res, problem = _fresh_mesh(problem, res, root, progress, cancel)
         fresh = False
-    if not _unresolved(res, opts.max_iterations == Options().max_iterations):
+    if not _unresolved(res, default_cap):
         return res
     # a graded mesh first gives way to a uniform one at its bulk edge length
     # (fewer tets), then the uniform one to a finer one

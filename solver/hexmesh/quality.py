@@ -157,8 +157,7 @@ def hausdorff_distance(S: TriSurface, V: np.ndarray, q: np.ndarray, chunk: int =
     P = V[q]
     samples = np.vstack([V[np.unique(q)], P.mean(axis=1), 0.5 * (P + np.roll(P, -1, axis=1)).reshape(-1, 3)])
     d1 = float(S.closest_points(samples)[0].max())
-    B = TriSurface(V, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]))
-    return max(d1, _surface_to_boundary(S, B, chunk))
+    return max(d1, _surface_to_boundary(S, quad_surface(V, q), chunk))
 
 
 def _surface_samples(S: TriSurface, rows: np.ndarray) -> np.ndarray:
@@ -190,13 +189,19 @@ def _bounds(S: TriSurface, B: TriSurface, chunk: int) -> np.ndarray:
     return bound
 
 
+def quad_surface(V: np.ndarray, q: np.ndarray) -> TriSurface:
+    """The quads q (k, 4) over vertices V as a triangle surface: triangle i
+    and i + k are quad i's halves (0, 1, 2) and (0, 2, 3)."""
+    return TriSurface(V, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]))
+
+
 def surface_left(S: TriSurface, V: np.ndarray, q: np.ndarray, tol: float, chunk: int = HAUSDORFF_CHUNK):
     """The samples of S (as ``hausdorff_distance`` takes them) farther than
     tol from the quad boundary q (k, 4) of a hex mesh with vertices V:
     (their points (s, 3), their distances (s,), the quad nearest each (s,)).
     Exact distances are computed only where the nearest-centroid bound
     exceeds tol."""
-    B = TriSurface(V, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]))
+    B = quad_surface(V, q)
     rows = np.nonzero(_bounds(S, B, chunk) > tol)[0]
     X = _surface_samples(S, rows)
     d, f, _ = B.closest_points(X)

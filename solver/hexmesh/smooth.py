@@ -37,13 +37,13 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from ..linalg.lbfgs import lbfgs
-from ..surface.trisurface import TriSurface
 from .quality import (
     HEX_CORNER_NEIGHBOURS,
     HEX_EDGES,
     boundary_quads,
     det3,
     polyline_distance,
+    quad_surface,
     scaled_jacobian,
     segments_distance,
     surface_left,
@@ -364,17 +364,18 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
     tol = KEEP_SURFACE * HAUSDORFF_BAR * inp.surface.bbox_diagonal
     core = np.zeros(len(V), bool)
     for _ in range(SURFACE_ROUNDS):
-        lost = surface_lost(V, W, q, inp.surface, tol)
+        nearest = surface_lost(V, W, q, inp.surface, tol, rings=0)
+        lost = _grown(q, nearest)
         if not np.any(lost & ~held):
             break
-        core |= surface_lost(V, W, q, inp.surface, tol, rings=0)
+        core |= nearest
         held |= lost
         W = _smoothed(V, H, cell, inp, cem, callback, rel, held)
     if held.any():
         # hold no more than keeps the surface: the ring released, from
         # where the held run left it, and kept if the surface stays as close
         W2 = _smoothed(V, H, cell, inp, cem, callback, rel, core, start=W)
-        if W2 is not W and not surface_lost(V, W2, q, inp.surface, tol).any() \
+        if W2 is not W and not surface_lost(V, W2, q, inp.surface, tol, rings=0).any() \
                 and _farthest(inp.surface, W2, q, tol) <= _farthest(inp.surface, W, q, tol):
             W = W2
     return W
@@ -487,13 +488,17 @@ def surface_lost(V0: np.ndarray, W: np.ndarray, q: np.ndarray, S, tol: float, ri
     X, d, near = surface_left(S, W, q, tol)
     if not len(X):
         return out
-    d0 = TriSurface(V0, np.vstack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])).closest_points(X)[0]
-    near = near[d > 1.05 * d0]
-    if not len(near):
-        return out
-    out[q[near]] = True
+    d0 = quad_surface(V0, q).closest_points(X)[0]
+    out[q[near[d > 1.05 * d0]]] = True
     for _ in range(rings):
-        out[q[out[q].any(axis=1)]] = True
+        out = _grown(q, out)
+    return out
+
+
+def _grown(q: np.ndarray, mark: np.ndarray) -> np.ndarray:
+    """`mark` (n,) bool and the vertices of every quad of q touching it."""
+    out = mark.copy()
+    out[q[mark[q].any(axis=1)]] = True
     return out
 
 
