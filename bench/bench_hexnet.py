@@ -117,7 +117,7 @@ def run_one(kind: str, seed: int, tet_edge: bool, how: str = "none", scale: floa
         return row
     t_field = time.perf_counter() - t0
     rep = r.report
-    row.update(status=rep.status, penalty=round(float(rep.lm.final.penalty), 3),
+    row.update(status=rep.status, status_reason=rep.status_reason, penalty=round(float(rep.lm.final.penalty), 3),
                iterations=int(rep.lm.n_iterations), tets=int(rep.sizes.get("tets", 0)),
                field_s=round(t_field, 1), field_stages={k: round(v, 1) for k, v in rep.stage_seconds.items()},
                field_notes=list(rep.notes))
@@ -224,7 +224,8 @@ def table(rows: list) -> str:
                        f"{r.get('total_s', '')} | {missed} |")
             continue
         again = any("solved again" in n for n in r.get("field_notes", []))
-        field = r["status"] + (" (solved again)" if again else "")
+        local = "only through" in r.get("status_reason", "")  # report.local_excess
+        field = r["status"] + (" (solved again)" if again else "") + (" (a local excess)" if local else "")
         if r.get("hex_error"):
             out.append(f"| {name} | {r['curves']} | {r['tets']:,} | {r['iterations']} | {r['penalty']} | {field} | "
                        f"| | | | | | {r['field_s']} + – | {missed} |")

@@ -48,7 +48,7 @@ from .mesh.resolution import (
 from .mesh.tetmesh import TetMesh
 from .network.network import Network, PreparedNetwork
 from .network.validation import CheckedInput, LocalScaleError, check_input
-from .report import PENALTY_ABS, PENALTY_REL, Report, adaptation_status, solution_status
+from .report import PENALTY_ABS, PENALTY_REL, Report, adaptation_status, local_excess, solution_status
 from .stages import Stages
 
 INITS = ("zero", "constant", "random", "linear")
@@ -447,10 +447,23 @@ class FieldProblem:
         frames, root = st.run("integrate", self._integrate, x, omega, root)
         res = Result(problem=self, omega=omega, x=x, frames=frames, root=root, report=report)
         report.metrics.update(res.quick_metrics())
+        local = self._local_excess(lm, omega, report.metrics) if report.status != "converged" else None
+        if local:
+            report.status, report.status_reason = "converged", local
         why = adaptation_status(report.metrics) if report.status == "converged" else None
         if why:
             report.status, report.status_reason = "not converged", why
         return res
+
+    def _local_excess(self, lm, omega: np.ndarray, metrics: dict) -> str | None:
+        """``report.local_excess`` of this solve: each structure face's
+        share of the penalty and its residual (Eq. 17) as an angle."""
+        vp = self.volume
+        r = vp.se.residual(omega)
+        share = vp.a * np.sum(r * r, axis=1)
+        at = self.mesh.vertices[self.mesh.faces[vp.faces]].mean(axis=1)
+        n_singular = sum(1 for c in self.network.curves if c.sigma != 0)
+        return local_excess(lm, share, np.degrees(np.linalg.norm(r, axis=1)), at, metrics, n_singular)
 
     def _integrate(self, x: np.ndarray, omega: np.ndarray, root: int | None) -> tuple[np.ndarray, int]:
         """The frames developed from omega (§4.3) and their root: the default
