@@ -447,23 +447,11 @@ class FieldProblem:
         frames, root = st.run("integrate", self._integrate, x, omega, root)
         res = Result(problem=self, omega=omega, x=x, frames=frames, root=root, report=report)
         report.metrics.update(res.quick_metrics())
-        local = self._local_excess(lm, omega, report.metrics) if report.status != "converged" else None
-        if local:
-            report.status, report.status_reason = "converged", local
+        report.status, report.status_reason = _local_status(self, report, omega)
         why = adaptation_status(report.metrics) if report.status == "converged" else None
         if why:
             report.status, report.status_reason = "not converged", why
         return res
-
-    def _local_excess(self, lm, omega: np.ndarray, metrics: dict) -> str | None:
-        """``report.local_excess`` of this solve: each structure face's
-        share of the penalty and its residual (Eq. 17) as an angle."""
-        vp = self.volume
-        r = vp.se.residual(omega)
-        share = vp.a * np.sum(r * r, axis=1)
-        at = self.mesh.vertices[self.mesh.faces[vp.faces]].mean(axis=1)
-        n_singular = sum(1 for c in self.network.curves if c.sigma != 0)
-        return local_excess(lm, share, np.degrees(np.linalg.norm(r, axis=1)), at, metrics, n_singular)
 
     def _integrate(self, x: np.ndarray, omega: np.ndarray, root: int | None) -> tuple[np.ndarray, int]:
         """The frames developed from omega (§4.3) and their root: the default
@@ -609,6 +597,22 @@ the first left the network unresolved (``solve_resolved``)."""
 SHORT_UNIFORM = 2.5
 """A graded mesh gives way to a uniform one at its bulk edge length only
 where every open curve is at least this many of those edges long."""
+
+def _local_status(problem: FieldProblem, report: Report, omega: np.ndarray) -> tuple[str, str]:
+    """A solve's (status, reason), with a penalty above the discretisation
+    level that ``report.local_excess`` finds local counted as converged:
+    each structure face's share of the penalty and its residual (Eq. 17) as
+    an angle."""
+    if report.status == "converged":
+        return report.status, report.status_reason
+    vp = problem.volume
+    r = vp.se.residual(omega)
+    share = vp.a * np.sum(r * r, axis=1)
+    at = problem.mesh.vertices[problem.mesh.faces[vp.faces]].mean(axis=1)
+    n_singular = sum(1 for c in problem.network.curves if c.sigma != 0)
+    why = local_excess(report.lm, share, np.degrees(np.linalg.norm(r, axis=1)), at, report.metrics, n_singular)
+    return ("converged", why) if why else (report.status, report.status_reason)
+
 
 GRADED_SHARE = 0.1
 """... and only where the grading made at least this share of its tets: a
