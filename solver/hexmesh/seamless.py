@@ -387,69 +387,103 @@ class MapSystem:
         return float(np.sum(self.tet_weight[:, None, None] * (J - np.eye(3)) ** 2))
 
 
-def _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau):
-    """Per wedge: A (group index) and B (3, ntau) with u_w = G[A] r_v + B tau,
-    by BFS over each vertex's wedges through the cut; cycle rows
-    (scalar terms, tau row) for the union-find."""
-    nW = len(wv)
-    A = np.zeros(nW, dtype=np.int64)
-    Bd: dict[int, np.ndarray] = {}
+_PERM = np.argmax(np.abs(G), axis=2)  # (24, 3): row a of G[m] reads coordinate _PERM[m, a] ...
+_SIGN = np.take_along_axis(G, _PERM[..., None], axis=2)[..., 0]  # ... times _SIGN[m, a]
+
+
+def _cut_relations(mesh, tr, wedge, patch, orient, patch_M):
+    """The relations between the wedges on either side of each cut face, at
+    each of its vertices, forward and backward in turn: (from, to, group
+    element, patch, direction) arrays with u_to = G[m] u_from + (tau_P
+    forward, -G[m] tau_P backward)."""
     T = mesh.tets
     cutpos = np.nonzero(tr.cut)[0]
-    rel: dict[int, list] = {}  # wedge -> [(other wedge, M, tau col, direction)]
+    ab = tr.tets[cutpos]
+    fwd = orient[cutpos] > 0
+    src, dst = np.where(fwd, ab[:, 0], ab[:, 1]), np.where(fwd, ab[:, 1], ab[:, 0])
     Fv = mesh.faces[tr.faces[cutpos]]
-    for i, p in enumerate(cutpos.tolist()):
-        a, bb = tr.tets[p]
-        pid = int(patch[p])
-        if orient[p] > 0:
-            src, dst = a, bb
-        else:
-            src, dst = bb, a
-        m = int(patch_M[pid])
-        for x in Fv[i].tolist():
-            ws = int(wedge[src, np.argmax(T[src] == x)])
-            wd = int(wedge[dst, np.argmax(T[dst] == x)])
-            rel.setdefault(ws, []).append((wd, m, pid, +1))
-            rel.setdefault(wd, []).append((ws, int(GROUP_INVERSE[m]), pid, -1))
-    rows = []
-    seen = np.zeros(nW, bool)
-    zero = np.zeros((3, ntau))
+    ws = np.take_along_axis(wedge[src], np.argmax(T[src][:, None, :] == Fv[:, :, None], axis=2), axis=1).ravel()
+    wd = np.take_along_axis(wedge[dst], np.argmax(T[dst][:, None, :] == Fv[:, :, None], axis=2), axis=1).ravel()
+    pid = np.repeat(patch[cutpos].astype(np.int64), 3)
+    m = patch_M[pid].astype(np.int64)
+    return (np.c_[ws, wd].ravel(), np.c_[wd, ws].ravel(), np.c_[m, GROUP_INVERSE[m]].ravel(),
+            np.repeat(pid, 2), np.tile([1, -1], len(ws)))
 
-    def tau_block(pid):
-        E = np.zeros((3, ntau))
-        E[:, 3 * pid:3 * pid + 3] = np.eye(3)
-        return E
 
-    for w0 in list(rel):
+def _translations(frm, rel, Bs, mm, pp, dd, ntau):
+    """(3 k, ntau) sparse: G[m] B_from + (tau_P forward, -G[m] tau_P
+    backward) across the k relations ``rel``, B_w the rows 3 w + a of
+    ``Bs``."""
+    k = len(rel)
+    m = mm[rel]
+    rows = np.arange(3 * k)
+    cols = (3 * frm[rel][:, None] + _PERM[m]).ravel()
+    S = sp.csr_matrix((_SIGN[m].ravel(), (rows, cols)), shape=(3 * k, Bs.shape[0]))
+    fw = dd[rel] > 0
+    # forward: the block of tau_P as it is; backward: -G[m] on it
+    tcol = np.where(fw[:, None], np.arange(3)[None, :], _PERM[m]) + 3 * pp[rel][:, None]
+    tval = np.where(fw[:, None], 1.0, -_SIGN[m])
+    return S @ Bs + sp.csr_matrix((tval.ravel(), (rows, tcol.ravel())), shape=(3 * k, ntau))
+
+
+def _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau):
+    """Per wedge: A (group index) and B (3, ntau) with u_w = G[A] r_v + B tau,
+    by a depth-first search over each vertex's wedges through the cut; cycle
+    rows (scalar terms, tau row) for the union-find, and (k, ntau) the
+    cycles' rows among the tau alone."""
+    nW = len(wv)
+    frm, to, mm, pp, dd = _cut_relations(mesh, tr, wedge, patch, orient, patch_M)
+    A = np.zeros(nW, dtype=np.int64)
+    # the search (group indices only): the relation each wedge is reached by,
+    # its depth, and the relations that close a cycle, in the order met
+    order = np.argsort(frm, kind="stable")
+    ptr = np.searchsorted(frm[order], np.arange(nW + 1)).tolist()
+    first = np.unique(frm, return_index=True)[1]
+    seen = [False] * nW
+    by = np.full(nW, -1, dtype=np.int64)
+    depth = np.zeros(nW, dtype=np.int64)
+    cycles = []
+    to_l, mm_l, order_l, P = to.tolist(), mm.tolist(), order.tolist(), GROUP_PRODUCT.tolist()
+    Al, dl, byl = A.tolist(), depth.tolist(), by.tolist()
+    for w0 in frm[np.sort(first)].tolist():
         if seen[w0]:
             continue
         seen[w0] = True
-        v = int(wv[w0])
         stack = [w0]
         while stack:
             w = stack.pop()
-            Bw = Bd.get(w, zero)
-            for w2, m, pid, d in rel[w]:
-                # u_w2 = G[m] u_w + s tau, s = +tau_P forward, -G[m] tau_P backward
-                Mg = G[m]
-                tb = tau_block(pid) if d > 0 else -Mg @ tau_block(pid)
-                newA = int(GROUP_PRODUCT[m, A[w]])
-                newB = Mg @ Bw + tb
-                if not seen[w2]:
-                    seen[w2] = True
-                    A[w2] = newA
-                    if np.any(newB):
-                        Bd[w2] = newB
-                    stack.append(w2)
+            for j in order_l[ptr[w]:ptr[w + 1]]:
+                w2 = to_l[j]
+                if seen[w2]:
+                    cycles.append(j)
                     continue
-                # a cycle: G[A_w2] r + B_w2 tau = G[newA] r + newB tau
-                D = G[A[w2]] - G[newA]
-                Etau = Bd.get(w2, zero) - newB
-                for a in range(3):
-                    terms = [(3 * v + j, D[a, j]) for j in range(3) if D[a, j] != 0]
-                    if terms or np.any(np.abs(Etau[a]) > 1e-12):
-                        rows.append((terms, Etau[a]))
-    return A, Bd, rows
+                seen[w2] = True
+                Al[w2], dl[w2], byl[w2] = P[mm_l[j]][Al[w]], dl[w] + 1, j
+                stack.append(w2)
+    A, depth, by = np.array(Al, dtype=np.int64), np.array(dl), np.array(byl, dtype=np.int64)
+    # B along the search's tree, a depth at a time (parents first)
+    Bs = sp.csr_matrix((3 * nW, ntau))
+    for d in range(1, int(depth.max(initial=0)) + 1):
+        ws = np.nonzero(depth == d)[0]
+        new = _translations(frm, by[ws], Bs, mm, pp, dd, ntau).tocoo()
+        place = sp.csr_matrix((new.data, ((3 * ws)[new.row // 3] + new.row % 3, new.col)), shape=Bs.shape)
+        Bs = (Bs + place).tocsr()
+    Bs.eliminate_zeros()
+    nzw = np.unique(Bs.nonzero()[0] // 3)
+    dense = Bs[(3 * nzw[:, None] + np.arange(3)).ravel()].toarray().reshape(len(nzw), 3, ntau)
+    Bd = dict(zip(nzw.tolist(), dense))
+    # a cycle: G[A_w2] r + B_w2 tau = G[A_new] r + B_new tau
+    cyc = np.array(cycles, dtype=np.int64)
+    w, w2 = frm[cyc], to[cyc]
+    D = G[A[w2]] - G[GROUP_PRODUCT[mm[cyc], A[w]]]
+    sel = sp.csr_matrix((np.ones(3 * len(cyc)), (np.arange(3 * len(cyc)), (3 * w2[:, None] + np.arange(3)).ravel())),
+                        shape=(3 * len(cyc), 3 * nW))
+    E = (sel @ Bs - _translations(frm, cyc, Bs, mm, pp, dd, ntau)).toarray().reshape(len(cyc), 3, ntau)
+    v = wv[w]
+    terms = (D != 0).any(axis=2)
+    rows = [([(3 * int(v[i]) + j, D[i, a, j]) for j in range(3) if D[i, a, j] != 0], E[i, a])
+            for i, a in zip(*np.nonzero(terms))]
+    return A, Bd, rows, E[~terms & (np.abs(E) > 1e-12).any(axis=2)]
 
 
 def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, rel: np.ndarray | None = None) -> MapSystem:
@@ -475,10 +509,10 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, rel: np.n
     patch, orient, patch_M = cut_patches(mesh, tr)
     ntau = 3 * len(patch_M)
     wedge, wv = corner_wedges(mesh, tr)
-    A, Bd, cycle_rows = _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau)
+    A, Bd, cycle_rows, tau_rows = _wedge_expressions(mesh, tr, wedge, wv, patch, orient, patch_M, ntau)
     coords = _CornerCoordinates(mesh.tets, wedge, A, Bd, ntau)
     rows, angle = _equal_coordinates(cem, tr, coords)
-    uf, integer_scalar = _union_find(nV, ntau, rows, cycle_rows, coords)
+    uf, integer_scalar = _union_find(nV, ntau, rows, cycle_rows, tau_rows, coords)
     # the gauge (a global translation): the coordinates of one vertex that
     # lies on the integer grid anyway (a node, a curve's end, a corner) are
     # 0 -- the vertex's own coordinates, which differ from their class's
@@ -487,7 +521,6 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, rel: np.n
     for j in range(3):
         uf.add([(3 * pin + j, 1.0)], None)
     roots, sgn, Off = uf.flatten()
-    offs = {int(i): Off[i].toarray().ravel() for i in np.unique(Off.nonzero()[0])}
     root_int = np.zeros(3 * nV, bool)
     np.logical_or.at(root_int, roots, integer_scalar)
     isp, fixed_int = _integer_space(uf, root_int, ntau)
@@ -503,7 +536,7 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, rel: np.n
     fixed_val = {r: Nline[i] for i, r in enumerate(fixed_int)}
     for r, val in uf.fixed.items():
         fixed_val.setdefault(r, val @ Ntau)
-    Xm = _corner_matrix(mesh.tets, wedge, A, Bd, roots, sgn, offs, col, fixed_val, Ntau, nr, nk)
+    Xm = _corner_matrix(mesh.tets, wedge, A, Bd, roots, sgn, Off, col, fixed_val, Ntau, nr, nk)
     LX, Q, bvec, coef, vol = _fitting_energy(mesh, tr.frames, cell if rel is None else cell * rel, Xm)
     integer = np.zeros(nr + nk, bool)
     integer[col[free & root_int]] = True
@@ -579,7 +612,7 @@ def _equal_coordinates(cem: CurveEdgeMesh, tr: Transitions, coords: _CornerCoord
     return (S0, G0, B0, S1, G1, B1, AX), angle
 
 
-def _union_find(nV: int, ntau: int, rows, cycle_rows, coords: _CornerCoordinates):
+def _union_find(nV: int, ntau: int, rows, cycle_rows, tau_rows, coords: _CornerCoordinates):
     """The affine union-find of every constraint (module docs), and which
     scalars must be integers."""
     S0, G0, B0, S1, G1, B1, AX = rows
@@ -594,6 +627,7 @@ def _union_find(nV: int, ntau: int, rows, cycle_rows, coords: _CornerCoordinates
         rep = np.full(lab.max() + 1, 3 * nV)
         np.minimum.at(rep, lab, np.arange(3 * nV))
         uf.parent = rep[lab]
+    uf.tau_rows.extend(tau_rows)  # (deduplicated and sorted by _integer_space)
     for terms, e in cycle_rows:
         uf.add(terms, e)
     zero = np.zeros(ntau)
@@ -613,7 +647,11 @@ def _integer_space(uf: AffineUnionFind, root_int: np.ndarray, ntau: int):
     isp = IntegerSpace(q)
     if uf.tau_rows:
         # the same relation comes from many cycles: each distinct one once
-        R = np.unique(np.round(np.array(uf.tau_rows), 9), axis=0)
+        # (equal bytes first, -0 made 0: the numeric sort of np.unique's
+        # axis=0 is slow on thousands of rows)
+        R = np.round(np.array(uf.tau_rows), 9) + 0.0
+        _, once = np.unique(R.view(np.dtype((np.void, R.itemsize * R.shape[1]))), return_index=True)
+        R = np.unique(R[once], axis=0)
         for row in R:
             isp.add(np.r_[row, np.zeros(len(fixed_int))])
     for i, r in enumerate(fixed_int):
@@ -626,15 +664,28 @@ def _integer_space(uf: AffineUnionFind, root_int: np.ndarray, ntau: int):
     return isp, fixed_int
 
 
-def _corner_matrix(T, wedge, A, Bd, roots, sgn, offs, col, fixed_val, Ntau, nr, nk) -> sp.csr_matrix:
+def _corner_matrix(T, wedge, A, Bd, roots, sgn, Off, col, fixed_val, Ntau, nr, nk) -> sp.csr_matrix:
     """X (12 #T, nz): corner coordinates from z = [free roots; integer k].
-    Scalar s = sgn_s x_root + offs_s . tau, x_root free (a column), fixed
+    Scalar s = sgn_s x_root + Off[s] . tau, x_root free (a column), fixed
     (fixed_val, in k) or pinned (0); tau = Ntau k."""
     nT = len(T)
     rows_i, cols_i, vals = [], [], []
     dense_rows, dense_vals = [], []
     Tf, Wf = T.reshape(-1), wedge.reshape(-1)
-    bset, oset, fset = list(Bd), list(offs), list(fixed_val)
+    # the translation parts in k: each wedge's B (its rows of ``brow``), each
+    # scalar's offset (``Off``), each fixed root's value (its row of ``frow``)
+    brow = np.full(len(A), -1, dtype=np.int64)
+    bw = np.array(sorted(Bd), dtype=np.int64)
+    brow[bw] = np.arange(len(bw))
+    B = np.array([Bd[int(w)] for w in bw]) if len(bw) else np.zeros((0, 3, Ntau.shape[0]))
+    BN = np.einsum("bit,tk->bik", B, Ntau)
+    Off = Off.tocsr(copy=True)
+    Off.eliminate_zeros()
+    has_off = np.diff(Off.indptr) > 0
+    frow = np.full(len(roots), -1, dtype=np.int64)
+    fkeys = np.array(list(fixed_val), dtype=np.int64)
+    frow[fkeys] = np.arange(len(fkeys))
+    FV = np.array([fixed_val[int(r)] for r in fkeys]) if len(fkeys) else np.zeros((0, nk))
     for a in range(3):
         Ga = G[A[Wf]][:, a, :]  # (4nT, 3) one nonzero per row
         j = np.argmax(np.abs(Ga), axis=1)
@@ -647,23 +698,21 @@ def _corner_matrix(T, wedge, A, Bd, roots, sgn, offs, col, fixed_val, Ntau, nr, 
         cols_i.append(col[r[ok]])
         vals.append((g * sgn[s])[ok])
         # translation parts: the wedge's B, the scalar's offset, a fixed root's value
-        need = np.nonzero(np.isin(Wf, bset) | np.isin(s, oset) | np.isin(r, fset))[0]
-        for i in need.tolist():
-            vec = np.zeros(nk)
-            w, si, ri = int(Wf[i]), int(s[i]), int(r[i])
-            if w in Bd:
-                vec += Bd[w][a] @ Ntau
-            if si in offs:
-                vec += g[i] * (offs[si] @ Ntau)
-            if ri in fixed_val:
-                vec += g[i] * sgn[si] * fixed_val[ri]
-            if np.any(vec):
-                dense_rows.append(int(rid[i]))
-                dense_vals.append(vec)
-    if dense_rows:
-        D = np.array(dense_vals)
+        need = np.nonzero((brow[Wf] >= 0) | has_off[s] | (frow[r] >= 0))[0]
+        vec = np.zeros((len(need), nk))
+        b = brow[Wf[need]]
+        vec[b >= 0] += BN[b[b >= 0], a]
+        o = has_off[s[need]]
+        vec[o] += g[need[o], None] * (Off[s[need[o]]] @ Ntau)
+        f = frow[r[need]]
+        vec[f >= 0] += (g * sgn[s])[need[f >= 0], None] * FV[f[f >= 0]]
+        keep = np.any(vec != 0, axis=1)
+        dense_rows.append(rid[need[keep]])
+        dense_vals.append(vec[keep])
+    D = np.concatenate(dense_vals)
+    if len(D):
         nzr, nzc = np.nonzero(np.abs(D) > 1e-12)
-        rows_i.append(np.array(dense_rows)[nzr])
+        rows_i.append(np.concatenate(dense_rows)[nzr])
         cols_i.append(nr + nzc)
         vals.append(D[nzr, nzc])
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows_i), np.concatenate(cols_i))),

@@ -28,7 +28,6 @@ shrunk where a non-singular interior edge holds a single cut face (AlgoHex's
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,7 +38,7 @@ from ..errors import HexMeshError
 from ..field.matchings import pair_matchings
 from ..field.matchings import tet_frames as matching_tet_frames
 from ..linalg.rotations import CUBE_GROUP, GROUP_INVERSE, GROUP_PRODUCT, closest_symmetry
-from ..mesh.tetmesh import TET_EDGES, TetMesh
+from ..mesh.tetmesh import TET_EDGE_OPPOSITE, TetMesh
 from .curve_edges import CurveEdgeError, CurveEdgeMesh, curves_on_edges
 from .intake import hex_input, unconverged
 from .report import where
@@ -150,21 +149,25 @@ def comb(n_tets: int, tets: np.ndarray, M: np.ndarray, root: int = 0):
     if ncomp != 1:
         raise CurveEdgeError(f"internal: the split mesh has {ncomp} face-connected parts")
     order, pred = breadth_first_order(adj, root, directed=False, return_predecessors=True)
-    # the face between each tet and its predecessor
-    key = {}
-    for i, (a, b) in enumerate(zip(A.tolist(), B.tolist())):
-        key[(a, b)] = i
-        key[(b, a)] = i
-    C = np.zeros(n_tets, dtype=np.int64)
+    # the face between each tet and its predecessor, and the transition
+    # across it from the predecessor
+    t = order[1:]
+    p = pred[t]
+    i = adj[p, t].A1 - 1
     tree = np.zeros(len(A), bool)
-    Ml, Al = M.tolist(), A.tolist()
+    tree[i] = True
     inv = GROUP_INVERSE
-    for t in order[1:].tolist():
-        p = int(pred[t])
-        i = key[(p, t)]
-        tree[i] = True
-        m = Ml[i] if Al[i] == p else int(inv[Ml[i]])  # transition p -> t
-        C[t] = GROUP_PRODUCT[m, C[p]]
+    step = np.full(n_tets, IDENTITY, dtype=np.int64)
+    step[t] = np.where(A[i] == p, M[i], inv[M[i]])
+    # C[t] = step[t] C[pred t], composed up the tree by pointer jumping:
+    # C[t] = acc[t] C[up[t]], halving the distance to the root each round
+    up = pred.copy()
+    up[root] = root
+    acc = step
+    while np.any(up != root):
+        acc = GROUP_PRODUCT[acc, acc[up]]
+        up = up[up]
+    C = acc
     combed = GROUP_PRODUCT[GROUP_PRODUCT[inv[C[B]], M], C[A]]
     return C, combed, tree
 
@@ -180,97 +183,97 @@ def _edge_faces(mesh: TetMesh, faces: np.ndarray):
 def shrink_cut(mesh: TetMesh, faces: np.ndarray, cut: np.ndarray, keep_edges: np.ndarray) -> np.ndarray:
     """Remove cut faces hanging off an interior edge that holds no other cut
     face, until none is left; edges in keep_edges (singular, boundary) are
-    never shrunk across."""
+    never shrunk across.  (The faces removed do not depend on the order: a
+    face hanging off an edge keeps hanging off it until it goes, so every
+    hanging face of a round goes at once.)"""
     cut = cut.copy()
     E2F = _edge_faces(mesh, faces)
-    count = np.asarray(E2F[:, np.nonzero(cut)[0]].sum(axis=1)).ravel()
-    blocked = keep_edges
     fe = mesh.face_edges[faces]
-    indptr, indices = E2F.indptr, E2F.indices
-    queue = deque(np.nonzero((count == 1) & ~blocked)[0].tolist())
-    while queue:
-        e = queue.popleft()
-        if count[e] != 1 or blocked[e]:
-            continue
-        fs = indices[indptr[e]:indptr[e + 1]]
-        f = fs[cut[fs]]
-        if len(f) != 1:
-            continue
-        f = int(f[0])
-        cut[f] = False
-        for e2 in fe[f]:
-            count[e2] -= 1
-            if count[e2] == 1 and not blocked[e2]:
-                queue.append(int(e2))
-    return cut
+    free = ~keep_edges
+    count = np.asarray(E2F[:, np.nonzero(cut)[0]].sum(axis=1)).ravel()
+    while True:
+        hang = cut & ((count[fe] == 1) & free[fe]).any(axis=1)
+        if not hang.any():
+            return cut
+        cut &= ~hang
+        np.subtract.at(count, fe[hang].ravel(), 1)
+
+
+def ring_walk(mesh: TetMesh, edges: np.ndarray, face_pos: np.ndarray):
+    """The rings of tets around tet edges, walked all at once.  For edge
+    ``edges[i]``: the tets around it in order, ``order[i, :n_order[i]]``,
+    and between consecutive tets the position (into the interior-face list)
+    of the face crossed, ``crossed[i, :n_crossed[i]]``.  A ring starts at
+    the first tet (by id) with a boundary face at the edge, if any (an open
+    fan, its first and last tets on the boundary), and leaves it through its
+    first interior face holding the edge.  face_pos maps a face id to its
+    interior position (-1 on the boundary).  Returns (order, crossed,
+    n_order, n_crossed), the arrays padded with -1."""
+    tf, ft = mesh.tet_faces, mesh.face_tets
+    n = len(edges)
+    slot = np.full(mesh.n_edges, -1, dtype=np.int64)
+    slot[edges] = np.arange(n)
+    r, c = np.nonzero(slot[mesh.tet_edges] >= 0)  # (tet, local edge) entries, by tet
+    ei = slot[mesh.tet_edges[r, c]]
+    srt = np.argsort(ei, kind="stable")
+    r, c, ei = r[srt], c[srt], ei[srt]
+    begin = np.searchsorted(ei, np.arange(n))
+    count = np.diff(np.r_[begin, len(ei)])
+    # the two faces of each entry's tet that hold the edge
+    fa, fb = tf[r, TET_EDGE_OPPOSITE[c, 0]], tf[r, TET_EDGE_OPPOSITE[c, 1]]
+    on_boundary = (face_pos[fa] < 0) | (face_pos[fb] < 0)
+    first_b = np.minimum.reduceat(np.where(on_boundary, np.arange(len(ei)), len(ei)), begin) if n else begin
+    start = np.where(first_b < len(ei), first_b, begin)
+    key = r * max(n, 1) + ei  # an entry by (tet, edge)
+    kord = np.argsort(key)
+    t0, f0, f1 = r[start], fa[start], fb[start]
+    f = np.where(face_pos[f0] < 0, f1, f0)
+    width = int(count.max(initial=0)) + 2
+    order = np.full((n, width), -1, dtype=np.int64)
+    crossed = np.full((n, width), -1, dtype=np.int64)
+    order[:, 0] = t0
+    n_order, n_crossed = np.ones(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+    cur = t0.copy()
+    active = (face_pos[f0] >= 0) | (face_pos[f1] >= 0)  # not a single tet between two boundary faces
+    while active.any():
+        idx = np.nonzero(active)[0]
+        fi = f[idx]
+        crossed[idx, n_crossed[idx]] = face_pos[fi]
+        n_crossed[idx] += 1
+        other = np.where(ft[fi, 0] != cur[idx], ft[fi, 0], ft[fi, 1])
+        closed = other == t0[idx]
+        active[idx[closed]] = False
+        go, other, fi = idx[~closed], other[~closed], fi[~closed]
+        if np.any(n_order[go] > count[go]):
+            raise CurveEdgeError("internal: an edge's ring of tets does not close")
+        order[go, n_order[go]] = other
+        n_order[go] += 1
+        ent = kord[np.searchsorted(key, other * max(n, 1) + go, sorter=kord)]
+        f[go] = np.where(fa[ent] == fi, fb[ent], fa[ent])
+        cur[go] = other
+        active[go[face_pos[f[go]] < 0]] = False
+    return order, crossed, n_order, n_crossed
 
 
 def edge_rings(mesh: TetMesh, edges: np.ndarray, face_pos: np.ndarray) -> dict:
     """For each edge id in edges: the tets around it in order and, between
     consecutive tets, the position (into the interior-face list) of the face
-    crossed; boundary edges give an open fan (first and last tets touch the
-    boundary).  face_pos maps a face id to its interior position (-1 on the
-    boundary)."""
-    tf, ft = mesh.tet_faces, mesh.face_tets
-    E = mesh.edges
-    # tets around every edge
-    te = mesh.tet_edges  # (#T, 6)
-    want = np.zeros(mesh.n_edges, bool)
-    want[edges] = True
-    r, c = np.nonzero(want[te])
-    by_edge: dict[int, list] = {}
-    for t, k in zip(r.tolist(), c.tolist()):
-        by_edge.setdefault(int(te[t, k]), []).append((t, k))
-    out = {}
-    for e in edges.tolist():
-        entries = by_edge[e]
-        a, b = E[e]
-        # faces of tet t holding edge (a, b): the faces opposite the other two vertices
-        def faces_of(t, k):
-            i, j = TET_EDGES[k]
-            o = [x for x in range(4) if x not in (i, j)]
-            return int(tf[t, o[0]]), int(tf[t, o[1]])
-        tet_set = {t: k for t, k in entries}
-        # start at a tet with a boundary face at this edge, if any (an open fan)
-        start = entries[0][0]
-        for t, k in entries:
-            if any(face_pos[f] < 0 for f in faces_of(t, k)):
-                start = t
-                break
-        order, crossed = [start], []
-        prev_face = None
-        f0, f1 = faces_of(start, tet_set[start])
-        nxt = f1 if face_pos[f0] < 0 else f0
-        if face_pos[f0] < 0 and face_pos[f1] < 0:
-            out[e] = (order, crossed)  # a single tet between two boundary faces
-            continue
-        cur, f = start, nxt
-        while True:
-            crossed.append(int(face_pos[f]))
-            other = int(ft[f, 0] if ft[f, 0] != cur else ft[f, 1])
-            if other == start:
-                break
-            order.append(other)
-            g0, g1 = faces_of(other, tet_set[other])
-            prev_face = f
-            f = g1 if g0 == prev_face else g0
-            cur = other
-            if face_pos[f] < 0:
-                break
-            if len(order) > len(entries) + 1:
-                raise CurveEdgeError("internal: an edge's ring of tets does not close")
-        out[e] = (order, crossed)
-    return out
+    crossed (``ring_walk``, as lists)."""
+    order, crossed, n_order, n_crossed = ring_walk(mesh, edges, face_pos)
+    return {e: (order[i, :n_order[i]].tolist(), crossed[i, :n_crossed[i]].tolist())
+            for i, e in enumerate(edges.tolist())}
 
 
-def _ring_product(ring, tets_ab: np.ndarray, M: np.ndarray) -> int:
-    """CUBE_GROUP index of the transitions composed once around a ring."""
-    order, crossed = ring
-    h = IDENTITY
-    for i, p in enumerate(crossed):
-        cur = order[i]
-        m = int(M[p]) if tets_ab[p, 0] == cur else int(GROUP_INVERSE[M[p]])
-        h = int(GROUP_PRODUCT[m, h])
+def ring_holonomy(order: np.ndarray, crossed: np.ndarray, n_crossed: np.ndarray, tets_ab: np.ndarray,
+                  M: np.ndarray) -> np.ndarray:
+    """CUBE_GROUP index of the transitions composed once around each ring
+    of ``ring_walk``."""
+    h = np.full(len(order), IDENTITY, dtype=np.int64)
+    for i in range(int(n_crossed.max(initial=0))):
+        on = np.nonzero(i < n_crossed)[0]
+        p, cur = crossed[on, i], order[on, i]
+        m = np.where(tets_ab[p, 0] == cur, M[p], GROUP_INVERSE[M[p]])
+        h[on] = GROUP_PRODUCT[m, h[on]]
     return h
 
 
@@ -283,12 +286,16 @@ def turns_about_curve(h: int, frame: np.ndarray, tangent: np.ndarray) -> bool:
     bent 45 degrees over its last third, at an ellipsoid's tip, had the
     turn's axis (the same in every tet of the ring) 50 degrees off its
     tangent and another axis 46, and was refused as a singularity the
-    network does not ask for."""
-    axis, q = rotation_axis_angle(np.array([h]))
-    if q[0] == 0:
-        return False
-    d = np.abs(frame.T @ tangent)
-    return axis[0] == int(np.argmax(d)) or d[axis[0]] >= np.cos(np.radians(AXIS_SLACK))
+    network does not ask for.  Given k holonomies, frames (k, 3, 3) and
+    tangents (k, 3): a (k,) bool array."""
+    one = np.ndim(h) == 0
+    h = np.atleast_1d(h)
+    frame, tangent = np.reshape(frame, (-1, 3, 3)), np.reshape(tangent, (-1, 3))
+    axis, q = rotation_axis_angle(h)
+    d = np.abs(np.einsum("nji,nj->ni", frame, tangent))  # |frame^T tangent|
+    near = d[np.arange(len(d)), np.maximum(axis, 0)] >= np.cos(np.radians(AXIS_SLACK))
+    ok = (q != 0) & ((axis == np.argmax(d, axis=1)) | near)
+    return bool(ok[0]) if one else ok
 
 
 def build_transitions(cem: CurveEdgeMesh, field_mesh: TetMesh, omega: np.ndarray, frames: np.ndarray) -> Transitions:
@@ -328,17 +335,16 @@ def build_transitions(cem: CurveEdgeMesh, field_mesh: TetMesh, omega: np.ndarray
     touch = np.zeros(mesh.n_edges, bool)
     touch[mesh.face_edges[faces[Mc != IDENTITY]].reshape(-1)] = True
     check = np.nonzero((touch | sing) & ~mesh.is_boundary_edge)[0]
-    rings = edge_rings(mesh, check, face_pos)
-    hol = {e: _ring_product(rings[e], ab, Mc) for e in check.tolist()}
-    bad = []
-    for e, h in hol.items():
-        if sing[e]:
-            # a quarter turn about the frame axis along the curve (its
-            # tangent, not the chain edge's own direction: a chain zig-zags)
-            if not turns_about_curve(h, F[rings[e][0][0]], tangent[e]):
-                bad.append(e)
-        elif h != IDENTITY:
-            bad.append(e)
+    order, crossed, _, n_crossed = ring_walk(mesh, check, face_pos)
+    h = ring_holonomy(order, crossed, n_crossed, ab, Mc)
+    hol = dict(zip(check.tolist(), h.tolist()))
+    # on a singular edge a quarter turn about the frame axis along the curve
+    # (its tangent, not the chain edge's own direction: a chain zig-zags),
+    # elsewhere none
+    on = sing[check]
+    wrong = h != IDENTITY
+    wrong[on] = ~turns_about_curve(h[on], F[order[on, 0]], tangent[check[on]])
+    bad = check[wrong].tolist()
     return Transitions(F, faces, ab, Mc, cut, hol, np.nonzero(sing)[0], bad, ambiguous)
 
 
