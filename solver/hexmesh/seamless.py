@@ -1241,12 +1241,12 @@ def optimise_map(ms: MapSystem, gm: GridMap, mu: float = 10.0, lam: float = 0.0,
 
         def fun(y):
             U = (base + Xy @ y).reshape(-1, 4, 3)
-            J = np.einsum("tca,tcj->taj", U, coef)
+            J = np.matmul(U.transpose(0, 2, 1), coef)  # J_taj = sum_c U_tca coef_tcj
             f, dJ = foldover_free(J, eps, lam)
             R = J - eye
-            e = float(np.sum(w * (np.einsum("tij,tij->t", R, R) + mu * f)))
+            e = float(np.sum(w * (np.sum(R * R, axis=(1, 2)) + mu * f)))
             dJ = w[:, None, None] * (2.0 * R + mu * dJ)
-            dU = np.einsum("taj,tcj->tca", dJ, coef)
+            dU = np.matmul(coef, dJ.transpose(0, 2, 1))  # dU_tca = sum_j dJ_taj coef_tcj
             return e, Xy.T @ dU.reshape(-1)
 
         res = lbfgs(fun, z[iy], max_iterations=iters, callback=callback)

@@ -107,6 +107,7 @@ def _cube_group() -> np.ndarray:
 
 CUBE_GROUP: np.ndarray = _cube_group()
 """(24, 3, 3) rotational symmetries of the cube, identity first."""
+_GROUP_T = np.ascontiguousarray(CUBE_GROUP.transpose(0, 2, 1).reshape(24, 9).T)  # (9, 24): g^T, flattened
 
 
 def closest_symmetry(M: np.ndarray) -> np.ndarray:
@@ -116,7 +117,8 @@ def closest_symmetry(M: np.ndarray) -> np.ndarray:
     The angle of a rotation decreases with its trace, so we maximise
     ``trace(M g) = sum_ij M_ij g_ji``.
     """
-    traces = np.einsum("nij,kji->nk", M, CUBE_GROUP)
+    M = np.asarray(M)
+    traces = M.reshape(-1, 9) @ _GROUP_T  # a product of (n, 9) and (9, 24): no einsum loop
     return np.argmax(traces, axis=1)
 
 
