@@ -598,22 +598,6 @@ SHORT_UNIFORM = 2.5
 """A graded mesh gives way to a uniform one at its bulk edge length only
 where every open curve is at least this many of those edges long."""
 
-def _local_status(problem: FieldProblem, report: Report, omega: np.ndarray) -> tuple[str, str]:
-    """A solve's (status, reason), with a penalty above the discretisation
-    level that ``report.local_excess`` finds local counted as converged:
-    each structure face's share of the penalty and its residual (Eq. 17) as
-    an angle."""
-    if report.status == "converged":
-        return report.status, report.status_reason
-    vp = problem.volume
-    r = vp.se.residual(omega)
-    share = vp.a * np.sum(r * r, axis=1)
-    at = problem.mesh.vertices[problem.mesh.faces[vp.faces]].mean(axis=1)
-    n_singular = sum(1 for c in problem.network.curves if c.sigma != 0)
-    why = local_excess(report.lm, share, np.degrees(np.linalg.norm(r, axis=1)), at, report.metrics, n_singular)
-    return ("converged", why) if why else (report.status, report.status_reason)
-
-
 GRADED_SHARE = 0.1
 """... and only where the grading made at least this share of its tets: a
 mesh graded less is nearly that uniform one, and is not solved again on it
@@ -629,6 +613,22 @@ where LM ends with a penalty over this many times the discretisation level
 3.7e3 where the level was 50 (74 times); networks the mesh did not resolve
 end 1.6-2 times over it (bench/RESULTS.md: the ellipsoids, the genus-2
 block's oblique ends)."""
+
+
+def _local_status(problem: FieldProblem, report: Report, omega: np.ndarray) -> tuple[str, str]:
+    """A solve's (status, reason), with a penalty above the discretisation
+    level that ``report.local_excess`` finds local counted as converged:
+    each structure face's share of the penalty and its residual (Eq. 17) as
+    an angle."""
+    if report.status == "converged":
+        return report.status, report.status_reason
+    vp = problem.volume
+    r = vp.se.residual(omega)
+    share = vp.a * np.sum(r * r, axis=1)
+    at = problem.mesh.vertices[problem.mesh.faces[vp.faces]].mean(axis=1)
+    n_singular = sum(1 for c in problem.network.curves if c.sigma != 0)
+    why = local_excess(report.lm, share, np.degrees(np.linalg.norm(r, axis=1)), at, report.metrics, n_singular)
+    return ("converged", why) if why else (report.status, report.status_reason)
 
 
 def _far_from_solution(final) -> bool:

@@ -536,7 +536,7 @@ def build_map_system(cem: CurveEdgeMesh, tr: Transitions, cell: float, rel: np.n
     fixed_val = {r: Nline[i] for i, r in enumerate(fixed_int)}
     for r, val in uf.fixed.items():
         fixed_val.setdefault(r, val @ Ntau)
-    Xm = _corner_matrix(mesh.tets, wedge, A, Bd, roots, sgn, Off, col, fixed_val, Ntau, nr, nk)
+    Xm = _corner_matrix(coords, roots, sgn, Off, col, fixed_val, Ntau, nr, nk)
     LX, Q, bvec, coef, vol = _fitting_energy(mesh, tr.frames, cell if rel is None else cell * rel, Xm)
     integer = np.zeros(nr + nk, bool)
     integer[col[free & root_int]] = True
@@ -664,21 +664,19 @@ def _integer_space(uf: AffineUnionFind, root_int: np.ndarray, ntau: int):
     return isp, fixed_int
 
 
-def _corner_matrix(T, wedge, A, Bd, roots, sgn, Off, col, fixed_val, Ntau, nr, nk) -> sp.csr_matrix:
+def _corner_matrix(coords, roots, sgn, Off, col, fixed_val, Ntau, nr, nk) -> sp.csr_matrix:
     """X (12 #T, nz): corner coordinates from z = [free roots; integer k].
     Scalar s = sgn_s x_root + Off[s] . tau, x_root free (a column), fixed
-    (fixed_val, in k) or pinned (0); tau = Ntau k."""
-    nT = len(T)
+    (fixed_val, in k) or pinned (0); tau = Ntau k.  ``coords``
+    (_CornerCoordinates) gives each corner's scalar, sign and wedge B."""
+    nT = len(coords.T)
     rows_i, cols_i, vals = [], [], []
     dense_rows, dense_vals = [], []
-    Tf, Wf = T.reshape(-1), wedge.reshape(-1)
-    # the translation parts in k: each wedge's B (its rows of ``brow``), each
-    # scalar's offset (``Off``), each fixed root's value (its row of ``frow``)
-    brow = np.full(len(A), -1, dtype=np.int64)
-    bw = np.array(sorted(Bd), dtype=np.int64)
-    brow[bw] = np.arange(len(bw))
-    B = np.array([Bd[int(w)] for w in bw]) if len(bw) else np.zeros((0, 3, Ntau.shape[0]))
-    BN = np.einsum("bit,tk->bik", B, Ntau)
+    Tf, Wf = coords.T.reshape(-1), coords.wedge.reshape(-1)
+    # the translation parts in k: each wedge's B (coords.brow), each scalar's
+    # offset (``Off``), each fixed root's value (its row of ``frow``)
+    brow = coords.brow
+    BN = np.einsum("bit,tk->bik", coords.B, Ntau)
     Off = Off.tocsr(copy=True)
     Off.eliminate_zeros()
     has_off = np.diff(Off.indptr) > 0
@@ -687,10 +685,8 @@ def _corner_matrix(T, wedge, A, Bd, roots, sgn, Off, col, fixed_val, Ntau, nr, n
     frow[fkeys] = np.arange(len(fkeys))
     FV = np.array([fixed_val[int(r)] for r in fkeys]) if len(fkeys) else np.zeros((0, nk))
     for a in range(3):
-        Ga = G[A[Wf]][:, a, :]  # (4nT, 3) one nonzero per row
-        j = np.argmax(np.abs(Ga), axis=1)
-        g = Ga[np.arange(len(Ga)), j]
-        s = 3 * Tf + j
+        g = coords.gsign[Wf, a]
+        s = 3 * Tf + coords.jmax[Wf, a]
         r = roots[s]
         rid = 12 * np.repeat(np.arange(nT), 4) + 3 * np.tile(np.arange(4), nT) + a
         ok = col[r] >= 0
