@@ -106,8 +106,8 @@ def main(argv: list[str]) -> int:
         bpy.ops.symframes.add_example(example=example)
         s = scene.symframes
         s.glyph_count, s.streamline_seeds = 300, 10
-        if example == "cube":
-            s.edge_length = 0.4
+        s.auto_resolution = False  # coarse and quick: the smoke test checks the install, not the resolution
+        s.edge_length = 0.4 if example == "cube" else 0.3
         finished(bpy.ops.symframes.check_network(), "check_network")
         finished(bpy.ops.symframes.compute(streamlines=False), "compute")
         report = json.loads(s.field["symframes_report"])

@@ -243,7 +243,7 @@ def _hex(args, inp, progress, finer=None) -> int:
                              smooth=not args.no_smooth, finer_near=getattr(args, "finer", None))
         hm = hexmesh(inp, options=options, progress=progress, allow_unconverged=args.mesh_unconverged)
     except HexMeshError as e:
-        again = finer(e) if finer is not None and e.kind == "map" else None
+        again = finer(e) if finer is not None and e.kind == "map" and e.finer else None
         if again is not None:
             return _hex(args, again, progress)
         print(f"error: no hex mesh: {_HEX_KIND.get(e.kind, '')}{e}", file=sys.stderr)

@@ -70,11 +70,15 @@ class HexMeshError(SymFramesError):
       network.
 
     ``report`` (a hexmesh.HexReport, or None) holds the figures gathered
-    before the stop."""
+    before the stop.  ``finer`` says whether a field solved on a finer mesh
+    may mesh (``python -m solver --hex`` and the add-on then solve again
+    finer, where the resolution was automatic): False where the map fails
+    so at any resolution (a smooth handle without singular curves)."""
 
     KINDS = ("network", "settings", "field", "map")
 
-    def __init__(self, message: str, report=None, kind: str = "map"):
+    def __init__(self, message: str, report=None, kind: str = "map", finer: bool = True):
         super().__init__(message)
         self.report = report
         self.kind = kind if kind in self.KINDS else "map"
+        self.finer = bool(finer)

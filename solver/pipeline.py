@@ -736,7 +736,7 @@ def solve_resolved(problem: FieldProblem, root: int | None = None, progress=None
     return best
 
 
-def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | None, str]:
+def solve_finer(result: Result | FieldProblem, progress=None, cancel=None) -> tuple[Result | None, str]:
     """The field of ``result`` solved again on a uniform mesh ``FINER``
     times its edge length, for a later stage (the hex mesher) that needs a
     finer field: two nodes closer than its mesh resolves, a curve shorter
@@ -745,8 +745,10 @@ def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | No
 
     Parameters
     ----------
-    result : Result
-        The field, as ``solve`` or ``solve_resolved`` returned it.
+    result : Result or FieldProblem
+        The field, as ``solve`` or ``solve_resolved`` returned it, or the
+        problem it was solved from (the add-on keeps the solved field, not
+        its Result, and rebuilds the problem on the field's own tet mesh).
     progress : callable, optional
         ``progress(stage, fraction, message)``.
     cancel : callable, optional
@@ -765,8 +767,9 @@ def solve_finer(result: Result, progress=None, cancel=None) -> tuple[Result | No
     Cancelled
         When ``cancel()`` returned True.
     """
-    checks.instance("result", result, Result, OptionsError, "the Result of solve(...)")
-    problem = result.problem
+    checks.instance("result", result, (Result, FieldProblem), OptionsError,
+                    "the Result of solve(...) or its FieldProblem")
+    problem = result.problem if isinstance(result, Result) else result
     opts = problem.options
     if opts.edge_length is not None:
         return None, (f"not solved again finer: the edge length {problem.edge_length:.4g} was given; give a "

@@ -150,16 +150,16 @@ class Report:
         Returns
         -------
         dict
-            Every field (``lm`` left out when there was no LM run; the curve
-            repairs, corners and LM iterations as dicts of their fields),
-            plus ``converged`` for readers of the file.
+            Every field, the notes included (``lm`` left out when there was
+            no LM run; the curve repairs, corners and LM iterations as dicts
+            of their fields), plus ``converged`` for readers of the file.
             ``Report.from_dict`` reads it back.
         """
         d = {"stage_seconds": self.stage_seconds, "sizes": self.sizes, "metrics": self.metrics,
              "edge_length": self.edge_length, "repairs": [asdict(r) for r in self.repairs],
              "repair_scale": self.repair_scale, "mesher": self.mesher,
              "corners": [asdict(c) for c in self.corners], "status": self.status, "converged": self.converged,
-             "status_reason": self.status_reason}
+             "status_reason": self.status_reason, "notes": list(self.notes)}
         if self.lm is not None:
             d["lm"] = asdict(self.lm)
         return _plain(d)

@@ -8,7 +8,11 @@ calling thread (background mode, tests).
 
 * ``SolveJob``: FieldProblem + solve + glyph/streamline sampling.
 * ``HexJob``: solver.hexmesh of a solved field (solver.SolvedField: the
-  scene's stored field, read back whole from the .blend).
+  scene's stored field, read back whole from the .blend).  Where the map
+  fails on it (a limit of SymFrames, such as two nodes closer than the
+  field's mesh resolves) and the resolution is Auto, the field is solved
+  again finer (solver.solve_finer, as ``python -m solver --hex`` does) and
+  that field is meshed and then stored in place of the first.
 * ``SuggestJob``: solver.suggest_network of the domain's surface.
 
 Kept in memory beside the scene, each with what it depends on:
@@ -33,10 +37,12 @@ from ..solver import (
     FieldProblem,
     FrameField,
     HexMesh,
+    HexMeshError,
     HexOptions,
     Report,
     SolvedField,
     hexmesh,
+    solve_finer,
     solve_resolved,
     suggest_network,
     vertex_normal_adaptation,
@@ -155,27 +161,35 @@ class SolveJob(Job):
                                cancel=self._is_cancelled, mesh=mesh)
         result = solve_resolved(problem, progress=self._progress, cancel=self._is_cancelled)
         _MESH_CACHE.update(key=key, mesh=problem.meshed)  # with its edge length and how it was made
-        solved = result.field
-        adaptation = vertex_normal_adaptation(solved)
-        out = Outcome(solved, adaptation, result.report, remeshed=mesh is None, inputs_key=inp.field_key(),
-                      inputs_parts=inp.field_parts())
-        if self.want_glyphs or self.want_streamlines:
-            self._progress("display", 0.97, "sampling glyphs and streamlines")
-            f = FrameField.from_field(solved)
-            if self.want_glyphs:
-                mono = None
-                if self.display.colour == "MONODROMY":
-                    mono = display.vertex_monodromy(solved.mesh, solved.omega,
-                                                    solved.embedding.network_faces(solved.mesh))
-                attr = display.ERROR_ATTRIBUTES.get(self.display.colour, display.ERROR_ATTRIBUTES["ADAPTATION"])
-                out.glyphs = (*display.glyph_samples(f, self.display, adaptation, mono), attr)
-            if self._is_cancelled():
-                raise Cancelled()
-            if self.want_streamlines:
-                out.streamlines = display.streamlines(f, self.display, self._is_cancelled)
-        if self._is_cancelled():
+        return field_outcome(self, result, inp, self.display, self.want_glyphs, self.want_streamlines,
+                             remeshed=mesh is None)
+
+
+def field_outcome(j: Job, result, inp, ds: display.DisplaySettings, want_glyphs: bool, want_streamlines: bool,
+                  remeshed: bool) -> Outcome:
+    """The Outcome of a solved ``result`` (a solver.Result) of the inputs
+    ``inp``, with glyphs and streamlines sampled as ``ds`` says, in job j's
+    thread (its progress and cancel)."""
+    solved = result.field
+    adaptation = vertex_normal_adaptation(solved)
+    out = Outcome(solved, adaptation, result.report, remeshed=remeshed, inputs_key=inp.field_key(),
+                  inputs_parts=inp.field_parts())
+    if want_glyphs or want_streamlines:
+        j._progress("display", 0.97, "sampling glyphs and streamlines")
+        f = FrameField.from_field(solved)
+        if want_glyphs:
+            mono = None
+            if ds.colour == "MONODROMY":
+                mono = display.vertex_monodromy(solved.mesh, solved.omega, solved.embedding.network_faces(solved.mesh))
+            attr = display.ERROR_ATTRIBUTES.get(ds.colour, display.ERROR_ATTRIBUTES["ADAPTATION"])
+            out.glyphs = (*display.glyph_samples(f, ds, adaptation, mono), attr)
+        if j._is_cancelled():
             raise Cancelled()
-        return out
+        if want_streamlines:
+            out.streamlines = display.streamlines(f, ds, j._is_cancelled)
+    if j._is_cancelled():
+        raise Cancelled()
+    return out
 
 
 @dataclass
@@ -184,16 +198,61 @@ class HexOutcome:
 
     hex_mesh: HexMesh
     hex_id: str
+    resolved: Outcome | None = None  # the field solved again finer, meshed instead of the stored one
+    note: str = ""  # why and how it was solved again
 
 
 @dataclass
 class HexJob(Job):
     source: SolvedField  # the scene's stored field (storage.solved_field)
     options: HexOptions = field(default_factory=HexOptions)  # cell size (None: about target_hexes cells), smoothing
+    # the inputs the field was solved for, with the solve's display settings
+    # and outputs: where the map fails and the resolution is Auto, the field
+    # is solved again finer (solver.solve_finer) and meshed instead
+    inputs: object = None  # scene_io.Inputs
+    display: display.DisplaySettings | None = None
+    want_glyphs: bool = False
+    want_streamlines: bool = False
 
     def _work(self) -> HexOutcome:
-        hm = hexmesh(self.source, options=self.options, progress=self._progress, cancel=self._is_cancelled)
+        try:
+            hm = hexmesh(self.source, options=self.options, progress=self._progress, cancel=self._is_cancelled)
+        except HexMeshError as e:
+            if e.kind != "map" or not e.finer or self.inputs is None:
+                raise
+            return self._finer(e)
         return HexOutcome(hm, new_id())
+
+    def _finer(self, error: HexMeshError) -> HexOutcome:
+        """The field solved again finer and meshed, for a map that failed
+        with ``error`` on the stored field; ``error`` again, with why not,
+        where it is not solved again, does not converge or fails too."""
+        inp = self.inputs
+        if inp.options.edge_length is not None:
+            h = inp.options.edge_length
+            raise HexMeshError(f"{error}. The Edge Length {h:.4g} is set by hand, so SymFrames does not solve "
+                               f"finer by itself: set a smaller one (e.g. {0.7 * h:.3g}, the step solve_finer "
+                               "takes) or turn Auto on, and Compute Field again", error.report, error.kind) from error
+        self._progress("validate", 0.0, f"no hex mesh on this field ({error}); solving the field again finer")
+        # the problem on the stored field's own tet mesh (the kept one when it
+        # is that mesh: it knows the edge length it was made for)
+        kept = cached_mesh(inp.mesh_key())
+        same = kept is not None and np.array_equal(kept.mesh.tets, self.source.mesh.tets) and np.array_equal(
+            kept.mesh.vertices, self.source.mesh.vertices)
+        problem = FieldProblem(inp.V, inp.F, inp.network, inp.options, progress=self._progress,
+                               cancel=self._is_cancelled, mesh=kept if same else self.source.mesh)
+        again, what = solve_finer(problem, progress=self._progress, cancel=self._is_cancelled)
+        if again is None or not again.report.converged:
+            raise HexMeshError(f"{error}; {what}", error.report, error.kind) from error
+        resolved = field_outcome(self, again, inp, self.display or display.DisplaySettings(), self.want_glyphs,
+                                 self.want_streamlines, remeshed=True)
+        try:
+            hm = hexmesh(again.field, options=self.options, progress=self._progress, cancel=self._is_cancelled)
+        except HexMeshError as e:
+            raise HexMeshError(f"{e} (on the field {what}, after the map failed on the stored one; the scene is "
+                               "unchanged)", e.report, e.kind) from e
+        return HexOutcome(hm, new_id(), resolved=resolved,
+                          note=f"the map failed on the stored field ({error}), so the field was {what}")
 
 
 @dataclass

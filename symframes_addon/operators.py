@@ -347,6 +347,10 @@ def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
         return "ERROR", "SymFrames: the scene was deleted during hex meshing; nothing was written"
     out = j.outcome
     try:
+        if out.resolved is not None:
+            # the field the hex mesh is of: solved again finer (job.HexJob)
+            print(f"SymFrames: {out.note}")
+            write_outcome(scene, out.resolved)
         hex_mesh.write_hex_mesh(scene, out.hex_mesh, out.hex_id)
     except Exception as e:
         traceback.print_exc()
@@ -361,6 +365,10 @@ def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
     msg = (f"SymFrames: {r.hexes:,} hexahedra, scaled Jacobian min {r.sj_min:.3f} mean {r.sj_mean:.3f}; "
            f"irregular edges {irregular}, "
            f"{'exactly the prescribed curves' if r.structure_exact else 'not the prescribed curves'}")
+    if out.resolved is not None:
+        rr = out.resolved.report
+        msg += (f"; on the field solved again finer ({rr.sizes.get('tets', 0):,} tets, edge length "
+                f"{rr.edge_length:.4g}): the map failed on the first, see the system console")
     if r.status != "valid":
         # written all the same, so that the defect can be seen, but said plainly
         return "WARNING", f"{msg}; the hex mesh is defective: {r.reason}"
@@ -395,10 +403,15 @@ class SYMFRAMES_OT_hex_mesh(_Threaded, bpy.types.Operator):
             source = hex_source(context)
             if finer is not None:
                 finer.check(source)  # patches and curves the field has, before the job starts
+            inputs = scene_io.read_inputs(context)  # the field's (hex_source checked): solved again if the map fails
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e))
             return None
-        return job.HexJob(source=source, options=options, echo=echo)
+        scene = context.scene
+        return job.HexJob(source=source, options=options, echo=echo, inputs=inputs,
+                          display=display.DisplaySettings.from_scene(scene),
+                          want_glyphs=storage.output_object(scene, "glyphs") is not None,
+                          want_streamlines=storage.output_object(scene, "streamlines") is not None)
 
     def _finish(self, scene, j):
         return finish_hex_job(scene, j)

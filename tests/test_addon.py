@@ -67,8 +67,11 @@ def scene():
 
 
 def add_example(name: str, edge_length: float | None = None):
+    """The example at a hand-set edge length (its own coarse one by
+    default, examples.EDGE_LENGTHS): quick solves, not the example's Auto."""
     bpy.ops.symframes.add_example(example=name)
     s = scene().symframes
+    s.auto_resolution = False
     if edge_length is not None:
         s.edge_length = edge_length
     s.glyph_count = GLYPHS

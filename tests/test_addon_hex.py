@@ -130,7 +130,7 @@ def solve_and_hex(example: str, edge_length: float, path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.symframes.add_example(example=example)
     s = scene().symframes
-    s.edge_length, s.glyph_count = edge_length, 200
+    s.auto_resolution, s.edge_length, s.glyph_count = False, edge_length, 200
     assert bpy.ops.symframes.compute() == {"FINISHED"}
     assert bpy.ops.symframes.apply_hex_preset(preset=HEX_PRESET) == {"FINISHED"}
     assert (s.hex_cells, s.hex_cell_size) == (properties.HEX_PRESETS[HEX_PRESET], 0.0)
@@ -545,6 +545,77 @@ def test_hex_mesh_of_the_stored_field_in_a_thread(cyl):
     level, msg = operators.finish_hex_job(scene(), j)
     assert level == "WARNING" and msg.endswith("defective: the irregular edges are not exactly the prescribed curves")
     assert "Defective hex mesh" in draw_hex_panel().texts
+
+
+def _map_fails_on(monkeypatch, fields: list, finer: bool = True) -> list:
+    """job.hexmesh raising the map's HexMeshError (a limit of SymFrames,
+    as two nodes closer than the field's mesh resolves; ``finer``: whether
+    a finer field may mesh) on the fields in ``fields``, and meshing any
+    other; returns the fields it was given."""
+    from symframes.solver import HexMeshError
+
+    seen, real = [], job.hexmesh
+
+    def hexmesh(field, **kw):
+        seen.append(field)
+        if any(field == f for f in fields):
+            raise HexMeshError("nodes 1 and 5 are too close for the field's mesh: solve the field on a finer mesh",
+                               kind="map", finer=finer)
+        return real(field, **kw)
+
+    monkeypatch.setattr(job, "hexmesh", hexmesh)
+    return seen
+
+
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_a_map_failure_on_a_set_edge_length_says_what_to_change(cyl, monkeypatch):
+    """The Edge Length set by hand: SymFrames does not solve finer by
+    itself; the error says so, with a smaller edge length to set, and the
+    scene is unchanged."""
+    reopen(cyl)
+    before = scene_state()
+    s = scene().symframes
+    assert not s.auto_resolution and s.edge_length == pytest.approx(EDGE_LENGTH)
+    seen = _map_fails_on(monkeypatch, [operators.hex_source(bpy.context)])
+    _refused(bpy.ops.symframes.hex_mesh, r"too close for the field's mesh.*The Edge Length 0.4 is set by hand, "
+                                         r"so SymFrames does not solve finer by itself: set a smaller one \(e.g. "
+                                         r"0.28, the step solve_finer takes\) or turn Auto on")
+    assert len(seen) == 1 and scene_state() == before
+
+
+@pytest.mark.slow
+@pytest.mark.mesher
+def test_a_map_failure_with_auto_resolution_solves_the_field_again_finer(registered, monkeypatch):
+    """Auto resolution: where the map fails on the stored field, Hex Mesh
+    solves the field again finer (solver.solve_finer, as the command line's
+    --hex does), meshes that field and stores it in place of the first, with
+    the glyphs sampled again; the message says so."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.symframes.add_example(example="cube")
+    s = scene().symframes
+    s.auto_resolution, s.target_tets, s.glyph_count = True, 2000, 200
+    assert bpy.ops.symframes.compute() == {"FINISHED"}
+    first = storage.solved_field(scene())
+    first_report = storage.stored_report(scene())
+    assert bpy.ops.symframes.apply_hex_preset(preset=HEX_PRESET) == {"FINISHED"}
+    # where a finer field cannot help (a smooth handle without curves): refused at once, the scene unchanged
+    before = scene_state()
+    seen = _map_fails_on(monkeypatch, [operators.hex_source(bpy.context)], finer=False)
+    _refused(bpy.ops.symframes.hex_mesh, "too close for the field's mesh: solve the field on a finer mesh$")
+    assert len(seen) == 1 and scene_state() == before
+    seen = _map_fails_on(monkeypatch, [operators.hex_source(bpy.context)])
+    assert bpy.ops.symframes.hex_mesh() == {"FINISHED"}
+    assert len(seen) == 2 and seen[1] != seen[0]
+    again = storage.solved_field(scene())
+    report = storage.stored_report(scene())
+    assert again != first and again.mesh.n_tets > first.mesh.n_tets
+    assert report.converged and report.edge_length == pytest.approx(0.7 * first_report.edge_length)
+    assert any("solved again on a uniform mesh" in n and "for the hex mesh" in n for n in report.notes)
+    assert operators.hex_source(bpy.context) == again  # the field of the scene's inputs: Hex Mesh meshes it next
+    assert output("glyphs") is not None and not output("glyphs").visible_get()  # sampled again, hidden under the hex
+    hm = job.cached_hex(output(hex_mesh.ROLE).data[hex_mesh.HEX_ID_KEY])
+    assert hm.report.status == "valid" and len(hm.hexes) == hex_mesh.stored_report(scene()).hexes
 
 
 @pytest.mark.slow

@@ -3,6 +3,7 @@
 and a message naming the cause and the place; no numpy or scipy message
 reaches the user, and a field that did not converge is never meshed."""
 
+import json
 import os
 
 import numpy as np
@@ -136,6 +137,7 @@ def test_a_smooth_torus_without_curves_is_a_map_limit_with_the_reason(solved):
     with pytest.raises(HexMeshError) as e:
         hexmesh(res)
     assert e.value.kind == "map", str(e.value)
+    assert not e.value.finer  # it folds so at any resolution: --hex and the add-on do not solve again finer
     assert "before rounding" in str(e.value) and "torus" in str(e.value)
     assert "not a proof" in str(e.value) and "add them" in str(e.value)
 
@@ -229,6 +231,9 @@ def test_a_map_that_needs_a_finer_field_solves_it_again_finer(monkeypatch, tmp_p
     assert "solving the field again finer" in err and "solved again on a uniform mesh at edge length" in err
     assert len(calls) == 2 and calls[1] > 2 * calls[0]  # 0.7 times the edge length: ~2.9 times the tets
     assert os.path.exists(out) and io.load_field(npz).mesh.n_tets == calls[1]
+    with np.load(npz) as z:  # the result file's report keeps the note of why and how
+        notes = json.loads(str(z["report"]))["notes"]
+    assert any("solved again on a uniform mesh" in n and "for the hex mesh" in n for n in notes), notes
     calls.clear()
     assert main(["--example", "cube", "--edge-length", "0.3", "-o", npz, "--hex", out + ".vtu", "-q"]) == \
         EXIT_NO_HEX_MESH

@@ -379,7 +379,7 @@ def _refuse_folded(inp: SolvedField, cem: CurveEdgeMesh, sm, gm, cell: float, re
                 f"tets fold (around {at}); this is a limit of SymFrames' map (its cut, transitions and "
                 "constraints), not a proof that the network admits no hex mesh; here the solid has a smooth handle "
                 "and no singular curve, and a grid needs corners on a boundary: a smooth solid torus, for example, "
-                "needs curves around its tube (add them, or sharp edges)", report, kind="map")
+                "needs curves around its tube (add them, or sharp edges)", report, kind="map", finer=False)
         raise _Retry(
             f"SymFrames' seamless map folds: already before rounding, {sm.inverted:,} of {len(sm.det):,} tets "
             f"fold, and {report.map_inverted} stay folded after rounding, stiffening and untangling at cell size "
