@@ -243,7 +243,10 @@ def test_monodromy_is_small(at, name):
 def test_monodromy_falls_under_refinement(at):
     """Eq. 9 on a fixed subdomain a quarter unit away from the curves and the
     boundary (the paper's Fig. 15 measures away from the singular curves)."""
-    hs = [0.3, 0.2, 0.16]  # slope 2.4 here (2.1 with 0.14, 12 s against 8 s for that solve)
+    # the session's solves at 0.3 (the independence tests') and 0.2 (H): slopes 2.42-2.62 over four fresh
+    # pairs; with 0.16 too, 2.4 (2.1 with 0.14); at 0.4 the subdomain keeps 40-249 faces, and the
+    # mean is not yet falling (0.00061-0.00074 degrees against 0.00061-0.00064 at 0.3)
+    hs = [0.3, 0.2]
     means, lengths = [], []
     for h in hs:
         r = at("cylinder", h)

@@ -79,12 +79,12 @@ def test_refined_boundary_lies_on_the_input_surface():
 @pytest.mark.mesher
 def test_cube_on_a_refined_mesh_keeps_its_sharp_edges():
     V, F, net = load_example("cube")
-    problem = FieldProblem(V, F, net, Options(edge_length=0.15, refine=1))  # meshed here: refinement is the point
+    problem = FieldProblem(V, F, net, Options(edge_length=0.2, refine=1))  # meshed here: refinement is the point
     # one level: every coarse tet split into eight
     assert problem.report.sizes["refine_levels"] == 1
     assert problem.mesh.n_tets == 8 * problem.report.sizes["mesher_tets"]
     # a reused mesh stage still reports how its mesh was made
-    again = FieldProblem(V, F, net, Options(edge_length=0.15), mesh=problem.meshed)
+    again = FieldProblem(V, F, net, Options(edge_length=0.2), mesh=problem.meshed)
     assert again.report.sizes["refine_levels"] == 1 and again.mesh is problem.mesh
     r = problem.solve()
     check_axis_aligned(r)

@@ -467,9 +467,8 @@ def test_a_finer_solve_grades_round_a_curve_a_uniform_mesh_would_not_follow(monk
 
     monkeypatch.setattr(pl, "_meshed_again", refused)
     first = types.SimpleNamespace(edge_length=0.15, options=Options(), checked=problem.checked)
-    result = types.SimpleNamespace(problem=first)
     monkeypatch.setattr(pl.checks, "instance", lambda *a, **kw: None)
-    none, why = pl.solve_finer(result)
+    none, why = pl.solve_finer(first)  # the problem solved first (a FieldProblem, as the add-on passes it)
     assert none is None and why.startswith("not solved again finer at edge length") and "kinks" in why
 
 
