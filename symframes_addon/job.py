@@ -41,6 +41,7 @@ from ..solver import (
     HexOptions,
     Report,
     SolvedField,
+    SymFramesError,
     hexmesh,
     solve_finer,
     solve_resolved,
@@ -239,9 +240,12 @@ class HexJob(Job):
         kept = cached_mesh(inp.mesh_key())
         same = kept is not None and np.array_equal(kept.mesh.tets, self.source.mesh.tets) and np.array_equal(
             kept.mesh.vertices, self.source.mesh.vertices)
-        problem = FieldProblem(inp.V, inp.F, inp.network, inp.options, progress=self._progress,
-                               cancel=self._is_cancelled, mesh=kept if same else self.source.mesh)
-        again, what = solve_finer(problem, progress=self._progress, cancel=self._is_cancelled)
+        try:
+            problem = FieldProblem(inp.V, inp.F, inp.network, inp.options, progress=self._progress,
+                                   cancel=self._is_cancelled, mesh=kept if same else self.source.mesh)
+            again, what = solve_finer(problem, progress=self._progress, cancel=self._is_cancelled)
+        except (SymFramesError, ValueError) as e:  # Cancelled is not one: it ends the job as cancelled
+            raise HexMeshError(f"{error}; not solved again finer: {e}", error.report, error.kind) from e
         if again is None or not again.report.converged:
             raise HexMeshError(f"{error}; {what}", error.report, error.kind) from error
         resolved = field_outcome(self, again, inp, self.display or display.DisplaySettings(), self.want_glyphs,
