@@ -248,13 +248,13 @@ class HexJob(Job):
             raise HexMeshError(f"{error}; not solved again finer: {e}", error.report, error.kind) from e
         if again is None or not again.report.converged:
             raise HexMeshError(f"{error}; {what}", error.report, error.kind) from error
-        resolved = field_outcome(self, again, inp, self.display or display.DisplaySettings(), self.want_glyphs,
-                                 self.want_streamlines, remeshed=True)
         try:
             hm = hexmesh(again.field, options=self.options, progress=self._progress, cancel=self._is_cancelled)
         except HexMeshError as e:
             raise HexMeshError(f"{e} (on the field {what}, after the map failed on the stored one; the scene is "
                                "unchanged)", e.report, e.kind) from e
+        resolved = field_outcome(self, again, inp, self.display or display.DisplaySettings(), self.want_glyphs,
+                                 self.want_streamlines, remeshed=True)
         return HexOutcome(hm, new_id(), resolved=resolved,
                           note=f"the map failed on the stored field ({error}), so the field was {what}")
 

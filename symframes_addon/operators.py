@@ -313,10 +313,16 @@ class SYMFRAMES_OT_compute(_Threaded, bpy.types.Operator):
 
 
 def hex_source(context):
-    """What Hex Mesh meshes: the scene's stored field (storage.solved_field),
-    only as long as the scene's inputs are the ones it was solved with (the
-    same inputs key in the session and in a reopened file).  ValueError (or
-    a SymFramesError) says why there is none, and what changed."""
+    """What Hex Mesh meshes: the scene's stored field (``hex_inputs``)."""
+    return hex_inputs(context)[0]
+
+
+def hex_inputs(context):
+    """(field, inputs): the scene's stored field (storage.solved_field),
+    only as long as the scene's inputs (scene_io.Inputs, returned beside it)
+    are the ones it was solved with (the same inputs key in the session and
+    in a reopened file).  ValueError (or a SymFramesError) says why there is
+    none, and what changed."""
     scene = context.scene
     me = storage.stored_field(scene)
     if me is None:
@@ -331,7 +337,7 @@ def hex_source(context):
         what = f" ({'; '.join(what)})" if what else ""
         raise ValueError(f"the domain, the network or their settings changed since the field was computed"
                          f"{what}, so the field is not theirs: press Compute Field again (or undo the change)")
-    return storage.solved_field(scene)
+    return storage.solved_field(scene), now
 
 
 def finish_hex_job(scene, j: job.HexJob) -> tuple[str, str]:
@@ -400,10 +406,9 @@ class SYMFRAMES_OT_hex_mesh(_Threaded, bpy.types.Operator):
                      if s.hex_finer_near.strip() else None)
             options = HexOptions(cell_size=float(s.hex_cell_size) if s.hex_cell_size > 0 else None,
                                  target_hexes=int(s.hex_cells), smooth=bool(s.hex_smooth), finer_near=finer)
-            source = hex_source(context)
+            source, inputs = hex_inputs(context)  # the inputs: the field is solved again if the map fails
             if finer is not None:
                 finer.check(source)  # patches and curves the field has, before the job starts
-            inputs = scene_io.read_inputs(context)  # the field's (hex_source checked): solved again if the map fails
         except (SymFramesError, ValueError) as e:
             self.report({"ERROR"}, error_text(e))
             return None
