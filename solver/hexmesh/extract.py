@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 
 from ..linalg.rotations import CUBE_GROUP
 from ..mesh.tetmesh import TetMesh
+from ..surface.trisurface import first_rows
 from .transitions import GROUP_INVERSE, Transitions
 
 SNAP = 2.0**-20
@@ -209,7 +210,7 @@ def extract_hexes(mesh: TetMesh, tr: Transitions, corners: np.ndarray, cell: flo
     xc = np.einsum("ki,kij->kj", lc, X[tc])
     if len(xc):
         # a centre on a face between two tets is found twice
-        _, keep = np.unique(np.round(xc / tol).astype(np.int64), axis=0, return_index=True)
+        keep = first_rows(np.round(xc / tol).astype(np.int64))
         tc, Pc = tc[keep], Pc[keep]
     nbr, rot, tau = _face_transitions(mesh, faces, ab, M, U)
     fractional = int(np.sum(np.any(np.abs(tau - np.rint(tau)) > EPS, axis=2) & (nbr >= 0)) // 2)
@@ -229,7 +230,7 @@ def extract_hexes(mesh: TetMesh, tr: Transitions, corners: np.ndarray, cell: flo
     lost = int(np.sum(~ok))
     hexes = hexes[good]
     # the same cell from centres found in two tets
-    _, keep = np.unique(np.sort(hexes, axis=1), axis=0, return_index=True)
+    keep = first_rows(np.sort(hexes, axis=1))
     dup = len(hexes) - len(keep)
     hexes = hexes[np.sort(keep)]
     used = np.zeros(len(vertices), bool)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..surface.trisurface import TriSurface, closest_point_on_triangles
+from ..surface.trisurface import TriSurface, closest_point_on_triangles, unique_rows
 
 # corner k of a VTK hexahedron and its three neighbours, right-handed
 # (Verdict's table for the corner Jacobians)
@@ -51,8 +51,8 @@ def boundary_faces(H: np.ndarray) -> tuple[np.ndarray, int]:
     """(the faces held by one hex only, as indices 6 cell + local face into
     the cells' HEX_FACES; how many faces more than two hexes hold)."""
     Fq = H[:, HEX_FACES].reshape(-1, 4)
-    _, inv, cnt = np.unique(np.sort(Fq, axis=1), axis=0, return_inverse=True, return_counts=True)
-    return np.nonzero(cnt[inv.reshape(-1)] == 1)[0], int(np.sum(cnt > 2))
+    _, inv, cnt = unique_rows(np.sort(Fq, axis=1))
+    return np.nonzero(cnt[inv] == 1)[0], int(np.sum(cnt > 2))
 
 
 def boundary_quads(H: np.ndarray) -> np.ndarray:
@@ -65,10 +65,10 @@ def boundary_quads(H: np.ndarray) -> np.ndarray:
 def edge_valences(H: np.ndarray, quads: np.ndarray):
     """(edges (k, 2), hexes around each, on the boundary) of a hex mesh."""
     E = np.sort(H[:, HEX_EDGES].reshape(-1, 2), axis=1)
-    e, cnt = np.unique(E, axis=0, return_counts=True)
+    e, _, cnt = unique_rows(E)
     if len(quads):
         QE = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-        qe = np.unique(QE, axis=0)
+        qe = unique_rows(QE)[0]
         n = int(max(e.max(), qe.max())) + 1
         onb = np.isin(e[:, 0] * n + e[:, 1], qe[:, 0] * n + qe[:, 1])
     else:
@@ -81,7 +81,7 @@ def euler_characteristic(quads: np.ndarray) -> int:
     if not len(quads):
         return 0
     QE = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    return len(np.unique(quads)) - len(np.unique(QE, axis=0)) + len(quads)
+    return len(np.unique(quads)) - len(unique_rows(QE)[0]) + len(quads)
 
 
 def euler_per_component(quads: np.ndarray) -> list:

@@ -37,6 +37,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from ..linalg.lbfgs import lbfgs
+from ..surface.trisurface import unique_rows
 from .quality import (
     HEX_CORNER_NEIGHBOURS,
     HEX_EDGES,
@@ -93,7 +94,7 @@ def foldover_free(J: np.ndarray, eps: float, lam: float = LAMBDA):
     return f, G.transpose(2, 0, 1)
 
 
-def _foldover_rows(R: np.ndarray, eps: float, lam: float = LAMBDA):
+def _foldover_rows(R: np.ndarray, eps: float, lam: float = LAMBDA, work: np.ndarray | None = None):
     """``foldover_free`` on the nine components of J as contiguous vectors:
     R (3, 3, n), R[i, k] the k-th coordinate of J's row i; returns f (n,)
     and df/dJ in the same layout.  The rows' cross products (the cofactors,
@@ -101,59 +102,154 @@ def _foldover_rows(R: np.ndarray, eps: float, lam: float = LAMBDA):
     times faster than np.cross on (n, 3, 3) arrays.  A line search's trial
     step far out (J huge, chi near 0) overflows to inf or nan: the step is
     then rejected (lbfgs takes only finite energies), so numpy is not let
-    to warn about it."""
+    to warn about it.
+
+    work : (WORK_ROWS, >= n) float array, optional
+        scratch every step writes into, f and df/dJ included (views of it,
+        valid until the next call): a call then allocates nothing.  Freeing
+        and allocating some thirty arrays per block of corners made the
+        allocator hand the memory back to the system and fault it in again,
+        page by page: 150-220 ns per corner against 65-75 with scratch."""
+    n = R.shape[2]
+    w = np.empty((WORK_ROWS, n)) if work is None else work[:, :n]
+    C, P = w[:9].reshape(3, 3, n), w[9:18].reshape(3, 3, n)
+    D, DD, tr, root, chi, dchi, c23, f, u, t = w[18:28]
+    mul, sub = np.multiply, np.subtract
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = R
         # cofactor rows, dD/dJ: b x c, c x a, a x b
-        C = np.empty_like(R)
-        np.subtract(b1 * c2, b2 * c1, out=C[0, 0])
-        np.subtract(b2 * c0, b0 * c2, out=C[0, 1])
-        np.subtract(b0 * c1, b1 * c0, out=C[0, 2])
-        np.subtract(c1 * a2, c2 * a1, out=C[1, 0])
-        np.subtract(c2 * a0, c0 * a2, out=C[1, 1])
-        np.subtract(c0 * a1, c1 * a0, out=C[1, 2])
-        np.subtract(a1 * b2, a2 * b1, out=C[2, 0])
-        np.subtract(a2 * b0, a0 * b2, out=C[2, 1])
-        np.subtract(a0 * b1, a1 * b0, out=C[2, 2])
-        D = a0 * C[0, 0] + a1 * C[0, 1] + a2 * C[0, 2]
-        tr = np.einsum("ijn,ijn->n", R, R)
-        root = np.sqrt(eps * eps + D * D)
-        chi = 0.5 * (D + root)  # chi(D) of the module docs
-        dchi = 0.5 * (1.0 + D / root)  # its derivative
-        c23 = chi ** (-2.0 / 3.0)
-        f = tr * c23 + lam * (D * D + 1.0) / chi
-        dfdD = -(2.0 / 3.0) * tr * c23 / chi * dchi + lam * (2.0 * D * chi - (D * D + 1.0) * dchi) / chi**2
-        C *= dfdD
-        C += (2.0 * c23) * R
+        for (x, y, z, v), out in zip([(b1, c2, b2, c1), (b2, c0, b0, c2), (b0, c1, b1, c0),
+                                      (c1, a2, c2, a1), (c2, a0, c0, a2), (c0, a1, c1, a0),
+                                      (a1, b2, a2, b1), (a2, b0, a0, b2), (a0, b1, a1, b0)], C.reshape(9, n)):
+            mul(x, y, out=out)
+            mul(z, v, out=t)
+            sub(out, t, out=out)
+        mul(a0, C[0, 0], out=D)
+        for x, y in ((a1, C[0, 1]), (a2, C[0, 2])):
+            mul(x, y, out=t)
+            D += t
+        np.einsum("ijn,ijn->n", R, R, out=tr)
+        mul(D, D, out=DD)
+        np.add(DD, eps * eps, out=root)
+        np.sqrt(root, out=root)
+        np.add(D, root, out=chi)
+        chi *= 0.5  # chi(D) of the module docs
+        np.divide(D, root, out=dchi)
+        dchi += 1.0
+        dchi *= 0.5  # its derivative
+        np.power(chi, -2.0 / 3.0, out=c23)
+        # f = tr c23 + lam (D^2 + 1) / chi
+        mul(tr, c23, out=u)
+        np.add(DD, 1.0, out=t)
+        t /= chi
+        t *= lam
+        np.add(u, t, out=f)
+        # df/dD = -2/3 tr c23 / chi dchi + lam (2 D chi - (D^2 + 1) dchi) / chi^2
+        u /= chi
+        u *= dchi
+        u *= -2.0 / 3.0
+        np.add(DD, 1.0, out=root)  # root is not needed any more
+        root *= dchi
+        mul(D, chi, out=t)
+        t *= 2.0
+        t -= root
+        t /= chi
+        t /= chi
+        t *= lam
+        u += t
+        # df/dJ = df/dD dD/dJ + 2 c23 J
+        C *= u
+        c23 *= 2.0
+        mul(R, c23, out=P)
+        C += P
         return f, C
 
 
+WORK_ROWS = 28
+"""Rows of ``_foldover_rows``' scratch."""
+
+CHUNK = 16384
+"""Corners per block of an energy evaluation (``CornerEnergy``): a block's
+scratch stays in the processor's cache, and no block allocates.  On a
+227k-cell grid (1.8M corners), its vertices and hexes shuffled as an
+extraction leaves them, one evaluation took 1.0 s on whole arrays, 0.27-0.34 s
+in blocks of 16384 corners after ``local_order`` (8192 to 65536 alike, 2048
+0.44; bench/RESULTS.md)."""
+
+
+class CornerEnergy:
+    """Sum of f over every hex corner of H (m, 8) on n vertices (J's rows:
+    the corner's three edges over the cell size: one, or one per hex of a
+    size field), and its gradient (n, 3): ``energy(V, eps)``.
+
+    The corners' vertex ids are gathered once; an evaluation runs over
+    blocks of CHUNK corners (``_foldover_rows`` on each coordinate as a
+    contiguous vector) and scatters the gradient in one ``bincount`` per
+    coordinate over the four vertices each corner touches."""
+
+    def __init__(self, H: np.ndarray, cell, n: int):
+        corner = H.reshape(-1)
+        nb = H[:, HEX_CORNER_NEIGHBOURS]  # (m, 8, 3): the corner's three neighbours
+        self.ids = np.empty((4, len(corner)), dtype=np.int64)  # the three neighbours, then the corner
+        for j in range(3):
+            self.ids[j] = nb[:, :, j].reshape(-1)
+        self.ids[3] = corner
+        self.cell = cell if np.ndim(cell) == 0 else np.repeat(np.asarray(cell, float), 8)  # per corner
+        self.n = n
+        self._scratch = None
+
+    def __call__(self, V: np.ndarray, eps: float, with_grad: bool = True):
+        X = np.ascontiguousarray(V.T)  # (3, n)
+        ids, N = self.ids, self.ids.shape[1]
+        per_corner = np.ndim(self.cell) != 0
+        if self._scratch is None:  # kept between evaluations: fresh memory is faulted in anew each time
+            k = min(CHUNK, N)
+            self._scratch = np.empty((3, 3, k)), np.empty((3, k)), np.empty((WORK_ROWS, k)), np.empty((3, 4, N))
+        # a block's scratch: a block allocates nothing (_foldover_rows); dE:
+        # d energy / d vertex, per coordinate and corner vertex
+        R, base, work, dE = self._scratch
+        total = 0.0
+        for a in range(0, N, CHUNK):
+            b = min(N, a + CHUNK)
+            r, o = R[:, :, :b - a], base[:, :b - a]
+            np.take(X, ids[3, a:b], axis=1, out=o, mode="clip")  # (unbuffered)
+            for j in range(3):
+                np.take(X, ids[j, a:b], axis=1, out=r[j], mode="clip")
+                r[j] -= o
+            c = self.cell[a:b] if per_corner else self.cell
+            r /= c
+            f, G = _foldover_rows(r, eps, work=work)
+            total += float(f.sum())
+            if with_grad:
+                G /= c
+                dE[:, :3, a:b] = G.transpose(1, 0, 2)
+                np.sum(G, axis=0, out=dE[:, 3, a:b])
+                np.negative(dE[:, 3, a:b], out=dE[:, 3, a:b])
+        if not with_grad:
+            return total, None
+        flat = ids.reshape(-1)
+        g = np.empty((self.n, 3))
+        for k in range(3):
+            g[:, k] = np.bincount(flat, dE[k].reshape(-1), self.n)
+        return total, g
+
+
 def corner_energy(V: np.ndarray, H: np.ndarray, cell, eps: float, with_grad: bool = True):
-    """Sum of f over every hex corner (J's rows: the corner's three edges
-    over the cell size: one, or one per hex of a size field), and its
-    gradient (n, 3) in V.  Each coordinate is a contiguous vector throughout
-    (``_foldover_rows``)."""
-    X = np.ascontiguousarray(V.T)  # (3, n)
-    corner = H.reshape(-1)
-    nb = H[:, HEX_CORNER_NEIGHBOURS]  # (m, 8, 3): the corner's three neighbours
-    ends = [np.ascontiguousarray(nb[:, :, j]).reshape(-1) for j in range(3)]
-    base = X[:, corner]
-    R = np.empty((3, 3, len(corner)))
-    for j in range(3):
-        np.subtract(X[:, ends[j]], base, out=R[j])
-    c = cell if np.ndim(cell) == 0 else np.repeat(np.asarray(cell, float), 8)  # per corner
-    R /= c
-    f, G = _foldover_rows(R, eps)
-    total = float(f.sum())
-    if not with_grad:
-        return total, None
-    n = len(V)
-    G /= c
-    g = np.empty((n, 3))
-    for k in range(3):
-        g[:, k] = (np.bincount(ends[0], G[0, k], n) + np.bincount(ends[1], G[1, k], n)
-                   + np.bincount(ends[2], G[2, k], n) - np.bincount(corner, G[0, k] + G[1, k] + G[2, k], n))
-    return total, g
+    """``CornerEnergy`` of H evaluated once at V."""
+    return CornerEnergy(H, cell, len(V))(V, eps, with_grad)
+
+
+def local_order(P: np.ndarray, bits: int = 10) -> np.ndarray:
+    """A permutation of the points P (n, 3) along a Morton (Z-order) curve
+    of their bounding box: points near in space come near in the order, so
+    an evaluation's gathers and scatters touch memory close together."""
+    span = float(np.ptp(P, axis=0).max()) if len(P) else 0.0
+    q = ((P - P.min(axis=0)) * (((1 << bits) - 1) / max(span, 1e-300))).astype(np.int64)
+    code = np.zeros(len(P), dtype=np.int64)
+    for bit in range(bits):
+        for k in range(3):
+            code |= ((q[:, k] >> bit) & 1) << (3 * bit + k)
+    return np.argsort(code, kind="stable")
 
 
 def _closest_on_segments(X: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -277,7 +373,15 @@ def optimise(V: np.ndarray, H: np.ndarray, cell, motion: BoundaryMotion, anchor:
         # (H is the active cells: 218k of the ball's 890k at ~1M cells)
         verts, Hc = np.unique(np.concatenate([H.reshape(-1), a_idx, *(ids for ids, _ in groups)]),
                               return_inverse=True)
-        Hc = Hc[:H.size].reshape(H.shape)
+        # in Morton order, the hexes by their first vertex: an evaluation's
+        # gathers and scatters stay near each other (CHUNK)
+        order = local_order(V[verts])
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        verts, Hc = verts[order], rank[Hc[:H.size].reshape(H.shape)]
+        by_first = np.argsort(Hc.min(axis=1), kind="stable")
+        Hc = Hc[by_first]
+        energy = CornerEnergy(Hc, cell if np.ndim(cell) == 0 else np.asarray(cell, float)[by_first], len(verts))
         loc = np.full(len(V), -1, dtype=np.int64)
         loc[verts] = np.arange(len(verts))
         lids = [loc[ids] for ids, _ in groups]
@@ -300,7 +404,7 @@ def optimise(V: np.ndarray, H: np.ndarray, cell, motion: BoundaryMotion, anchor:
 
         def fun(x):
             W = positions(x)
-            e, g = corner_energy(W, Hc, cell, eps)
+            e, g = energy(W, eps)
             e /= n_corner
             g /= n_corner
             if len(a_idx):
@@ -323,11 +427,15 @@ def curve_vertices(V: np.ndarray, cem, cell: float) -> list:
     """Per chain of the CurveEdgeMesh: the hex vertices lying on it (the map
     puts them there)."""
     X = cem.mesh.vertices
+    tol = 1e-6 * cell
     out = []
     for ch in cem.chains:
         A, B = X[ch.vertices[:-1]], X[ch.vertices[1:]]
-        d = segments_distance(V, A, B)
-        out.append(np.nonzero(d <= 1e-6 * cell)[0])
+        # only the vertices in the chain's box are measured (at ~1M cells
+        # every vertex against every segment took seconds per chain)
+        P = X[ch.vertices]
+        near = np.nonzero(np.all((V >= P.min(axis=0) - tol) & (V <= P.max(axis=0) + tol), axis=1))[0]
+        out.append(near[segments_distance(V[near], A, B) <= tol])
     return out
 
 
@@ -372,8 +480,9 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
         the new positions (V itself where no run kept the minimum)
     """
     held = np.zeros(len(V), bool)
-    W = _smoothed(V, H, cell, inp, cem, callback, rel, held)
     q, _ = boundary_quads(H)
+    on_curve = curve_vertices(V, cem, cell)
+    W = _smoothed(V, H, q, on_curve, cell, inp, callback, rel, held)
     tol = KEEP_SURFACE * HAUSDORFF_BAR * inp.surface.bbox_diagonal
     core = np.zeros(len(V), bool)
     for _ in range(SURFACE_ROUNDS):
@@ -383,11 +492,11 @@ def smooth_hexes(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback=N
             break
         core |= nearest
         held |= lost
-        W = _smoothed(V, H, cell, inp, cem, callback, rel, held)
+        W = _smoothed(V, H, q, on_curve, cell, inp, callback, rel, held)
     if held.any():
         # hold no more than keeps the surface: the ring released, from
         # where the held run left it, and kept if the surface stays as close
-        W2 = _smoothed(V, H, cell, inp, cem, callback, rel, core, start=W)
+        W2 = _smoothed(V, H, q, on_curve, cell, inp, callback, rel, core, start=W)
         if W2 is not W and not surface_lost(V, W2, q, inp.surface, tol, rings=0).any() \
                 and _farthest(inp.surface, W2, q, tol) <= _farthest(inp.surface, W, q, tol):
             W = W2
@@ -401,15 +510,14 @@ def _farthest(S, W: np.ndarray, q: np.ndarray, tol: float) -> float:
     return float(d.max()) if len(d) else tol
 
 
-def _smoothed(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback, rel, held: np.ndarray,
-              start: np.ndarray | None = None) -> np.ndarray:
+def _smoothed(V: np.ndarray, H: np.ndarray, q: np.ndarray, on_curve: list, cell: float, inp, callback, rel,
+              held: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
     """One run of ``smooth_hexes``, the vertices in `held` (n,) bool not
     moving; from `start` (the positions of a run before) where given, the
-    curves' vertices those of V."""
-    on_curve = curve_vertices(V, cem, cell)
+    curves' vertices (`on_curve`, ``curve_vertices`` of V) those of V; q:
+    the boundary quads of H."""
     if start is not None:
         V = start
-    q, _ = boundary_quads(H)
     S = inp.surface
     fe, sa, sb = sharp_lines(V, q, S, inp.sharp, cell)
     segs_a, segs_b, lines = [sa], [sb], [fe]
@@ -420,9 +528,8 @@ def _smoothed(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback, rel
         lines.append(be)
         segs_a.append(S.V[B[:, 0]])
         segs_b.append(S.V[B[:, 1]])
-    # hex edges along each curve (singular or feature), and the curve itself
-    E = np.sort(H[:, HEX_EDGES].reshape(-1, 2), axis=1)
-    E = np.unique(E, axis=0)
+    # hex edges along each feature curve, and the curve itself
+    E = None
     fixed = held.copy()
     fixed[bend_ends] = True  # where a bend meets an outline: the corner it ends at
     onb = np.zeros(len(V), bool)
@@ -440,7 +547,10 @@ def _smoothed(V: np.ndarray, H: np.ndarray, cell: float, inp, cem, callback, rel
         fixed[verts[onb[verts]]] = True  # where a feature curve meets the surface
         mark = np.zeros(len(V), bool)
         mark[verts] = True
-        lines.append(E[mark[E[:, 0]] & mark[E[:, 1]]])
+        if E is None:  # the hex edges once (the first feature curve)
+            E = H[:, HEX_EDGES].reshape(-1, 2)
+        along = E[mark[E[:, 0]] & mark[E[:, 1]]]
+        lines.append(unique_rows(np.sort(along, axis=1))[0] if len(along) else along)
         segs_a.append(c.points[:-1])
         segs_b.append(c.points[1:])
     sj = scaled_jacobian(V, H)
@@ -571,7 +681,7 @@ def bend_edges(quads: np.ndarray, V: np.ndarray, A: np.ndarray, B: np.ndarray, c
     least 0.7 of their length (an edge across it projects to about a
     point); one chain per crease, so that two grid lines never both go
     onto it."""
-    E = np.unique(np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    E = unique_rows(np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1))[0]
     dist = segments_distance(V, A, B)
     E = E[(dist[E[:, 0]] <= cell) & (dist[E[:, 1]] <= cell)]
     if not len(E):

@@ -178,6 +178,7 @@ def hex_ovm_topology(hexes: np.ndarray) -> HexOVMTopology:
     face's loop for halfface 2f, so 2f + 1 is the one into the cell, and the
     other way for 2f."""
     from ..hexmesh.quality import HEX_EDGES, HEX_FACES
+    from ..surface.trisurface import first_rows, unique_rows
 
     H = np.asarray(hexes, np.int64).reshape(-1, 8)
     m = len(H)
@@ -186,11 +187,11 @@ def hex_ovm_topology(hexes: np.ndarray) -> HexOVMTopology:
         z = np.zeros((0, 2), np.int64)
         return HexOVMTopology(z, np.zeros((0, 4), np.int64), np.zeros((0, 6), np.int64),
                               np.zeros((0, 6), np.int64), np.zeros(0, np.int64))
-    _, first, inv = np.unique(np.sort(Fq, axis=1), axis=0, return_index=True, return_inverse=True)
-    inv = inv.reshape(-1)
+    S = np.sort(Fq, axis=1)
+    first, (_, inv, _) = first_rows(S), unique_rows(S)
     loops = Fq[first]
     pairs = np.stack([loops, np.roll(loops, -1, axis=1)], axis=2).reshape(-1, 2)
-    E, einv = np.unique(np.sort(pairs, axis=1), axis=0, return_inverse=True)
+    E, einv, _ = unique_rows(np.sort(pairs, axis=1))
     he = (2 * einv.reshape(-1) + (pairs[:, 0] > pairs[:, 1])).reshape(-1, 4)
     listed = loops[inv]  # each cell face's loop as listed
     start = np.argmax(Fq == listed[:, :1], axis=1)  # where the listed loop starts in the cell's loop

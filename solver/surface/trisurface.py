@@ -40,19 +40,56 @@ factor SIZE_CLASS_RATIO where the largest radius exceeds SIZE_CLASS_SPREAD
 times the median (TriSurface._size_classes)."""
 
 
+def _row_groups(a: np.ndarray):
+    """(order, new) of int rows a (k, w): the permutation sorting them in
+    lexicographic order (stable where rows tie: ``np.lexsort``, or a stable
+    sort of one key), and which sorted rows start a run of equal rows.  The
+    columns are packed into one int64 key where their range allows, else
+    two columns a key (a range up to 3e9)."""
+    a = a - min(int(a.min()), 0)
+    n = int(a.max()) + 1
+    width = a.shape[1]
+    if n ** width < 2**63:  # (python ints: no overflow in the test)
+        keys = [a[:, 0]]
+        for k in range(1, width):
+            keys[0] = keys[0] * n + a[:, k]
+    else:
+        keys = [a[:, k] * n + a[:, k + 1] if k + 1 < width else a[:, k] for k in range(0, width, 2)]
+    order = np.lexsort(keys[::-1]) if len(keys) > 1 else np.argsort(keys[0], kind="stable")
+    new = np.zeros(len(a), bool)
+    new[0] = True
+    for key in keys:
+        s = key[order]
+        new[1:] |= s[1:] != s[:-1]
+    return order, new
+
+
 def unique_rows(a: np.ndarray):
-    """np.unique(axis=0) for non-negative int rows of width 2 or 3, in
-    lexicographic order, via a combined int64 key (much faster).
+    """np.unique(a, axis=0, return_inverse=True, return_counts=True) for int
+    rows of any width, the same arrays, on int64 keys (``_row_groups``).
+    numpy's own compares the rows as records: on the 1.4M faces of a
+    227k-hex grid it took 3.3 s, this 0.64 s.
 
     Returns (unique rows, inverse, counts).
     """
     a = np.asarray(a, dtype=np.int64)
-    n = int(a.max()) + 1 if a.size else 1
-    key = a[:, 0]
-    for k in range(1, a.shape[1]):
-        key = key * n + a[:, k]
-    _, idx, inv, cnt = np.unique(key, return_index=True, return_inverse=True, return_counts=True)
-    return a[idx], inv.reshape(-1), cnt
+    if not len(a):
+        return a, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    order, new = _row_groups(a)
+    inv = np.empty(len(a), np.int64)
+    inv[order] = np.cumsum(new) - 1
+    starts = np.nonzero(new)[0]
+    return a[order[starts]], inv, np.diff(np.r_[starts, len(a)])
+
+
+def first_rows(a: np.ndarray) -> np.ndarray:
+    """np.unique(a, axis=0, return_index=True)[1] for int rows: the index of
+    each distinct row's first occurrence, in the rows' lexicographic order."""
+    a = np.asarray(a, dtype=np.int64)
+    if not len(a):
+        return np.zeros(0, np.int64)
+    order, new = _row_groups(a)
+    return order[new]  # a stable sort puts each run's first occurrence first
 
 
 def edge_keys(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
