@@ -109,7 +109,8 @@ def _foldover_rows(R: np.ndarray, eps: float, lam: float = LAMBDA, work: np.ndar
         valid until the next call): a call then allocates nothing.  Freeing
         and allocating some thirty arrays per block of corners made the
         allocator hand the memory back to the system and fault it in again,
-        page by page: 150-220 ns per corner against 65-75 with scratch."""
+        page by page: on blocks of 8192 corners, 219 ns per corner against
+        84-99 with scratch."""
     n = R.shape[2]
     w = np.empty((WORK_ROWS, n)) if work is None else work[:, :n]
     C, P = w[:9].reshape(3, 3, n), w[9:18].reshape(3, 3, n)
