@@ -19,7 +19,7 @@ from solver.field.structure import StructureEquation
 from solver.linalg.rotations import CUBE_GROUP, cross_distance, exp_so3, hat, log_so3, rotation_angle, unwrap_rotvec
 from solver.mesh.tetmesh import TetMesh
 from solver.surface.features import FeatureGraph
-from solver.surface.trisurface import TriSurface
+from solver.surface.trisurface import TriSurface, first_rows, unique_rows
 from tests.meshes import box_mesh
 
 
@@ -227,3 +227,18 @@ def test_boundary_field_meets_every_triangle_condition_with_turns_added_around_g
         hol = np.sum(signs * (bf.rho[ids] + bf.omega2d[ids]))
         q = hol / (np.pi / 2)
         assert abs(q - round(q)) < 1e-10
+
+
+@pytest.mark.parametrize("width, low, high", [(2, 0, 30), (3, -40, 40), (4, 0, 3_000_000), (8, 0, 4)])
+def test_unique_rows_and_first_rows_are_numpys(width, low, high):
+    """unique_rows and first_rows give np.unique(axis=0)'s arrays: one packed
+    key (small ranges, negative values) or two columns a key (a range whose
+    fourth power passes int64), any width."""
+    rng = np.random.default_rng(width)
+    a = rng.integers(low, high, (3000, width))
+    a = np.vstack([a, a[::5], a[7:9]])  # repeated rows, some three times
+    rows, first, inv, cnt = np.unique(a, axis=0, return_index=True, return_inverse=True, return_counts=True)
+    u, i, c = unique_rows(a)
+    assert np.array_equal(u, rows) and np.array_equal(i, inv.reshape(-1)) and np.array_equal(c, cnt)
+    assert np.array_equal(first_rows(a), first)
+    assert len(unique_rows(a[:0])[0]) == 0 and len(first_rows(a[:0])) == 0
