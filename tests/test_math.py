@@ -229,11 +229,11 @@ def test_boundary_field_meets_every_triangle_condition_with_turns_added_around_g
         assert abs(q - round(q)) < 1e-10
 
 
-@pytest.mark.parametrize("width, low, high", [(2, 0, 30), (3, -40, 40), (4, 0, 3_000_000), (8, 0, 4)])
+@pytest.mark.parametrize("width, low, high", [(2, 0, 30), (3, -40, 40), (4, 0, 3_000_000), (8, 0, 4), (3, -2**40, 2**40)])
 def test_unique_rows_and_first_rows_are_numpys(width, low, high):
     """unique_rows and first_rows give np.unique(axis=0)'s arrays: one packed
-    key (small ranges, negative values) or two columns a key (a range whose
-    fourth power passes int64), any width."""
+    key (small ranges, negative values), two columns a key (a range whose
+    fourth power passes int64) or one (a range past 3e9), any width."""
     rng = np.random.default_rng(width)
     a = rng.integers(low, high, (3000, width))
     a = np.vstack([a, a[::5], a[7:9]])  # repeated rows, some three times

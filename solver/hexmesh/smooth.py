@@ -235,11 +235,6 @@ class CornerEnergy:
         return total, g
 
 
-def corner_energy(V: np.ndarray, H: np.ndarray, cell, eps: float, with_grad: bool = True):
-    """``CornerEnergy`` of H evaluated once at V."""
-    return CornerEnergy(H, cell, len(V))(V, eps, with_grad)
-
-
 def local_order(P: np.ndarray, bits: int = 10) -> np.ndarray:
     """A permutation of the points P (n, 3) along a Morton (Z-order) curve
     of their bounding box: points near in space come near in the order, so

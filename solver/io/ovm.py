@@ -178,7 +178,7 @@ def hex_ovm_topology(hexes: np.ndarray) -> HexOVMTopology:
     face's loop for halfface 2f, so 2f + 1 is the one into the cell, and the
     other way for 2f."""
     from ..hexmesh.quality import HEX_EDGES, HEX_FACES
-    from ..surface.trisurface import first_rows, unique_rows
+    from ..surface.trisurface import unique_rows
 
     H = np.asarray(hexes, np.int64).reshape(-1, 8)
     m = len(H)
@@ -187,8 +187,9 @@ def hex_ovm_topology(hexes: np.ndarray) -> HexOVMTopology:
         z = np.zeros((0, 2), np.int64)
         return HexOVMTopology(z, np.zeros((0, 4), np.int64), np.zeros((0, 6), np.int64),
                               np.zeros((0, 6), np.int64), np.zeros(0, np.int64))
-    S = np.sort(Fq, axis=1)
-    first, (_, inv, _) = first_rows(S), unique_rows(S)
+    _, inv, _ = unique_rows(np.sort(Fq, axis=1))
+    first = np.empty(inv.max() + 1, np.int64)
+    first[inv[::-1]] = np.arange(len(inv))[::-1]  # each face's first listing
     loops = Fq[first]
     pairs = np.stack([loops, np.roll(loops, -1, axis=1)], axis=2).reshape(-1, 2)
     E, einv, _ = unique_rows(np.sort(pairs, axis=1))

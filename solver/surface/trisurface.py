@@ -45,7 +45,7 @@ def _row_groups(a: np.ndarray):
     lexicographic order (stable where rows tie: ``np.lexsort``, or a stable
     sort of one key), and which sorted rows start a run of equal rows.  The
     columns are packed into one int64 key where their range allows, else
-    two columns a key (a range up to 3e9)."""
+    two columns a key (a range up to 3e9), else one."""
     a = a - min(int(a.min()), 0)
     n = int(a.max()) + 1
     width = a.shape[1]
@@ -53,8 +53,10 @@ def _row_groups(a: np.ndarray):
         keys = [a[:, 0]]
         for k in range(1, width):
             keys[0] = keys[0] * n + a[:, k]
-    else:
+    elif n * n < 2**63:
         keys = [a[:, k] * n + a[:, k + 1] if k + 1 < width else a[:, k] for k in range(0, width, 2)]
+    else:
+        keys = list(a.T)
     order = np.lexsort(keys[::-1]) if len(keys) > 1 else np.argsort(keys[0], kind="stable")
     new = np.zeros(len(a), bool)
     new[0] = True
