@@ -229,7 +229,8 @@ def test_boundary_field_meets_every_triangle_condition_with_turns_added_around_g
         assert abs(q - round(q)) < 1e-10
 
 
-@pytest.mark.parametrize("width, low, high", [(2, 0, 30), (3, -40, 40), (4, 0, 3_000_000), (8, 0, 4), (3, -2**40, 2**40)])
+@pytest.mark.parametrize("width, low, high",
+                         [(2, 0, 30), (3, -40, 40), (4, 0, 3_000_000), (8, 0, 4), (3, -2**40, 2**40)])
 def test_unique_rows_and_first_rows_are_numpys(width, low, high):
     """unique_rows and first_rows give np.unique(axis=0)'s arrays: one packed
     key (small ranges, negative values), two columns a key (a range whose
