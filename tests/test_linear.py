@@ -187,6 +187,27 @@ def test_thread_setting_is_validated(monkeypatch):
     assert parallel.parallel(A) is A
 
 
+def test_the_mesher_takes_symframes_thread_count_where_one_is_set(monkeypatch):
+    """fTetWild's child gets SymFrames' thread count when one is asked for
+    (the suite's two workers ask for one each), else 0: every core."""
+    from solver.mesh.tetwild import _mesher_threads
+
+    monkeypatch.setattr(parallel, "_threads", None)
+    monkeypatch.setattr(parallel, "_asked", False)
+    monkeypatch.delenv("SYMFRAMES_THREADS", raising=False)
+    assert _mesher_threads() == 0
+    monkeypatch.setenv("SYMFRAMES_THREADS", "1")
+    assert _mesher_threads() == 1
+    monkeypatch.delenv("SYMFRAMES_THREADS")
+    monkeypatch.setattr(parallel, "_threads", None)
+    old = parallel.threads()
+    try:
+        parallel.set_threads(3)
+        assert _mesher_threads() == 3
+    finally:
+        parallel.set_threads(old)
+
+
 def test_ritz_recorder_finds_the_smallest_eigenpairs_while_cg_runs():
     """eigCG: with a basis of 24 vectors, restarted many times, the recorded
     Ritz pairs of M^-1 A match the true smallest ones."""

@@ -25,6 +25,7 @@ MIN_NNZ = 100_000
 
 _pool: ThreadPoolExecutor | None = None
 _threads: int | None = None
+_asked = False  # set_threads was called
 
 
 def _usable_cores() -> int:
@@ -46,12 +47,18 @@ def threads() -> int:
     return _threads
 
 
+def threads_set() -> bool:
+    """Whether a thread count was asked for (SYMFRAMES_THREADS or
+    set_threads), rather than taken from the cores."""
+    return _asked or bool(os.environ.get("SYMFRAMES_THREADS", "").strip())
+
+
 def set_threads(n: int) -> None:
     """Use n threads for large sparse products (1: no threads)."""
-    global _threads, _pool
+    global _threads, _pool, _asked
     if int(n) < 1:
         raise ValueError(f"the number of threads must be at least 1, got {n}")
-    _threads = int(n)
+    _threads, _asked = int(n), True
     if _pool is not None:
         _pool.shutdown(wait=False)
         _pool = None
