@@ -297,27 +297,34 @@ def test_foldover_free_gradient_matches_finite_differences():
 
 def test_the_corner_energy_in_blocks_is_the_sum_over_corners_with_its_gradient(monkeypatch):
     """CornerEnergy (blocks of CHUNK corners, one scatter per coordinate)
-    against f summed corner by corner, with a size field, blocks that do not
-    divide the corners, and a vertex no hex uses; its gradient against
-    finite differences; and a Morton renumbering changes nothing."""
+    against (f / F_CUBE)^POWER summed corner by corner, with a size field,
+    blocks that do not divide the corners, and a vertex no hex uses; its
+    gradient against finite differences, at the power smoothing uses and at
+    1 (the plain sum of f); and a Morton renumbering changes nothing."""
     V, H = _hex_block(4, 0.3, seed=3)
     V = np.vstack([V, [[5.0, 5.0, 5.0]]])  # used by no hex: zero gradient
     V[H[0, 0]] += 0.6  # a few corners inverted
     cell = np.random.default_rng(4).uniform(0.4, 0.6, len(H))
     monkeypatch.setattr(smooth, "CHUNK", 100)  # 512 corners: five blocks, the last partial
     eps = 0.05
-    e, g = CornerEnergy(H, cell, len(V))(V, eps)
     P = V[H]
     J = (P[:, HEX_CORNER_NEIGHBOURS] - P[:, :, None, :]) / cell[:, None, None, None]  # rows: the corner's edges
     f, _ = foldover_free(J.reshape(-1, 3, 3), eps)
-    assert e == pytest.approx(float(f.sum()), rel=1e-12)
-    assert np.all(g[-1] == 0.0)
-    d = 1e-6
-    for v, k in [(int(H[0, 0]), 0), (int(H[10, 3]), 2), (int(H[-1, 6]), 1)]:
-        Vp = V.copy()
-        Vp[v, k] += d
-        ep, _ = CornerEnergy(H, cell, len(V))(Vp, eps, with_grad=False)
-        assert (ep - e) / d == pytest.approx(g[v, k], rel=1e-4, abs=1e-4)
+    assert smooth.POWER > 1.0
+    for power in (1.0, smooth.POWER):
+        e, g = CornerEnergy(H, cell, len(V), power)(V, eps)
+        assert e == pytest.approx(float(np.sum((f / smooth.F_CUBE) ** power if power != 1.0 else f)), rel=1e-12)
+        assert np.all(g[-1] == 0.0)
+        d = 1e-6
+        for v, k in [(int(H[0, 0]), 0), (int(H[10, 3]), 2), (int(H[-1, 6]), 1)]:
+            Vp = V.copy()
+            Vp[v, k] += d
+            ep, _ = CornerEnergy(H, cell, len(V), power)(Vp, eps, with_grad=False)
+            Vm = V.copy()
+            Vm[v, k] -= d
+            em, _ = CornerEnergy(H, cell, len(V), power)(Vm, eps, with_grad=False)
+            assert (ep - em) / (2 * d) == pytest.approx(g[v, k], rel=1e-4, abs=1e-7 * abs(g).max())
+    e, g = CornerEnergy(H, cell, len(V))(V, eps)  # the default: smoothing's power
     order = local_order(V)
     assert sorted(order) == list(range(len(V)))
     rank = np.empty_like(order)
