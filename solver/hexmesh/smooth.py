@@ -15,10 +15,10 @@ of code" (SIGGRAPH 2021): finite for inverted corners while eps > 0, so an
 inverted mesh can be untangled, and with eps -> 0 a barrier that keeps the
 corners positive.  Its first term is the mean-ratio shape measure (3 at a
 cube corner), the second keeps volumes near the cell's.  What is minimised
-is the sum over corners of (f / F_CUBE)^POWER (F_CUBE: f at a cube's corner),
-a power mean as in Mesquite's objectives (Brewer et al., "The Mesquite Mesh
-Quality Improvement Toolkit", IMR 2003): the power weighs the worst corners
-more than the sum of f does.
+is the sum of f over the corners, then, from where that left the mesh, the
+sum of (f / F_CUBE)^POWER (F_CUBE: f at a cube's corner), a power mean as
+in Mesquite's objectives (Brewer et al., "The Mesquite Mesh Quality
+Improvement Toolkit", IMR 2003), which weighs the worst corners more.
 
 Only the poor cells and a margin around them move (``active_vertices``);
 the regular grid elsewhere is held.  Boundary vertices move in the tangent
@@ -60,19 +60,19 @@ F_CUBE = 3.0 + 2.0 * LAMBDA
 """f at a cube's corner (J the identity, eps -> 0): the corner energies are
 taken over it, so that a perfect corner counts 1."""
 POWER = 3.0
-"""The power of each corner's energy (f / F_CUBE) in the sum smoothing
-minimises.  With the plain sum (power 1) the ball's field (9.8k tets)
-meshed at 86,528 cells kept a least scaled Jacobian of 0.458-0.459 (two
-fields): the cell inside the cube at each cube edge (a valence-3 curve)
-opened to 152 degrees there, the two shell cells 104, because the sum
-trades those few corners against the many beside them.  Power 2 gave 0.557
-and 0.558, power 3 0.620 and 0.621, power 4 0.678 (mean 0.974-0.976 for
-all).  At ~3,000 cells power 3 also raised the ball, the cylinder and the
-plate (0.730 -> 0.763, 0.754 -> 0.783, 0.784 -> 0.796), where power 2
-lowered two of them a little.  Each power above 1 takes more L-BFGS
-iterations at large sizes: smoothing at 86,528 cells took 24 s at power 1,
-21 at 2, 41 at 3 and 58 at 4 (single runs); power 3 keeps 100k cells within
-a minute (bench/RESULTS.md)."""
+"""The power of each corner's energy (f / F_CUBE) in the sum the last run
+of smoothing minimises (``_polished``; the runs before it, which untangle
+and find the spring, minimise the plain sum).  Under the plain sum alone
+the ball's field (9.8k tets) meshed at 86,528 cells kept a least scaled
+Jacobian of 0.458-0.459 (two fields): the cell inside the cube at each cube
+edge (a valence-3 curve) opened to 152 degrees there and the two shell
+cells closed to 104, because the sum trades those few corners against the
+many beside them.  Minimised from the start with power 2 the least cell was
+0.557-0.558, with 3 0.620-0.621, with 4 0.678, at 21, 41 and 58 s of
+smoothing against 24 (single runs); at ~1M cells, though, no spring then
+kept the curves within 0.9 of a cell, and the mesh stayed as extracted.
+As a last run after the plain sum's, power 3 gives 0.621 and 0.638 at
+86,528 and 90,584 cells (mean 0.974-0.980)."""
 SHARP_DIHEDRAL = 30.0
 """A boundary edge whose two faces meet at more than this many degrees is a
 crease: of the hex boundary, smoothed along the input's sharp edges it
@@ -81,7 +81,7 @@ ACTIVE_BELOW = 0.9
 """Smoothing moves the vertices of the cells whose scaled Jacobian is below
 this and ACTIVE_RINGS rings of cells around them; the rest of the mesh, a
 regular grid already, is held.  On the ball's field meshed at 90k cells the
-whole-mesh optimisation stalled at its iteration cap (min 0.43 after 64 s),
+whole-mesh optimisation (of the plain sum) stalled at its iteration cap (min 0.43 after 64 s),
 while its 40k cells near the curves alone reach a min of 0.51 in 20 s: the
 line search of one optimisation over every vertex is held back by its worst
 corners, and the held grid costs an evaluation's time for nothing."""
@@ -101,10 +101,15 @@ is let go again); at half the bar 155 were held (0.924)."""
 SURFACE_ROUNDS = 2
 """Runs of the smoothing made again, each holding the vertices near the
 stretches of surface the last left (``surface_lost``)."""
+POLISH_MEAN = 0.005
+"""The most the power mean's run may lower the mean scaled Jacobian to be
+kept (``_polished``): it trades a little of the mean for the least cell
+(the ball's field at 86,528 cells: mean 0.9758 -> 0.9737, least 0.459 ->
+0.621)."""
 SPRING = 0.1
 """Weight of the spring holding singular-curve vertices during smoothing
-(per cell of displacement, against the mean corner energy): at 1.0 the
-ball's cells at its nodes kept a minimum scaled Jacobian of 0.54, at 0.1
+(per cell of displacement, against the mean corner energy): under the
+plain sum, at 1.0 the ball's cells at its nodes kept a minimum scaled Jacobian of 0.54, at 0.1
 0.72, with the irregular edges still within a cell of their curves."""
 
 
@@ -248,12 +253,16 @@ class CornerEnergy:
                 # row of `work` (_foldover_rows' own last step is done)
                 f /= F_CUBE
                 with np.errstate(over="ignore", invalid="ignore"):  # a trial step far out: rejected by lbfgs
-                    if with_grad:
-                        slope = work[WORK_ROWS - 1, :b - a]
+                    slope = work[WORK_ROWS - 1, :b - a]
+                    if self.power == 3.0:  # products: np.power with a float exponent costs 3x the kernel
+                        np.multiply(f, f, out=slope)
+                        f *= slope
+                    else:
                         np.power(f, self.power - 1.0, out=slope)
+                        f *= slope
+                    if with_grad:
                         slope *= self.power / F_CUBE
                         G *= slope
-                    np.power(f, self.power, out=f)
             total += float(f.sum())
             if with_grad:
                 G /= c
@@ -380,14 +389,16 @@ class BoundaryMotion:
 
 def optimise(V: np.ndarray, H: np.ndarray, cell, motion: BoundaryMotion, anchor: np.ndarray | None = None,
              anchor_weight: float = 1.0, iters: int = 150, rounds: int = 2, callback=None,
-             start: np.ndarray | None = None) -> np.ndarray:
+             start: np.ndarray | None = None, power: float = 1.0) -> np.ndarray:
     """Minimise the corner energy over the vertex motions `motion` allows,
     projecting the boundary back after each round; cell: the cell size, or
     one per hex of H (a size field); anchor: (n,) bool, vertices pulled
     towards their places in V by a spring (per cell of displacement: the
     median cell); start: where the vertices start (V by default; a run with
     a weaker spring); callback(iteration, energy) after each L-BFGS
-    iteration (it may raise to cancel).  Returns the new positions."""
+    iteration (it may raise to cancel); power: of each corner's energy
+    (CornerEnergy), in the rounds that start with no corner inverted.
+    Returns the new positions."""
     V0 = V.copy()
     V = (V if start is None else start).copy()
     a_idx = np.nonzero(anchor)[0] if anchor is not None else np.zeros(0, dtype=np.int64)
@@ -411,7 +422,15 @@ def optimise(V: np.ndarray, H: np.ndarray, cell, motion: BoundaryMotion, anchor:
         verts, Hc = verts[order], rank[Hc[:H.size].reshape(H.shape)]
         by_first = np.argsort(Hc.min(axis=1), kind="stable")
         Hc = Hc[by_first]
-        energy = CornerEnergy(Hc, cell if np.ndim(cell) == 0 else np.asarray(cell, float)[by_first], len(verts))
+        P = V[H]
+        E = (P[:, HEX_CORNER_NEIGHBOURS] - P[:, :, None, :]) / per_hex
+        Dmin = float(det3(E.reshape(-1, 3, 3)).min())
+        # eps from the worst corner: large while inverted, small once untangled
+        eps = 1e-3 if Dmin > 0.05 else max(1e-3, float(np.sqrt(1e-6 + 0.01 * Dmin * Dmin)))
+        # a power mean only once no corner is inverted: while one is, the
+        # plain sum untangles (POWER)
+        energy = CornerEnergy(Hc, cell if np.ndim(cell) == 0 else np.asarray(cell, float)[by_first], len(verts),
+                              power if Dmin > 0 else 1.0)
         loc = np.full(len(V), -1, dtype=np.int64)
         loc[verts] = np.arange(len(verts))
         lids = [loc[ids] for ids, _ in groups]
@@ -419,11 +438,6 @@ def optimise(V: np.ndarray, H: np.ndarray, cell, motion: BoundaryMotion, anchor:
         Vs = V[verts]
         sizes = [ids.size * B.shape[2] for ids, B in groups]
         offs = np.r_[0, np.cumsum(sizes)]
-        P = V[H]
-        E = (P[:, HEX_CORNER_NEIGHBOURS] - P[:, :, None, :]) / per_hex
-        Dmin = float(det3(E.reshape(-1, 3, 3)).min())
-        # eps from the worst corner: large while inverted, small once untangled
-        eps = 1e-3 if Dmin > 0.05 else max(1e-3, float(np.sqrt(1e-6 + 0.01 * Dmin * Dmin)))
 
         def positions(x):
             W = Vs.copy()
@@ -613,25 +627,54 @@ def _smoothed(V: np.ndarray, H: np.ndarray, q: np.ndarray, on_curve: list, cell:
     # the ball at 233k cells the second spring then took 243 evaluations of
     # the energy, not 342, least and mean scaled Jacobian 0.415 / 0.980 as
     # before; bench/RESULTS.md)
-    W = V
-    for weight in (SPRING, 3 * SPRING, 10 * SPRING, 100 * SPRING):
+    def run(weight, start, power=1.0):
+        """optimise with this spring from `start` (None: V), or None where
+        it diverged (non-finite positions)."""
         try:
-            Wk = optimise(V, H[cells], cell if rel is None else hex_cell[cells], motion, anchor=spring,
-                          anchor_weight=weight, callback=callback, start=None if W is V else W)
+            W = optimise(V, H[cells], cell if rel is None else hex_cell[cells], motion, anchor=spring,
+                         anchor_weight=weight, callback=callback, start=start, power=power)
         except (ValueError, FloatingPointError, np.linalg.LinAlgError):
-            continue  # a run that diverged (non-finite positions): the next spring, or the map's own places
-        if not np.all(np.isfinite(Wk)):
-            continue
+            return None
+        return W if np.all(np.isfinite(W)) else None
+
+    def kept(W):
+        return moved(W) <= 0.9 * cell and float(scaled_jacobian(W, H).min()) >= best_min
+
+    W = V
+    springs = (SPRING, 3 * SPRING, 10 * SPRING, 100 * SPRING)
+    for k, weight in enumerate(springs):
+        Wk = run(weight, None if W is V else W)
+        if Wk is None:
+            continue  # the next spring, or the map's own places
         W = Wk
-        if moved(W) <= 0.9 * cell and float(scaled_jacobian(W, H).min()) >= best_min:
-            return W
+        if kept(W):
+            return _polished(W, H, lambda: run(springs[min(k + 1, len(springs) - 1)], W, POWER), kept)
     for a in (0.5, 0.25, 0.125):
         Wa = V + a * (W - V)
-        if moved(Wa) <= 0.9 * cell and float(scaled_jacobian(Wa, H).min()) >= best_min:
+        if kept(Wa):
             return Wa
-    if V is not V0 and moved(V) <= 0.9 * cell and float(scaled_jacobian(V, H).min()) >= best_min:
+    if V is not V0 and kept(V):
         return V  # the bends' vertices snapped, nothing else moved
     return V0
+
+
+def _polished(W: np.ndarray, H: np.ndarray, run, kept) -> np.ndarray:
+    """W, or the run of the power mean from it (``run()``, POWER) where that
+    keeps the curves within 0.9 of a cell (``kept``), raises the least
+    scaled Jacobian and lowers the mean by at most POLISH_MEAN.  The caller
+    runs it with a spring one step stiffer than the one W kept: the power
+    pushes the curves' vertices harder than the sum does (the ball's stored
+    field at 90,584 cells: with W's spring, 0.1, they went past 0.9 of a
+    cell; with 0.3 they stayed, least cell 0.51 -> 0.64).  One run, so that
+    its cost is bounded: at ~1M cells one run takes about as long as the
+    sum's own (140 s), and there the curves moved too far with 0.3 as well."""
+    if POWER == 1.0:
+        return W
+    Wp = run()
+    if Wp is None or not kept(Wp):
+        return W
+    sj, sjp = scaled_jacobian(W, H), scaled_jacobian(Wp, H)
+    return Wp if sjp.min() > sj.min() and sjp.mean() >= sj.mean() - POLISH_MEAN else W
 
 
 def surface_lost(V0: np.ndarray, W: np.ndarray, q: np.ndarray, S, tol: float, rings: int = 1) -> np.ndarray:
