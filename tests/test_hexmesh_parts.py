@@ -324,7 +324,7 @@ def test_the_corner_energy_in_blocks_is_the_sum_over_corners_with_its_gradient(m
             Vm[v, k] -= d
             em, _ = CornerEnergy(H, cell, len(V), power)(Vm, eps, with_grad=False)
             assert (ep - em) / (2 * d) == pytest.approx(g[v, k], rel=1e-4, abs=1e-7 * abs(g).max())
-    e, g = CornerEnergy(H, cell, len(V))(V, eps)  # the default: smoothing's power
+    e, g = CornerEnergy(H, cell, len(V))(V, eps)  # the default: the plain sum of f
     order = local_order(V)
     assert sorted(order) == list(range(len(V)))
     rank = np.empty_like(order)

@@ -81,8 +81,9 @@ ACTIVE_BELOW = 0.9
 """Smoothing moves the vertices of the cells whose scaled Jacobian is below
 this and ACTIVE_RINGS rings of cells around them; the rest of the mesh, a
 regular grid already, is held.  On the ball's field meshed at 90k cells the
-whole-mesh optimisation (of the plain sum) stalled at its iteration cap (min 0.43 after 64 s),
-while its 40k cells near the curves alone reach a min of 0.51 in 20 s: the
+whole-mesh optimisation (of the plain sum) stalled at its iteration cap
+(min 0.43 after 64 s), while its 40k cells near the curves alone reach a
+min of 0.51 in 20 s: the
 line search of one optimisation over every vertex is held back by its worst
 corners, and the held grid costs an evaluation's time for nothing."""
 ACTIVE_RINGS = 2
@@ -109,8 +110,9 @@ kept (``_polished``): it trades a little of the mean for the least cell
 SPRING = 0.1
 """Weight of the spring holding singular-curve vertices during smoothing
 (per cell of displacement, against the mean corner energy): under the
-plain sum, at 1.0 the ball's cells at its nodes kept a minimum scaled Jacobian of 0.54, at 0.1
-0.72, with the irregular edges still within a cell of their curves."""
+plain sum, at 1.0 the ball's cells at its nodes kept a minimum scaled
+Jacobian of 0.54, at 0.1 0.72, with the irregular edges still within a
+cell of their curves."""
 
 
 def foldover_free(J: np.ndarray, eps: float, lam: float = LAMBDA):
@@ -214,7 +216,7 @@ class CornerEnergy:
     contiguous vector) and scatters the gradient in one ``bincount`` per
     coordinate over the four vertices each corner touches."""
 
-    def __init__(self, H: np.ndarray, cell, n: int, power: float = POWER):
+    def __init__(self, H: np.ndarray, cell, n: int, power: float = 1.0):
         self.power = float(power)
         corner = H.reshape(-1)
         nb = H[:, HEX_CORNER_NEIGHBOURS]  # (m, 8, 3): the corner's three neighbours
