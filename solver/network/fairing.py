@@ -64,7 +64,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import spsolve
+from scipy.linalg import solve_banded
 from scipy.spatial import cKDTree
 
 from .curves import CurveGeometry
@@ -411,9 +411,18 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
     w = np.full(3 * n, 1e-8)  # the faintest pull: to the faired curve, then to the last round's
     geo = CurveGeometry(guide)
     mu = 1e-4
+    # each round solves (H + diag w) x = w target + plane_rhs for the free
+    # coordinates, the others held: only the diagonal changes, and H
+    # couples a point with those two places along at most, so the free
+    # block is banded (LAPACK's banded LU, not a sparse LU each round)
+    Hff = H[f3][:, f3].tocoo()
+    held = H[f3][:, ~f3] @ x[~f3]
+    lower, upper, ab = _band_storage(Hff)
+    main = ab[upper].copy()
     for _ in range(rounds):
-        A = (H + sp.diags(w)).tocsr()
-        x[f3] = spsolve(A[f3][:, f3].tocsc(), (w * target + plane_rhs)[f3] - A[f3][:, ~f3] @ x[~f3])
+        ab[upper] = main + w[f3]
+        x[f3] = solve_banded((lower, upper), ab, (w * target + plane_rhs)[f3] - held,
+                             overwrite_b=True, check_finite=False)
         X = x.reshape(n, 3)
         s, t, d = geo.closest(X)
         foot = geo.point(s, t)
@@ -432,3 +441,13 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
         w.reshape(n, 3)[out] = mu
         mu = min(2.0 * mu, PLANE)
     return x.reshape(n, 3)
+
+
+def _band_storage(M: sp.coo_matrix) -> tuple[int, int, np.ndarray]:
+    """(lower bandwidth, upper bandwidth, M in the band storage of
+    scipy.linalg.solve_banded: ab[upper + i - j, j] = M[i, j])."""
+    off = M.row - M.col
+    lower, upper = max(int(off.max(initial=0)), 0), max(int(-off.min(initial=0)), 0)
+    ab = np.zeros((lower + upper + 1, M.shape[1]))
+    np.add.at(ab, (upper + off, M.col), M.data)
+    return lower, upper, ab
