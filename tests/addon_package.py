@@ -25,9 +25,12 @@ def load_addon():
 
 
 @pytest.fixture(scope="module", autouse=True)
-def registered():
-    """The add-on registered for the test module that imports this fixture."""
+def registered(share_mesher_runs):
+    """The add-on registered for the test module that imports this fixture;
+    its copy of the solver shares the session's fTetWild runs
+    (tests/conftest.py)."""
     addon = load_addon()
+    share_mesher_runs(importlib.import_module(f"{PACKAGE}.solver.mesh.tetwild"))
     addon.register()
     yield
     addon.unregister()

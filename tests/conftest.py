@@ -262,22 +262,24 @@ def _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume):
             None if tetgen_volume is None else round(float(tetgen_volume), 15), mesher_name())
 
 
-@pytest.fixture(scope="session", autouse=True)
-def _shared_mesher_runs():
+def _share_mesher_runs(tetwild) -> None:
     """Each distinct fTetWild run once per test run: tests that mesh the
     same solid with the same curve tubes (the cylinder at the metre and at
     the micrometre: fTetWild gets both in a unit box) share its output, as
-    they share a solve above.  A run that can be cancelled is made afresh
-    (cancelling is what such a caller checks), and so is the fresh mesh
-    SymFrames asks for itself where a mesh left LM short of a solution
-    (pipeline._fresh_mesh: the shared run would hand back the mesh it
-    replaces); TetGen runs (mesh/cdt.py, which holds run_tetwild by its own
-    name) are not shared."""
+    they share a solve above.  ``tetwild`` is solver.mesh.tetwild, or the
+    add-on's copy of it (tests/addon_package.py: the add-on runs the solver
+    as the package ``symframes.solver``); a miss runs that module's own
+    run_tetwild, so its errors are its own classes.  A run that can be
+    cancelled is made afresh (cancelling is what such a caller checks),
+    and so is the fresh mesh SymFrames asks for itself where a mesh left LM
+    short of a solution (pipeline._fresh_mesh: the shared run would hand
+    back the mesh it replaces); TetGen runs (mesh/cdt.py, which holds
+    run_tetwild by its own name) are not shared."""
     import inspect
 
-    import solver.mesh.tetwild as tetwild
-
     run = tetwild.run_tetwild
+    if getattr(run, "unshared", None) is not None:
+        return
 
     def shared(V, F, edge_length, epsilon, cancel=None, simplify=True, tetgen_volume=None):
         if cancel is not None or any(f.function == "_fresh_mesh" for f in inspect.stack(0)):
@@ -287,9 +289,25 @@ def _shared_mesher_runs():
                                                          tetgen_volume=tetgen_volume))
         return P.copy(), T.copy()
 
+    shared.unshared = run
     tetwild.run_tetwild = shared
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _shared_mesher_runs():
+    """solver.mesh.tetwild's runs shared for the session (_share_mesher_runs)."""
+    import solver.mesh.tetwild as tetwild
+
+    _share_mesher_runs(tetwild)
     yield
-    tetwild.run_tetwild = run
+    tetwild.run_tetwild = tetwild.run_tetwild.unshared
+
+
+@pytest.fixture(scope="session")
+def share_mesher_runs():
+    """share_mesher_runs(tetwild module): another copy of solver.mesh.tetwild
+    (the add-on's) shares the session's fTetWild runs too."""
+    return _share_mesher_runs
 
 
 @pytest.fixture(scope="session")

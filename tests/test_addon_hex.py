@@ -122,11 +122,12 @@ def solve_and_hex(example: str, edge_length: float, path):
     """An example solved and hex meshed at the Coarse preset (in background
     mode's execute), saved to path; what the tests compare against.
 
-    Meshed afresh by Compute Field, not taken from conftest's session cache:
-    what is tested is the add-on's own solve and what it stores, and the
-    add-on runs the solver as the package ``symframes.solver``, whose classes
-    (Role, TetMesh, SolvedField) are not those of the ``solver`` package that
-    the cache's Results are made of."""
+    Solved by Compute Field, not taken from conftest's session cache of
+    solves: what is tested is the add-on's own solve and what it stores, and
+    the add-on runs the solver as the package ``symframes.solver``, whose
+    classes (Role, TetMesh, SolvedField) are not those of the ``solver``
+    package that the cache's Results are made of.  (fTetWild's output for
+    the same input is shared, as everywhere: tests/conftest.py.)"""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.symframes.add_example(example=example)
     s = scene().symframes

@@ -191,9 +191,9 @@ def test_straight_tubes_keep_the_prescribed_curvature(solved):
     """On straight curves the tube's reference field is a rotation about one
     axis, so tube_curvature leaves Omega_f = 2 pi sigma T (or 0) as the
     embedding prescribed it: the walk's orientation and the polar angle's
-    winding agree on every pierced face.  (The cylinder at h = 0.2 that
-    tests/test_examples.py solves; any resolution will do.)"""
-    p = solved("cylinder", edge_length=0.2).problem
+    winding agree on every pierced face.  (The session's default solve of
+    the cylinder; any resolution will do.)"""
+    p = solved("cylinder").problem
     faces = _all_tube_faces(p)
     pierced = faces[p.embedding.pierce_count[faces] > 0]
     assert len(faces) > 50 and len(pierced) > 10

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import Curve, FieldProblem, Network, Options, OptionsError, solve
+from solver import Curve, FieldProblem, Network, Options, OptionsError
 from solver.__main__ import EXIT_NOT_CONVERGED
 from solver.__main__ import main as cli_main
 from solver.analysis.measures import normal_adaptation, omega_singular_faces, tangent_adaptation
@@ -163,12 +163,28 @@ def test_bisection_is_conforming():
 
 @pytest.mark.slow
 @pytest.mark.mesher
-def test_short_curve_within_budget(monkeypatch):
+def test_short_curves_mesh_and_solve_within_budget(monkeypatch):
     """The cube-sphere network with an inner cube 0.1 across: node-to-node
-    curves 0.1 long, where the budget's bulk edge length is 0.27.  A uniform
-    mesh fine enough for them would hold ~1.7M tets; the mesh is graded and
-    stays within 1.5x the budget.  Meshing only; the next test solves the
-    same input, and shares these fTetWild runs (tests/conftest.py)."""
+    curves 0.1 long, shorter than the bulk edge length the budget allows
+    (0.27 for 6,000 tets).  A uniform mesh fine enough for them would hold
+    ~1.7M tets; the mesh is graded and stays within 1.5x the budget, and
+    the solve, with default options, resolves the network -- converged at
+    the discretisation level, the omega-matched singular faces exactly the
+    network's, the frames adapted to the surface and the curves.  Measured
+    here: 7.6k-8.7k tets (edges down to 0.047), 17-19 LM iterations,
+    penalty 3.9-4.6; at 8,000 tets 8.7k-10.5k tets, 16-31 iterations,
+    penalty 2.3-3.9 in twice the time (the penalty falls with the tet
+    count, not with the grading: docs/limitations.md, "Graded meshes
+    around very short curves").  A
+    radial curve grazing a mesh face once flipped that face's quarter turn
+    (penalty 4.5e3, 1 run in 3; test_embed).
+
+    Tangent adaptation: mean 0.15-0.30 deg, 95th percentile <= 0.55 deg, max
+    0.50-0.78 deg on most meshes; on about 1 in 8, a cube edge keeps a single
+    tube edge between its node regions (each 0.04 across, plus the ring of
+    tets around it), with its vertices one edge length (0.034-0.051) from
+    the curve, where the field is off by 3-6 deg (4 of ~200 vertices);
+    once, 36 deg at two such vertices."""
     import solver.mesh.meshing as meshing
 
     made, meshed_at = [], []  # the tet count of each mesh fTetWild made, and its edge length
@@ -185,6 +201,20 @@ def test_short_curve_within_budget(monkeypatch):
     V, F, net = ball_example(inner=0.05)  # meshed here: its own network, and the budget retries are the point
     budget = 6000
     problem = FieldProblem(V, F, net, Options(target_tets=budget))
+    monkeypatch.setattr(meshing, "_mesh_at", mesh_at)
+    _check_graded_within_budget(problem, budget, made, meshed_at)
+    r = solve_resolved(problem)
+    sizes = r.report.sizes
+    assert sizes["tets"] <= 1.5 * budget and sizes.get("graded_tets", 0) > 0, sizes
+    assert r.problem.plan.finest < 0.1 < r.problem.edge_length, (r.problem.plan.finest, r.problem.edge_length)
+    assert r.report.converged, r.report.status_reason
+    _check_short_curves_resolved(r)
+
+
+def _check_graded_within_budget(problem, budget, made, meshed_at):
+    """The graded mesh of test_short_curves_mesh_and_solve_within_budget:
+    within 1.5x the budget, the budget retries as the meshes fTetWild made
+    call for, the resolution floor said, finer near the network."""
     sizes = problem.report.sizes
     assert sizes["tets"] <= 1.5 * budget
     # fTetWild refines around the tubes of the short curves: at the planned
@@ -214,36 +244,9 @@ def test_short_curve_within_budget(monkeypatch):
     assert np.median(h[near]) < 0.5 * np.median(h[~near])
 
 
-@pytest.mark.slow
-@pytest.mark.mesher
-def test_short_curves_solve_within_budget():
-    """Node-to-node curves 0.1 long (the cube-sphere network with an inner
-    cube 0.1 across), shorter than the bulk edge length the budget allows
-    (0.27 for 6,000 tets): the graded mesh keeps the budget and the solve,
-    with default options, resolves the network -- converged at the
-    discretisation level, the omega-matched singular faces exactly the
-    network's, the frames adapted to the surface and the curves.  Measured
-    here: 7.6k-8.7k tets (edges down to 0.047), 17-19 LM iterations,
-    penalty 3.9-4.6; at 8,000 tets 8.7k-10.5k tets, 16-31 iterations,
-    penalty 2.3-3.9 in twice the time (the penalty falls with the tet
-    count, not with the grading: docs/limitations.md, "Graded meshes
-    around very short curves").  A
-    radial curve grazing a mesh face once flipped that face's quarter turn
-    (penalty 4.5e3, 1 run in 3; test_embed).
-
-    Tangent adaptation: mean 0.15-0.30 deg, 95th percentile <= 0.55 deg, max
-    0.50-0.78 deg on most meshes; on about 1 in 8, a cube edge keeps a single
-    tube edge between its node regions (each 0.04 across, plus the ring of
-    tets around it), with its vertices one edge length (0.034-0.051) from
-    the curve, where the field is off by 3-6 deg (4 of ~200 vertices);
-    once, 36 deg at two such vertices."""
-    V, F, net = ball_example(inner=0.05)  # its own network: meshed here
-    budget = 6000
-    r = solve(V, F, net, target_tets=budget)
-    sizes = r.report.sizes
-    assert sizes["tets"] <= 1.5 * budget and sizes.get("graded_tets", 0) > 0, sizes
-    assert r.problem.plan.finest < 0.1 < r.problem.edge_length, (r.problem.plan.finest, r.problem.edge_length)
-    assert r.report.converged, r.report.status_reason
+def _check_short_curves_resolved(r):
+    """The solve of test_short_curves_mesh_and_solve_within_budget resolves
+    its network (the docstring's figures)."""
     m = r.report.metrics
     # node regions carry no structure equation, so the frames developed
     # through them can meet the omega of an edge at their skin ~45 degrees
