@@ -66,8 +66,14 @@ def main(argv=None) -> int:
                "--no-loadscope-reorder", "--durations=0", "tests", *args.pytest_args]
         # as ./dev.sh test: one BLAS and one sparse-product thread per worker
         env = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "SYMFRAMES_THREADS": "1", **os.environ}
-        text = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env).stdout
-        wall = time.perf_counter() - t
+        run = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env)
+        text, wall = run.stdout, time.perf_counter() - t
+        if run.returncode != 0:
+            # a failed or erroring test: its name and the summary, nothing recorded
+            tail = [line for line in text.splitlines() if line.startswith(("FAILED", "ERROR"))]
+            print("\n".join(tail + text.strip().splitlines()[-1:]) or run.stderr[-2000:], file=sys.stderr)
+            print(f"pytest exited with {run.returncode}: the table is not recorded", file=sys.stderr)
+            return 1
     m = SUMMARY.search(text)
     if m:
         passed = int(m.group(1))
