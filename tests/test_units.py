@@ -28,8 +28,8 @@ def test_cylinder_at_micrometre_scale_solves():
     X = r.mesh.vertices
     # the boundary within the mesher's envelope of the surface (epsilon of
     # its diagonal): the 1,088-triangle surface, 4x denser than a 0.4-mesh
-    # of it, is simplified by fTetWild first (mesh/tetwild.py: wants_simplify),
-    # its chords inside the polygon's extreme vertices
+    # of it, goes to fTetWild as it is (sharp rims: mesh/tetwild.py,
+    # wants_simplify), and its mesh keeps the polygon's extreme vertices
     env = Options().epsilon * np.linalg.norm(np.ptp(V, axis=0)) * s
     assert np.allclose(X.min(axis=0), V.min(axis=0) * s, atol=env)
     assert np.allclose(X.max(axis=0), V.max(axis=0) * s, atol=env)

@@ -33,10 +33,13 @@ from ..errors import MeshingError
 from ..surface.trisurface import TriSurface
 from .resolution import TETS_PER_H3
 from .tetmesh import TetMesh
-from .tetwild import SIMPLIFY_DENSITY, _normalisation, run_tetwild
+from .tetwild import _normalisation, run_tetwild
 
 # the budget's density, which a volume bound of 2 h^3 / 15 gives (mean volume ~ half the bound)
 VOLUME_BOUND = 2.0 / TETS_PER_H3
+# 'auto' takes TetGen only for a surface with at most this many times the
+# triangles of an h-mesh of it (wants_tetgen)
+TETGEN_DENSITY = 3.0
 
 
 def tetgen_available() -> bool:
@@ -87,8 +90,8 @@ def _carve_cavities(surface: TriSurface, P: np.ndarray, T: np.ndarray) -> tuple[
 
 def wants_tetgen(surface: TriSurface, edge_length: float, singular_curves: bool = False) -> bool:
     """Whether Options.mesher 'auto' takes TetGen: it is installed, the
-    network has no singular curves, and the surface is no denser than
-    SIMPLIFY_DENSITY times an h-mesh of it.
+    network has no singular curves, and the surface has no more than
+    TETGEN_DENSITY times the triangles of an h-mesh of it.
 
     * Singular curves: fTetWild meshes the curve tubes (tubes.py) into rings
       of vertices around each curve, across whose edges the field turns by
@@ -98,8 +101,8 @@ def wants_tetgen(surface: TriSurface, edge_length: float, singular_curves: bool 
       ball 79% of the pierced faces were singular, against > 85% required
       by tests/test_examples.py (omega-matched: all of them, 0 spurious).
     * Density: TetGen keeps every input vertex, so a dense scan would mesh
-      far past the tet budget; fTetWild simplifies it first."""
+      far past the tet budget; fTetWild's mesh need not keep them."""
     if singular_curves or not tetgen_available():
         return False
     per_h_mesh = float(surface.face_areas.sum()) / (np.sqrt(3.0) / 4.0 * edge_length**2)
-    return len(surface.F) <= SIMPLIFY_DENSITY * max(per_h_mesh, 1.0)
+    return len(surface.F) <= TETGEN_DENSITY * max(per_h_mesh, 1.0)

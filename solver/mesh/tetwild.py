@@ -60,7 +60,7 @@ def tetrahedralize_repaired(
     # instead, so the result does not depend on the units.
     centre, unit = _normalisation(surface)
     P, T = run_tetwild((V - centre) / unit, F, edge_length / unit, epsilon, cancel=cancel,
-                       simplify=wants_simplify(surface, edge_length, sharp))
+                       simplify=wants_simplify(sharp))
     P = np.asarray(P, float) * unit + centre
     if len(T) == 0:
         raise MeshingError("fTetWild produced no tetrahedra; check that the surface encloses a volume")
@@ -93,28 +93,20 @@ def _normalisation(surface: TriSurface) -> tuple[np.ndarray, float]:
 # more (docs/performance.md, *fTetWild's optimisation passes*).
 TETWILD_PASSES = 10
 
-# fTetWild first simplifies its input inside the envelope.  On inputs no
-# denser than the mesh that costs more than it saves, with the same LM
-# iterations and metrics.  An input denser than the mesh still needs it to
-# come down to the target edge length, or fTetWild keeps its small
-# triangles and the tet count grows past the budget: simplify when the
-# surface has over SIMPLIFY_DENSITY times the triangles an h-mesh of it has
-# (the cylinder at the default h = 0.18 is 3.5x denser, and still
-# simplified).  Only where the surface has sharp features (CAD parts, where
-# meshing dominated): the smooth torus meshed unsimplified left LM at its
-# cap on 2 of 3 meshes (docs/performance.md, *Meshing*: fTetWild's input simplification).
-SIMPLIFY_DENSITY = 3.0
-
-
-def wants_simplify(surface: TriSurface, edge_length: float, sharp: bool = False) -> bool:
-    """Whether fTetWild should simplify this surface before meshing at
-    edge_length: always for a smooth surface, and for one with sharp
-    features when it has over SIMPLIFY_DENSITY times the triangles of an
-    h-mesh of it."""
-    if not sharp:
-        return True
-    per_h_mesh = float(surface.face_areas.sum()) / (np.sqrt(3.0) / 4.0 * edge_length**2)
-    return len(surface.F) > SIMPLIFY_DENSITY * max(per_h_mesh, 1.0)
+# fTetWild first simplifies its input inside the envelope.  A smooth surface
+# needs it: the smooth torus meshed unsimplified left LM at its cap on 2 of 3
+# meshes, and the ball's 1,280 triangles at h = 0.27 made 17 % more tets.  A
+# surface with sharp features (CAD parts, where meshing dominates) does not:
+# unsimplified, fTetWild meshed the cylinder example and six sharp hex-mesh
+# boundaries 1.4-4.5x faster, with between 18 % fewer and 20 % more tets, and
+# every solve converged, also where the surface had up to 14x the triangles of
+# an h-mesh (bench/bench_simplify.py; docs/performance.md, *Meshing*: fTetWild's
+# input simplification).  A surface far denser than its mesh is clustered
+# first (decimate.py).
+def wants_simplify(sharp: bool) -> bool:
+    """Whether fTetWild simplifies its input before meshing: only where the
+    surface has no sharp features (the comment above)."""
+    return not sharp
 
 
 # The fTetWild bindings the worker runs: pytetwild (wheels for Linux x64 and
