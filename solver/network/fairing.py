@@ -413,8 +413,9 @@ def _least_bending(Q: np.ndarray, fixed: np.ndarray, ends: list, guide: np.ndarr
     mu = 1e-4
     # each round solves (H + diag w) x = w target + plane_rhs for the free
     # coordinates, the others held: only the diagonal changes, and H
-    # couples a point with those two places along at most, so the free
-    # block is banded (LAPACK's banded LU, not a sparse LU each round)
+    # couples each point only with those up to two places along the curve,
+    # so the free block is banded (LAPACK's banded LU, not a sparse LU each
+    # round)
     Hff = H[f3][:, f3].tocoo()
     held = H[f3][:, ~f3] @ x[~f3]
     lower, upper, ab = _band_storage(Hff)
