@@ -249,10 +249,7 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     import solver.field.constraints as constraints
     import solver.mesh.meshing as meshing
     import solver.mesh.resolution as resolution
-    from solver import Curve, FieldProblem, Network, Options
-    from solver.examples import ball_example
-    from solver.field.constraints import FREE, TUBE, _tube_edges
-    from solver.field.structure import StructureEquation
+    from solver import Options
 
     needs = resolution.network_needs
 
@@ -273,19 +270,46 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     # leaves the per-vertex measure nothing to get wrong here)
     monkeypatch.setattr(constraints, "END_FREE", 0.0)
     monkeypatch.setattr(meshing, "clear_curves", lambda mesh, curves, skip=None: (mesh, 0))
-    V, F, net = ball_example()
-    S = np.array([2.0, 1.0, 0.6])
-    net = Network(curves=[Curve(c.points * S, sigma=c.sigma, name=c.name) for c in net.curves])
     # the budget held and graded at 0.5, as the meshes this was seen on (the
     # default now spends more tets on this network and grades more gently,
     # which leaves only a few faces for the per-vertex measure to get wrong).
-    # TetGen's graded mesh, the same every run: on fTetWild's meshes the
-    # per-vertex measure gets 4-16 faces wrong and the settling leaves 0-4
-    # (13 runs), but on one mesh of a CI run it left all 12 of 12
-    p = FieldProblem(V * S, F, net, Options(target_tets=15000, grading=0.5, mesher="TetGen"))
+    # TetGen's graded meshes: the same every run on one machine, but which
+    # faces the per-vertex measure gets wrong turns on the last bits of the
+    # input (x86_64 machines of two makes: 8 and 0 on the first mesh here,
+    # 0-17 over these).  So meshes are made until 6 faces have been wrong.
+    # On fTetWild's meshes the per-vertex measure gets 4-16 faces wrong and
+    # the settling leaves 0-4 (13 runs), but on one mesh of a CI run it left
+    # all 12 of 12: TetGen's meshes are the ones this measures
+    variants = (((2.0, 1.0, 0.6), 15000, 0.5), ((2.0, 1.0, 0.6), 20000, 0.5), ((2.0, 1.1, 0.6), 15000, 0.5),
+                ((2.0, 1.0, 0.6), 15000, 0.4), ((2.2, 1.0, 0.5), 15000, 0.5))
+    before = after = 0
+    for scale, target, grading in variants:
+        b, a = _tube_windings_per_vertex_and_settled(np.array(scale), Options(target_tets=target, grading=grading,
+                                                                               mesher="TetGen"))
+        print(f"{scale} {target} tets graded {grading}: wrong per vertex {b}, settled {a}")
+        assert a <= b, (scale, b, a)
+        before, after = before + b, after + a
+        if before >= 6:
+            break
+    # the settling must cut the faces the per-vertex measure gets wrong (8 -> 3, 17 -> 6, 14 -> 0 here)
+    assert before >= 6 and after <= 0.5 * before, (before, after)
+
+
+def _tube_windings_per_vertex_and_settled(S, options) -> tuple[int, int]:
+    """The tube faces the per-vertex winding gets wrong, and the settled one,
+    on the cube-sphere network stretched by S (test above)."""
+    from solver import Curve, FieldProblem, Network
+    from solver.examples import ball_example
+    from solver.field.constraints import FREE, TUBE, _tube_edges
+    from solver.field.structure import StructureEquation
+
+    V, F, net = ball_example()
+    net = Network(curves=[Curve(c.points * S, sigma=c.sigma, name=c.name) for c in net.curves])
+    p = FieldProblem(V * S, F, net, options)
     assert p.report.sizes.get("graded_tets", 0) > 0
     mesh, emb, cons = p.mesh, p.embedding, p.constraints
     faces = _all_tube_faces(p)
+    assert len(faces) > 300
     se = StructureEquation(mesh.face_edges[faces], mesh.corner_weights[faces], emb.face_omega[faces], mesh.n_edges)
 
     def wrong(ref):
@@ -298,11 +322,7 @@ def test_tube_reference_winds_as_the_curve_pierces(monkeypatch):
     sigma = np.array([c.sigma for c in p.network.curves])[curve[tube]]
     per_vertex = np.zeros((mesh.n_edges, 3))
     per_vertex[tube] = omega0[tube] + (sigma * theta[tube])[:, None] * T[tube]
-    before, after = wrong(per_vertex), wrong(cons.tube_reference)
-    assert len(faces) > 300
-    print(f"tube faces {len(faces)}: wrong per vertex {before}, settled {after}")
-    # the settling must cut the faces the per-vertex measure gets wrong (8 -> 3 here)
-    assert before >= 6 and after <= 0.5 * before, (before, after)
+    return wrong(per_vertex), wrong(cons.tube_reference)
 
 
 @pytest.mark.slow
