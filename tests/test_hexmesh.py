@@ -11,7 +11,7 @@ bounds have a margin over what the meshes here score.
 import numpy as np
 import pytest
 
-from solver import OptionsError
+from solver import OptionsError, solve_finer
 from solver.hexmesh import HexMeshError, default_cell_size, hexmesh
 from solver.hexmesh.quality import scaled_jacobian
 from testkit.fields import with_curve
@@ -31,7 +31,21 @@ def hex_of(solved, example: str, size: str):
         cell = None
         if SIZES[size] is not None:
             cell = default_cell_size(res.field, SIZES[size])
-        _CACHE[key] = (res, hexmesh(res, cell))
+        try:
+            hm = hexmesh(res, cell)
+        except HexMeshError as e:
+            # a tet-edge network's nodes may sit three of the field's edges
+            # apart (the ball's inner cube, 0.48 at h 0.16), where the balls
+            # of tets the map needs around them may overlap (on 3 of 8
+            # meshes of one draw, never on the drawn ball's): a limit of the
+            # field's mesh that `--hex` and the add-on meet by solving the
+            # field again finer, as here
+            if not (example.endswith(":tet-edge") and e.kind == "map" and e.finer):
+                raise
+            res, what = solve_finer(res)
+            assert res is not None and res.report.converged, what
+            hm = hexmesh(res, cell)
+        _CACHE[key] = (res, hm)
     return _CACHE[key]
 
 
