@@ -87,12 +87,25 @@ def main(argv=None) -> int:
     if args.write:
         with open(os.path.join(ROOT, "bench", "SUITE.md"), "w") as fh:
             fh.write("# The test suite's time per file\n\n"
-                     f"`python bench/suite_durations.py --write` on {platform.machine()}, "
+                     f"`python bench/suite_durations.py --write` on {platform.machine()} ({_cpu()}), "
                      f"{os.cpu_count()} cores, `pytest -n 2 --dist loadfile --no-loadscope-reorder` "
                      "(the heaviest files first) as `./dev.sh test` runs it. "
                      "A file's seconds add up its tests' setup, call and teardown; a shared session "
                      "fixture counts for the first file that asks for it.\n\n" + body)
     return 0
+
+
+def _cpu() -> str:
+    """The processor's model name (the suite's seconds vary with it: the
+    same commit took 400 s and 300 s of wall time on two 2-core machines)."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "processor unknown"
 
 
 if __name__ == "__main__":
