@@ -307,7 +307,9 @@ def test_lm_stops_within_its_tolerance_of_the_minimiser(cylinder_problem):
         return np.linalg.norm(vp.P @ dx) / np.linalg.norm(vp.omega(x))
 
     assert newton_step(np.zeros_like(x)) > 0.5
-    assert newton_step(x) <= 1e-7
+    # within the step tolerance LM promises (1e-6 of omega; 3.1e-7 measured
+    # on one of fTetWild's meshes, far less on most)
+    assert newton_step(x) <= 1e-6
     x2, rep2 = vp.solve(x)
     assert rep2.converged and rep2.n_iterations <= 2, rep2.reason
     # the restart's own step is below the tolerance too (5e-9 of omega
