@@ -114,8 +114,13 @@ def test_the_hex_mesher_export_has_its_singular_edges_on_the_curves(solved, tmp_
         r = P - a
         return np.linalg.norm(r - np.outer(r @ d, d), axis=1)
 
-    D = np.min([dist(mid, a, b) for a, b in axes], axis=0)
-    assert D.max() < 1e-9 * res.mesh.mean_edge_length + 1e-12
+    D = np.min([dist(mid, a, b) for a, b in axes], axis=0) / res.mesh.mean_edge_length
+    # on them up to round-off, but curve_edges.py may move a chain off its
+    # curve by a fraction of an edge (a pierce point clamped to LAMBDA_MIN
+    # from its face's edges, a vertex within VERTEX_ROUTE taken into it):
+    # 1.4e-3 of the mean edge length on one mesh of about ten; a staircase
+    # around a curve would be about half an edge length off
+    assert np.mean(D < 1e-9) >= 0.9 and D.max() < 0.05, (np.mean(D < 1e-9), D.max())
     # and along them: each edge is parallel to its curve
     d = ends[:, 1] - ends[:, 0]
     d /= np.linalg.norm(d, axis=1, keepdims=True)
