@@ -262,6 +262,9 @@ def _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume):
             None if tetgen_volume is None else round(float(tetgen_volume), 15), mesher_name())
 
 
+FRESH_RUNS = ("_fresh_mesh", "_remesh")  # solver.pipeline's functions that ask for a new mesh of the same input
+
+
 def _share_mesher_runs(tetwild) -> None:
     """Each distinct fTetWild run once per test run: tests that mesh the
     same solid with the same curve tubes (the cylinder at the metre and at
@@ -273,7 +276,8 @@ def _share_mesher_runs(tetwild) -> None:
     cancelled is made afresh (cancelling is what such a caller checks),
     and so is the fresh mesh SymFrames asks for itself where a mesh left LM
     short of a solution (pipeline._fresh_mesh: the shared run would hand
-    back the mesh it replaces); TetGen runs (mesh/cdt.py, which holds
+    back the mesh it replaces, and FieldProblem's second mesh where its first
+    one's surface folded: FRESH_RUNS); TetGen runs (mesh/cdt.py, which holds
     run_tetwild by its own name) are not shared."""
     import inspect
 
@@ -282,7 +286,7 @@ def _share_mesher_runs(tetwild) -> None:
         return
 
     def shared(V, F, edge_length, epsilon, cancel=None, simplify=True, tetgen_volume=None):
-        if cancel is not None or any(f.function == "_fresh_mesh" for f in inspect.stack(0)):
+        if cancel is not None or any(f.function in FRESH_RUNS for f in inspect.stack(0)):
             return run(V, F, edge_length, epsilon, cancel=cancel, simplify=simplify, tetgen_volume=tetgen_volume)
         key = _tetwild_key(V, F, edge_length, epsilon, simplify, tetgen_volume)
         P, T = _SESSION._get("mesher", key, lambda: run(V, F, edge_length, epsilon, simplify=simplify,

@@ -140,6 +140,11 @@ def check_carried(mesh: TetMesh, embedding: Embedding, network: PreparedNetwork,
         f"singular curves that let the field turn (curves refused: {', '.join(label(j) for j, *_ in bad)})")
 
 
+class FoldedLiftError(MeshingError):
+    """The boundary field does not lift to 3D on some boundary triangles of
+    the tet mesh (check_lift): its surface is folded there."""
+
+
 def check_lift(mesh: TetMesh, bf: BoundaryField, edge_length: float) -> None:
     """Refuse boundary data the volume solve cannot satisfy: triangles where
     the 3D lift of the boundary field turns by a spurious quarter turn
@@ -148,7 +153,7 @@ def check_lift(mesh: TetMesh, bf: BoundaryField, edge_length: float) -> None:
 
     Raises
     ------
-    MeshingError
+    FoldedLiftError
         With the number of such triangles and where the worst one is.
     """
     B = mesh.boundary
@@ -156,7 +161,7 @@ def check_lift(mesh: TetMesh, bf: BoundaryField, edge_length: float) -> None:
     bad = np.nonzero(d > np.pi / 4)[0]
     if len(bad):
         c = B.V[B.F[bad[np.argmax(d[bad])]]].mean(axis=0)
-        raise MeshingError(
+        raise FoldedLiftError(
             f"the boundary cross field could not be lifted to 3D on {len(bad)} boundary triangle(s) near "
             f"({c[0]:.4g}, {c[1]:.4g}, {c[2]:.4g}): the tet mesh's surface is probably folded there (a "
             f"curve tube or feature close to the surface). Try another edge length (now {edge_length:.4g})")
