@@ -824,35 +824,38 @@ def _mesh_embed_lift(checked: CheckedInput, plan, opts: Options, st: Stages, mes
     with a cavity and curves near its inner surface, 1 test run in 7) is
     made once more, said in the report's notes: fTetWild is not
     deterministic, and another run of the same input lifts."""
-    made_here = mesh is None
-    for attempt in range(2 if made_here else 1):
-        if made_here:
-            st.say("tetmesh", f"tetmesh: {plan.describe()}" + (" (again: the first mesh's surface folded)"
-                                                               if attempt else ""))
-            mesh = st.run("tetmesh", _remesh if attempt else mesh_domain, checked, plan, opts.mesh_settings(plan),
-                          cancel, lambda msg: st.say("tetmesh", msg))
-        elif isinstance(mesh, TetMesh):
-            # made elsewhere: meant for the planned edge length, its making unknown
-            mesh = MeshOutcome(mesh, plan.edge_length)
-        node_r = node_radius(checked.network, mesh.h, opts.node_radius)
-        emb = st.run("embed", embed_network, mesh.mesh, checked.network, node_r)
-        try:
-            return mesh, emb, st.run("boundary2d", meshed_boundary_field, mesh.mesh, emb, checked.network,
-                                     checked.features, mesh.h)
-        except FoldedLiftError as e:
-            if not made_here:
-                raise
-            if attempt:
-                raise FoldedLiftError(f"{e}; a second mesh of the same input folded too") from None
-            report.notes.append(f"the first tet mesh ({mesh.mesh.n_tets:,} tets) was made again: {e}")
-    raise AssertionError("unreachable")
+
+    def made(mesher, say):
+        st.say("tetmesh", say)
+        return st.run("tetmesh", mesher, checked, plan, opts.mesh_settings(plan), cancel,
+                      lambda msg: st.say("tetmesh", msg))
+
+    def embedded_lifted(m: MeshOutcome):
+        emb = st.run("embed", embed_network, m.mesh, checked.network, node_radius(checked.network, m.h,
+                                                                                   opts.node_radius))
+        return m, emb, st.run("boundary2d", meshed_boundary_field, m.mesh, emb, checked.network, checked.features,
+                              m.h)
+
+    if mesh is not None:
+        # made elsewhere (a TetMesh: meant for the planned edge length, its making unknown)
+        return embedded_lifted(MeshOutcome(mesh, plan.edge_length) if isinstance(mesh, TetMesh) else mesh)
+    mesh = made(mesh_domain, f"tetmesh: {plan.describe()}")
+    try:
+        return embedded_lifted(mesh)
+    except FoldedLiftError as e:
+        report.notes.append(f"the first tet mesh ({mesh.mesh.n_tets:,} tets) was made again: {e}")
+    mesh = made(_remesh, f"tetmesh: {plan.describe()} (again: the first mesh's surface folded)")
+    try:
+        return embedded_lifted(mesh)
+    except FoldedLiftError as e:
+        raise FoldedLiftError(f"{e}; a second mesh of the same input folded too") from None
 
 
 def _remesh(*args) -> MeshOutcome:
     """mesh_domain once more: a new mesh of the same input, for a first
-    mesh that could not be used (FieldProblem._mesh_embed_lift).  The test
-    session, which shares each distinct mesher run, makes the runs under
-    this and _fresh_mesh afresh (tests/conftest.py)."""
+    mesh that could not be used (_mesh_embed_lift).  The test session,
+    which shares each distinct mesher run, makes the runs under this and
+    _fresh_mesh afresh (tests/conftest.py)."""
     return mesh_domain(*args)
 
 
